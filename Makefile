@@ -1,0 +1,14 @@
+# The two commands a newcomer needs: `make demo` and `make test`. Both install what they need first (`make deps`).
+SHELL := /bin/bash
+CARGO ?= cargo
+
+.PHONY: deps demo test fmt-check clippy unit-tests embedded-builds
+
+deps:
+	@bash scripts/deps.sh
+
+demo: deps
+	$(CARGO) run --release -p radiosity-host --bin radiosity -- demo
+
+test: deps
+	@bash scripts/test.sh

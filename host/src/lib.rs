@@ -1,0 +1,1 @@
+//! `radiosity-host`: the workstation side of the radiosity toolkit.

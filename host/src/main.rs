@@ -1,0 +1,3 @@
+//! The `radiosity` command-line tool.
+
+fn main() {}
