@@ -1,1 +1,6 @@
 //! `radiosity-host`: the workstation side of the radiosity toolkit.
+//!
+//! Scene loading, meshing into patches, form factors with Embree occlusion rays, the f64 reference solve, table
+//! writing, checks and reports. The physics conventions are those of `radiosity-core`.
+
+pub mod patch;
