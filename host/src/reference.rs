@@ -257,10 +257,13 @@ impl<'a> RadiositySystem<'a> {
             });
         }
         let mut contraction = [0.0f64; 3];
-        for row in 0..n {
+        for (row, rho_row) in rho.iter().enumerate() {
             let (start, end) = (ff.row_start[row], ff.row_start[row + 1]);
             if start > end {
                 return Err(ReferenceError::MalformedMatrix { row, reason: "row start decreases" });
+            }
+            if end > ff.col.len() {
+                return Err(ReferenceError::MalformedMatrix { row, reason: "row ends past the entries" });
             }
             let mut previous: Option<usize> = None;
             let mut sum = 0.0;
@@ -285,17 +288,12 @@ impl<'a> RadiositySystem<'a> {
             if sum > 1.0 + row_sum_tolerance {
                 return Err(ReferenceError::RowSumTooLarge { row, sum, tolerance: row_sum_tolerance });
             }
-            for channel in 0..3 {
-                let q = rho[row][channel] * sum;
+            for (channel, (&r, q_max)) in rho_row.iter().zip(&mut contraction).enumerate() {
+                let q = r * sum;
                 if q >= 1.0 {
-                    return Err(ReferenceError::NotContractive {
-                        patch: row,
-                        channel,
-                        rho: rho[row][channel],
-                        row_sum: sum,
-                    });
+                    return Err(ReferenceError::NotContractive { patch: row, channel, rho: r, row_sum: sum });
                 }
-                contraction[channel] = contraction[channel].max(q);
+                *q_max = q_max.max(q);
             }
         }
         Ok(Self { rho, ff, contraction })
