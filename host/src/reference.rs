@@ -166,6 +166,16 @@ pub enum ReferenceError {
         /// Number of dynamic groups.
         group_count: usize,
     },
+    /// A light group's intensity is NaN or infinite.
+    #[error("intensity of light group {group}, channel {channel} is not finite ({value})")]
+    NonFiniteIntensity {
+        /// Light group index.
+        group: usize,
+        /// Channel (0 = R, 1 = G, 2 = B).
+        channel: usize,
+        /// The offending value.
+        value: f64,
+    },
     /// A patch has unit emission but belongs to no dynamic light group, so its light would be lost.
     #[error("patch {patch} has unit emission but is in no dynamic light group")]
     UngroupedEmission {
@@ -719,12 +729,7 @@ impl TransferVectors {
         for (group, v) in intensity.iter().enumerate() {
             for (channel, &value) in v.iter().enumerate() {
                 if !value.is_finite() {
-                    return Err(ReferenceError::NonFinite {
-                        what: "intensity of group",
-                        patch: group,
-                        channel,
-                        value,
-                    });
+                    return Err(ReferenceError::NonFiniteIntensity { group, channel, value });
                 }
             }
         }

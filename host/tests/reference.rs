@@ -574,8 +574,8 @@ fn bad_inputs_are_refused_with_clear_errors() {
     let tv = transfer_vectors(system, &lights, &Method::default()).unwrap();
     assert!(matches!(tv.relight(&[]).unwrap_err(), ReferenceError::LengthMismatch { what: "intensity", .. }));
     assert!(matches!(
-        tv.relight(&[[f64::INFINITY, 0.0, 0.0]]).unwrap_err(),
-        ReferenceError::NonFinite { .. }
+        tv.relight(&[[0.0, f64::INFINITY, 0.0]]).unwrap_err(),
+        ReferenceError::NonFiniteIntensity { group: 0, channel: 1, .. }
     ));
 }
 
