@@ -694,3 +694,18 @@ fn metrics_refuse_bad_input_and_serialize() {
     let text = report.to_string();
     assert!(text.contains("relative L2") && text.contains("(patch 1, floor"), "{text}");
 }
+
+#[test]
+fn empty_system_solves_to_nothing() {
+    let ff = FormFactorMatrix { n: 0, row_start: vec![0], col: vec![], value: vec![] };
+    let system = RadiositySystem::new(&[], &ff).unwrap();
+    assert!(system.is_empty());
+    assert_eq!(DenseLu::factor(system).unwrap().solve(&[]).unwrap().b, Vec::<[f64; 3]>::new());
+    let gs = gauss_seidel(&system, &[], &GaussSeidelOptions::default()).unwrap();
+    assert_eq!((gs.b.len(), gs.sweeps, gs.residual), (0, 0, [0.0; 3]));
+    // The default (empty) matrix has no row starts at all: an error, not a panic.
+    assert!(matches!(
+        RadiositySystem::new(&[], &FormFactorMatrix::default()).unwrap_err(),
+        ReferenceError::LengthMismatch { what: "form-factor row starts", expected: 1, found: 0 }
+    ));
+}
