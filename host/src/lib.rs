@@ -4,3 +4,4 @@
 //! writing, checks and reports. The physics conventions are those of `radiosity-core`.
 
 pub mod patch;
+pub mod scene;
