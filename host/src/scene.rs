@@ -761,7 +761,7 @@ fn build_face(
     }
     let nv = newell(&vertices);
     let area_estimate = 0.5 * nv.length();
-    if !(area_estimate > DEGENERATE_TOLERANCE * d * d) {
+    if area_estimate.is_nan() || area_estimate <= DEGENERATE_TOLERANCE * d * d {
         return Err(degenerate(format!("zero area (vertices are collinear; diameter {d})")));
     }
     let normal = nv / nv.length();
