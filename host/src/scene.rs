@@ -605,12 +605,21 @@ fn scan_mtl(
                 );
                 current = Some(name);
             }
-            Some(key @ ("Kd" | "Ke")) => {
+            // tobj panics on a colour with fewer than three numbers and ignores extra ones: check them here.
+            Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) => {
+                let values: Vec<&str> = trimmed.split_whitespace().skip(1).collect();
+                if values.len() != 3 || values.iter().any(|v| v.parse::<f64>().is_err()) {
+                    return Err(SceneError::Parse {
+                        file: path.to_path_buf(),
+                        line: line_no,
+                        problem: format!("{key} needs exactly three numbers, got {:?}", values.join(" ")),
+                    });
+                }
                 if let Some(src) = current.as_ref().and_then(|n| sources.get_mut(n)) {
-                    if key == "Kd" {
-                        src.kd_line = Some(line_no);
-                    } else {
-                        src.ke_line = Some(line_no);
+                    match key {
+                        "Kd" => src.kd_line = Some(line_no),
+                        "Ke" => src.ke_line = Some(line_no),
+                        _ => {}
                     }
                 }
             }
