@@ -158,7 +158,8 @@ pub fn mesh(scene: &Scene, options: &MeshOptions) -> Result<Mesh, MeshError> {
         if l0.is_nan() || l0 <= 0.0 {
             return Err(MeshError::BadMaxEdge(l0));
         }
-        let count = |l: f64| polygons.iter().map(|(_, _, p)| piece_count(p, l)).sum::<usize>();
+        let count =
+            |l: f64| polygons.iter().map(|(_, _, p)| piece_count(p, l)).fold(0, usize::saturating_add);
         if count(l0) <= options.patch_budget {
             l0
         } else {
@@ -211,12 +212,16 @@ fn piece_count(p: &Polygon, limit: f64) -> usize {
         return 1;
     }
     match v.len() {
-        3 => divisions(p.max_edge(), limit).pow(2),
+        // Saturating: a tiny limit must not overflow the count (it only has to exceed the budget).
+        3 => divisions(p.max_edge(), limit).saturating_pow(2),
         4 => {
             let (nu, nv) = quad_divisions(v, limit);
-            nu * nv
+            nu.saturating_mul(nv)
         }
-        _ => centroid_quads(p).iter().map(|q| q.as_ref().map_or(1, |q| piece_count(q, limit))).sum(),
+        _ => centroid_quads(p)
+            .iter()
+            .map(|q| q.as_ref().map_or(1, |q| piece_count(q, limit)))
+            .fold(0, usize::saturating_add),
     }
 }
 

@@ -141,6 +141,10 @@ fn the_budget_raises_the_edge_limit_or_fails() {
     let e = mesh(&s, &MeshOptions { patch_budget: 19, ..opts }).unwrap_err();
     assert_eq!(e, MeshError::BudgetTooSmall { budget: 19, needed: 20, faces: 19 });
     assert!(e.to_string().contains("patch budget 19 cannot hold one patch per face"), "{e}");
+    // An absurdly small limit only means "as fine as the budget allows": the count saturates, nothing overflows.
+    let tiny = mesh(&s, &MeshOptions { max_patch_edge: 1e-300, patch_budget: 100, ..opts }).unwrap();
+    assert!(tiny.patches.len() <= 100 && tiny.patches.len() >= 20);
+    check_mesh(&s, &tiny.patches, tiny.max_patch_edge);
     let e = mesh(&s, &MeshOptions { max_patch_edge: 0.0, ..opts }).unwrap_err();
     assert!(matches!(e, MeshError::BadMaxEdge(_)), "{e}");
     assert!(mesh(&s, &MeshOptions { max_patch_edge: f64::NAN, ..opts }).is_err());
