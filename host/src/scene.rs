@@ -516,10 +516,6 @@ fn first_failing_line(text: &str, fails: impl Fn(&str) -> bool) -> usize {
     lo
 }
 
-fn describe(e: &tobj::LoadError) -> String {
-    e.to_string()
-}
-
 fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneError> {
     let dir = obj_path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mtl_error: RefCell<Option<SceneError>> = RefCell::new(None);
@@ -531,7 +527,7 @@ fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneError> {
             tobj::load_mtl_buf(&mut mtl.as_bytes()).map_err(|e| SceneError::Parse {
                 file: path.clone(),
                 line: first_failing_line(&mtl, |s| tobj::load_mtl_buf(&mut s.as_bytes()).is_err()),
-                problem: describe(&e),
+                problem: e.to_string(),
             })
         });
         result.map_err(|e| {
@@ -552,7 +548,7 @@ fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneError> {
             tobj::load_obj_buf(&mut s.as_bytes(), &load_options(), |_| Err(tobj::LoadError::OpenFileFailed))
                 .is_err()
         }),
-        problem: describe(&e),
+        problem: e.to_string(),
     })?;
     // No MTL file loaded at all gives an error here; faces then fail as missing materials, which names them.
     let materials = materials.unwrap_or_default();
@@ -929,7 +925,7 @@ fn overlap_area(a: &Polygon, b: &Polygon) -> f64 {
 }
 
 /// Clips polygon `subject` by the convex counter-clockwise polygon `clip`.
-pub(crate) fn clip_convex(mut subject: Vec<glam::DVec2>, clip: &[glam::DVec2]) -> Vec<glam::DVec2> {
+fn clip_convex(mut subject: Vec<glam::DVec2>, clip: &[glam::DVec2]) -> Vec<glam::DVec2> {
     for i in 0..clip.len() {
         let (p, q) = (clip[i], clip[(i + 1) % clip.len()]);
         let e = q - p;
