@@ -114,7 +114,11 @@ fn uniform_subdivision_respects_the_edge_limit() {
     assert_eq!(m.max_patch_edge, 100.0, "the budget holds the mesh at the requested limit");
     assert!(m.patches.len() <= 2000);
     check_mesh(&s, &m.patches, 100.0);
-    // The floor (552.8 / 549.6 x 559.2) is a 6 x 6 grid, the light (130 x 105) a 2 x 2 one.
+    // The floor (552.8 / 549.6 x 559.2) is a 6 x 6 grid, the light (130 x 105) a 2 x 2 one. Each half of the
+    // split red wall (legs ~550 and ~559, hypotenuse 783.5) would be 8 x 8 = 64 similar triangles; its three
+    // centroid quadrilaterals need fewer.
+    let red = m.patches.iter().filter(|p| p.face == 18).count();
+    assert!(red < 2 * 64, "red wall: {red} patches");
     assert_eq!(m.patches.iter().filter(|p| p.face == 0).count(), 36);
     assert_eq!(m.patches.iter().filter(|p| p.face == 1).count(), 4);
     // A smaller limit gives more, smaller patches, still exact.
@@ -186,11 +190,14 @@ fn general_convex_polygons_subdivide_into_convex_pieces() {
         let m =
             mesh(&s, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: 100_000 }).unwrap();
         check_mesh(&s, &m.patches, edge);
-        // The triangle (longest edge 3.0267) is a regular k x k subdivision: k^2 similar triangles.
+        // The thin triangle (longest edge 3.0267): either the regular k x k subdivision (k^2 similar triangles)
+        // or three gridded quadrilaterals around its centroid, whichever has fewer patches.
         let k = (s.faces[2].polygons[0].max_edge() / edge).ceil() as usize;
         let tris: Vec<&Patch> = m.patches.iter().filter(|p| p.face == 2).collect();
-        assert_eq!(tris.len(), k * k, "edge {edge}");
-        assert!(tris.iter().all(|p| p.vertices.len() == 3));
+        assert!(tris.len() <= k * k, "edge {edge}: {} > {}", tris.len(), k * k);
+        if tris.len() == k * k {
+            assert!(tris.iter().all(|p| p.vertices.len() == 3));
+        }
         // The hexagon and pentagon (edges 1 and 1.176) become one quadrilateral per vertex, then grids.
         assert!(m.patches.iter().filter(|p| p.face <= 1).all(|p| p.vertices.len() == 4));
     }
