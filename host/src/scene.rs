@@ -30,10 +30,15 @@
 //! repeated vertices or zero area (degenerate), a non-convex face, a face too far from planar, and coplanar faces
 //! that overlap with positive area (duplicates included). Nothing in this module panics on any input.
 //!
+//! `tobj` reports no line numbers: after a syntax error the loader finds its line by re-parsing prefixes of the
+//! file (binary search), and it maps faces to lines by scanning the `f` statements itself. It also checks MTL
+//! colour statements (`Ka`, `Kd`, `Ks`, `Ke`: exactly three numbers) before `tobj` sees them, because `tobj`
+//! panics on fewer than three.
+//!
 //! # Tolerances (all relative to the size of the face, its diameter `d` = largest vertex-to-vertex distance)
 //! - Planar: every vertex within [`PLANAR_TOLERANCE`]` * d` of the face's mean plane (Newell normal through the
-//!   vertex mean). Decimal coordinates in f64 are exact to ~1e-16 relative, so 1e-6 only absorbs rounding of
-//!   values written with few digits.
+//!   vertex mean). f64 arithmetic is exact to ~1e-16 relative, so 1e-6 is there to accept faces whose
+//!   coordinates were rounded to about six significant digits when the file was written.
 //! - Non-planar but within [`NON_PLANAR_LIMIT`]` * d` (1 %): the face is split into a triangle fan from its first
 //!   vertex, with a [`SceneWarning`]. The published Cornell box's red wall deviates by 0.80 mm from its mean
 //!   plane (its fourth vertex is 3.2 mm off the plane of the other three) on a diameter of 783.5 mm, i.e. 0.10 %.
