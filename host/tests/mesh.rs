@@ -4,9 +4,10 @@
 use std::path::PathBuf;
 
 use glam::DVec3;
+use proptest::prelude::*;
 use radiosity_host::mesh::{adjacency, mesh, refine, MeshError, MeshOptions};
 use radiosity_host::patch::Patch;
-use radiosity_host::scene::Scene;
+use radiosity_host::scene::{Face, Material, MeshingLimits, Polygon, Scene};
 
 fn load(name: &str) -> Scene {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../scenes/{name}.obj"));
@@ -267,4 +268,58 @@ fn adjacency_links_patches_sharing_an_edge_within_a_face() {
         cadj.iter().all(|n| !n.is_empty()),
         "every Cornell face is subdivided, so every patch has a neighbour"
     );
+}
+
+/// A one-face scene holding `polygon`.
+fn one_face_scene(polygon: Polygon) -> Scene {
+    let face = Face {
+        index: 0,
+        line: 1,
+        object: "random".to_owned(),
+        material: 0,
+        vertices: polygon.vertices.clone(),
+        normal: polygon.normal,
+        area: polygon.area,
+        polygons: vec![polygon],
+    };
+    Scene {
+        path: PathBuf::from("random.obj"),
+        faces: vec![face],
+        materials: vec![Material { name: "grey".to_owned(), reflectance: [0.5; 3], emission: [0.0; 3] }],
+        light_groups: Vec::new(),
+        meshing: MeshingLimits::default(),
+        warnings: Vec::new(),
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    /// Random convex polygons (3 to 9 vertices on a tilted ellipse, far from the origin) subdivide into convex
+    /// pieces inside the face, within the edge limit, with the areas adding up; refining all of them keeps that.
+    #[test]
+    fn random_convex_polygons_mesh_exactly(
+        mut angles in proptest::collection::vec(0.0..std::f64::consts::TAU, 3..10),
+        (a, b) in (0.2f64..3.0, 0.2f64..3.0),
+        tilt in (-1.0f64..1.0, -1.0f64..1.0, 0.1f64..1.0),
+        offset in (-50.0f64..50.0, -50.0f64..50.0, -50.0f64..50.0),
+        limit_fraction in 0.05f64..1.5,
+    ) {
+        angles.sort_by(f64::total_cmp);
+        angles.dedup_by(|x, y| (*x - *y).abs() < 0.05);
+        prop_assume!(angles.len() >= 3 && (angles[0] + std::f64::consts::TAU - angles[angles.len() - 1]) >= 0.05);
+        let n = DVec3::new(tilt.0, tilt.1, tilt.2).normalize();
+        let u = n.any_orthonormal_vector();
+        let w = n.cross(u);
+        let o = DVec3::new(offset.0, offset.1, offset.2);
+        let vertices: Vec<DVec3> = angles.iter().map(|t| o + u * (a * t.cos()) + w * (b * t.sin())).collect();
+        let polygon = Polygon::new(vertices).expect("a polygon with positive area");
+        prop_assume!(polygon.area > 1e-3);
+        let s = one_face_scene(polygon);
+        let edge = limit_fraction * s.faces[0].polygons[0].diameter();
+        let m = mesh(&s, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: 1_000_000 }).unwrap();
+        check_mesh(&s, &m.patches, edge);
+        let all: Vec<usize> = (0..m.patches.len()).collect();
+        let r = refine(&m.patches, &all).unwrap();
+        check_mesh(&s, &r, edge);
+    }
 }
