@@ -13,8 +13,12 @@
 //! - **Uniform subdivision** ([`mesh`] with `subdivide: true`): each planar convex polygon of a face is cut into
 //!   convex pieces whose edges are all at most `max_patch_edge`:
 //!   - a polygon whose edges already fit stays one patch;
-//!   - a triangle is cut into `k^2` triangles similar to it (edge midpoint-style regular subdivision),
-//!     `k = ceil(longest edge / max_patch_edge)`, so every piece is as well-shaped as the triangle;
+//!   - a triangle is cut into `k^2` triangles similar to it (regular subdivision),
+//!     `k = ceil(longest edge / max_patch_edge)`, so every piece is as well-shaped as the triangle; or, when
+//!     that gives fewer patches, into three quadrilaterals around its centroid (as for polygons with five or more
+//!     vertices, below) that are then gridded. The regular subdivision is driven by the longest edge alone, so
+//!     for a right or obtuse triangle (like the halves of the Cornell box's split red wall) the quadrilaterals
+//!     need about half as many patches;
 //!   - a quadrilateral is cut into an `nu x nv` grid of its bilinear parametrisation,
 //!     `nu = ceil(max(|e0|, |e2|) / max_patch_edge)` and `nv` likewise for `e1`, `e3`. A grid line joins two
 //!     points on opposite edges, so it is a straight chord and each cell (the intersection of two strips between
@@ -158,7 +162,8 @@ pub fn mesh(scene: &Scene, options: &MeshOptions) -> Result<Mesh, MeshError> {
         if l0.is_nan() || l0 <= 0.0 {
             return Err(MeshError::BadMaxEdge(l0));
         }
-        let count = |l: f64| polygons.iter().map(|(_, _, p)| piece_count(p, l)).sum::<usize>();
+        let count =
+            |l: f64| polygons.iter().map(|(_, _, p)| piece_count(p, l)).fold(0, usize::saturating_add);
         if count(l0) <= options.patch_budget {
             l0
         } else {
@@ -211,13 +216,22 @@ fn piece_count(p: &Polygon, limit: f64) -> usize {
         return 1;
     }
     match v.len() {
-        3 => divisions(p.max_edge(), limit).pow(2),
+        // Saturating: a tiny limit must not overflow the count (it only has to exceed the budget).
+        3 => divisions(p.max_edge(), limit).saturating_pow(2).min(quads_count(p, limit)),
         4 => {
             let (nu, nv) = quad_divisions(v, limit);
-            nu * nv
+            nu.saturating_mul(nv)
         }
-        _ => centroid_quads(p).iter().map(|q| q.as_ref().map_or(1, |q| piece_count(q, limit))).sum(),
+        _ => quads_count(p, limit),
     }
+}
+
+/// Number of pieces of `p` cut into [`centroid_quads`] that are then subdivided.
+fn quads_count(p: &Polygon, limit: f64) -> usize {
+    centroid_quads(p)
+        .iter()
+        .map(|q| q.as_ref().map_or(1, |q| piece_count(q, limit)))
+        .fold(0, usize::saturating_add)
 }
 
 fn quad_divisions(v: &[DVec3], limit: f64) -> (usize, usize) {
@@ -234,7 +248,7 @@ fn subdivide(face: usize, p: &Polygon, limit: f64, out: &mut Vec<Vec<DVec3>>) ->
         return Ok(());
     }
     match v.len() {
-        3 => {
+        3 if divisions(p.max_edge(), limit).saturating_pow(2) <= quads_count(p, limit) => {
             let k = divisions(p.max_edge(), limit);
             triangle_grid(v[0], v[1], v[2], k, out);
         }

@@ -30,10 +30,15 @@
 //! repeated vertices or zero area (degenerate), a non-convex face, a face too far from planar, and coplanar faces
 //! that overlap with positive area (duplicates included). Nothing in this module panics on any input.
 //!
+//! `tobj` reports no line numbers: after a syntax error the loader finds its line by re-parsing prefixes of the
+//! file (binary search), and it maps faces to lines by scanning the `f` statements itself. It also checks MTL
+//! colour statements (`Ka`, `Kd`, `Ks`, `Ke`: exactly three numbers) before `tobj` sees them, because `tobj`
+//! panics on fewer than three.
+//!
 //! # Tolerances (all relative to the size of the face, its diameter `d` = largest vertex-to-vertex distance)
 //! - Planar: every vertex within [`PLANAR_TOLERANCE`]` * d` of the face's mean plane (Newell normal through the
-//!   vertex mean). Decimal coordinates in f64 are exact to ~1e-16 relative, so 1e-6 only absorbs rounding of
-//!   values written with few digits.
+//!   vertex mean). f64 arithmetic is exact to ~1e-16 relative, so 1e-6 is there to accept faces whose
+//!   coordinates were rounded to about six significant digits when the file was written.
 //! - Non-planar but within [`NON_PLANAR_LIMIT`]` * d` (1 %): the face is split into a triangle fan from its first
 //!   vertex, with a [`SceneWarning`]. The published Cornell box's red wall deviates by 0.80 mm from its mean
 //!   plane (its fourth vertex is 3.2 mm off the plane of the other three) on a diameter of 783.5 mm, i.e. 0.10 %.
@@ -516,10 +521,6 @@ fn first_failing_line(text: &str, fails: impl Fn(&str) -> bool) -> usize {
     lo
 }
 
-fn describe(e: &tobj::LoadError) -> String {
-    e.to_string()
-}
-
 fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneError> {
     let dir = obj_path.parent().unwrap_or(Path::new("")).to_path_buf();
     let mtl_error: RefCell<Option<SceneError>> = RefCell::new(None);
@@ -531,7 +532,7 @@ fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneError> {
             tobj::load_mtl_buf(&mut mtl.as_bytes()).map_err(|e| SceneError::Parse {
                 file: path.clone(),
                 line: first_failing_line(&mtl, |s| tobj::load_mtl_buf(&mut s.as_bytes()).is_err()),
-                problem: describe(&e),
+                problem: e.to_string(),
             })
         });
         result.map_err(|e| {
@@ -552,7 +553,7 @@ fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneError> {
             tobj::load_obj_buf(&mut s.as_bytes(), &load_options(), |_| Err(tobj::LoadError::OpenFileFailed))
                 .is_err()
         }),
-        problem: describe(&e),
+        problem: e.to_string(),
     })?;
     // No MTL file loaded at all gives an error here; faces then fail as missing materials, which names them.
     let materials = materials.unwrap_or_default();
@@ -929,7 +930,7 @@ fn overlap_area(a: &Polygon, b: &Polygon) -> f64 {
 }
 
 /// Clips polygon `subject` by the convex counter-clockwise polygon `clip`.
-pub(crate) fn clip_convex(mut subject: Vec<glam::DVec2>, clip: &[glam::DVec2]) -> Vec<glam::DVec2> {
+fn clip_convex(mut subject: Vec<glam::DVec2>, clip: &[glam::DVec2]) -> Vec<glam::DVec2> {
     for i in 0..clip.len() {
         let (p, q) = (clip[i], clip[(i + 1) % clip.len()]);
         let e = q - p;

@@ -440,6 +440,20 @@ fn toml_errors() {
         ("sun", false, [2.0; 3], vec![1])
     );
     assert_eq!((s.meshing.max_patch_edge, s.meshing.patch_budget), (Some(0.25), Some(64)));
+    // An emitting material the TOML file does not list gets its own dynamic group at unit intensity, after the
+    // file's groups.
+    let mtl2 = format!("{MTL}\nnewmtl lamp2\nKd 0.1 0.1 0.1\nKe 0 0 3\n");
+    let obj2 = obj.replace("usemtl lamp\n", "usemtl lamp2\n");
+    let s = Scene::load(write_scene(
+        &obj2,
+        &mtl2,
+        Some("[[light_group]]\nname = \"sun\"\nmaterials = [\"lamp\"]\n"),
+    ))
+    .unwrap();
+    let groups: Vec<_> = s.light_groups.iter().map(|g| (g.name.as_str(), g.dynamic, g.intensity)).collect();
+    assert_eq!(groups, [("sun", true, [1.0; 3]), ("lamp2", true, [1.0; 3])]);
+    assert_eq!(s.light_group_of(2), Some(1));
+    assert_eq!(s.light_group_of(0), None);
 }
 
 // ---- nothing panics ---------------------------------------------------------------------------------------------
