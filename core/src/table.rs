@@ -119,6 +119,8 @@ pub enum TableError {
     },
     /// The postcard header could not be decoded.
     BadHeader,
+    /// The blob ends inside the header.
+    TruncatedHeader,
     /// The blob is shorter than its header says.
     Truncated {
         /// Bytes the header implies.
@@ -233,6 +235,7 @@ impl fmt::Display for TableError {
                 write!(f, "unsupported table format version {found}, expected {expected}")
             }
             TableError::BadHeader => write!(f, "table header cannot be decoded"),
+            TableError::TruncatedHeader => write!(f, "table truncated inside its header"),
             TableError::Truncated { expected, actual } => {
                 write!(f, "table truncated: {actual} bytes, header implies {expected}")
             }
@@ -332,17 +335,18 @@ impl<'a> Table<'a> {
         for (d, s) in found.iter_mut().zip(bytes) {
             *d = *s;
         }
-        if bytes.len() < 4 || found != MAGIC {
+        let n = bytes.len().min(4);
+        if found.get(..n) != MAGIC.get(..n) {
             return Err(TableError::BadMagic { found });
         }
-        let (prefix, _) = postcard::take_from_bytes::<Prefix>(bytes).map_err(|_| TableError::BadHeader)?;
+        let (prefix, _) = postcard::take_from_bytes::<Prefix>(bytes).map_err(header_error)?;
         if prefix.magic != MAGIC {
             return Err(TableError::BadMagic { found: prefix.magic });
         }
         if prefix.version != FORMAT_VERSION {
             return Err(TableError::UnsupportedVersion { found: prefix.version, expected: FORMAT_VERSION });
         }
-        let (header, rest) = postcard::take_from_bytes::<Header>(bytes).map_err(|_| TableError::BadHeader)?;
+        let (header, rest) = postcard::take_from_bytes::<Header>(bytes).map_err(header_error)?;
         let header_len = bytes.len() - rest.len();
         let codec = FfCodec { bits: header.ff_bits, exponent_bits: header.ff_exponent_bits };
         match codec.check() {
@@ -648,6 +652,13 @@ impl<'a> Table<'a> {
     pub fn row_sum(&self, patch: u32) -> Option<f32> {
         let range = self.row(patch)?;
         Some(range.filter_map(|k| self.entry(patch, k)).map(|(_, f)| f.to_f32()).sum())
+    }
+}
+
+fn header_error(e: postcard::Error) -> TableError {
+    match e {
+        postcard::Error::DeserializeUnexpectedEnd => TableError::TruncatedHeader,
+        _ => TableError::BadHeader,
     }
 }
 
