@@ -232,16 +232,21 @@ pub(crate) fn f32_to_exact(v: f32) -> u128 {
 pub(crate) fn quantize_row(codec: FfCodec, values: &[f32], target: u128, codes: &mut [u16]) -> u8 {
     let max = values.iter().map(|&v| f32_to_exact(v)).max().unwrap_or(0);
     let e = row_exponent_for(max);
-    quantize_row_with_exponent(codec, values, target, e, codes);
+    quantize_row_with_exponent(codec, values, target, e, 0, codes);
     e
 }
 
 /// [`quantize_row`] with a given row exponent; returns the decoded sum (exact units).
+///
+/// Slack left after the threshold pass goes to the remaining entries in cyclic order from position `start`
+/// (the writer passes the first receiver after the shooter), so that in a symmetric scene every column gets
+/// the same share of bumps rather than the low-numbered patches getting them all.
 pub(crate) fn quantize_row_with_exponent(
     codec: FfCodec,
     values: &[f32],
     target: u128,
     e: u8,
+    start: usize,
     codes: &mut [u16],
 ) -> u128 {
     let mut sum: u128 = 0;
@@ -300,8 +305,11 @@ pub(crate) fn quantize_row_with_exponent(
             }
         }
     }
-    // Entries below the threshold: hand out what is left in entry order, largest fitting steps only.
-    for (c, &v) in codes.iter_mut().zip(values) {
+    // Entries below the threshold: hand out what is left in cyclic order from `start`.
+    let len = codes.len();
+    let start = if len == 0 { 0 } else { start % len };
+    for k in (start..len).chain(0..start) {
+        let (Some(c), Some(&v)) = (codes.get_mut(k), values.get(k)) else { continue };
         if let Some((f, step)) = frac_loss(*c, v) {
             if f < t && step <= slack {
                 *c += 1;

@@ -190,6 +190,7 @@ pub struct Solver<'b, S> {
     shot: Option<Shot<S>>,
     tree: TreeState,
     sweep: Option<Sweep<S>>,
+    shots: u32,
 }
 
 fn get3<S: Scalar>(s: &[[S; 3]], i: u32) -> [S; 3] {
@@ -257,6 +258,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
             shot: None,
             tree: TreeState::Rebuilding(n.saturating_sub(1)),
             sweep: None,
+            shots: 0,
         };
         s.reset(table);
         Ok(s)
@@ -315,6 +317,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         }
         self.shot = None;
         self.sweep = None;
+        self.shots = 0;
         self.tree = TreeState::Rebuilding(self.n.saturating_sub(1));
     }
 
@@ -347,6 +350,12 @@ impl<'b, S: Scalar> Solver<'b, S> {
         self.n
     }
 
+    /// Rows started (shots, or row visits of a sweep) since the last reset; saturates at `u32::MAX`.
+    #[must_use]
+    pub fn shots(&self) -> u32 {
+        self.shots
+    }
+
     /// Power `Phi_i = B_i A_i` of `patch` (RGB), or `None` out of range.
     #[must_use]
     pub fn power(&self, patch: u32) -> Option<[S; 3]> {
@@ -376,10 +385,20 @@ impl<'b, S: Scalar> Solver<'b, S> {
         self.buf.intensity.get(group as usize).copied().filter(|_| group < self.groups)
     }
 
-    /// Sum of all unshot power, including a shot in flight (RGB, power units).
+    /// Sum of all unshot power (RGB, power units), including the part of a shot in flight not yet delivered
+    /// (its power times the form factors of the entries left). Cost `O(patches + row length)`.
     #[must_use]
-    pub fn total_unshot(&self) -> [S; 3] {
-        let mut t = self.shot.map_or([S::ZERO; 3], |s| s.power);
+    pub fn total_unshot(&self, table: &Table<'_>) -> [S; 3] {
+        let mut t = [S::ZERO; 3];
+        if let Some(shot) = self.shot {
+            for k in shot.next..shot.end {
+                if let Some((_, f)) = table.entry(shot.shooter, k) {
+                    for (tc, pc) in t.iter_mut().zip(shot.power) {
+                        *tc = tc.add(pc.mul_frac(f));
+                    }
+                }
+            }
+        }
         for u in self.buf.unshot.iter().take(self.n as usize) {
             for c in 0..3 {
                 t[c] = t[c].add(u[c]);
@@ -398,7 +417,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if !self.same_table(table) {
             return [S::ZERO; 3];
         }
-        let unshot = self.total_unshot();
+        let unshot = self.total_unshot(table);
         let mut area_sum = S::ZERO;
         let mut rho_area = [S::ZERO; 3];
         for i in 0..self.n {
@@ -543,6 +562,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         }
         let row = table.row(shooter).unwrap_or(0..0);
         self.shot = Some(Shot { shooter, next: row.start, end: row.end, power });
+        self.shots = self.shots.saturating_add(1);
         1 + self.update_leaf(shooter)
     }
 
@@ -686,6 +706,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
                         }
                         let row = table.row(j).unwrap_or(0..0);
                         self.shot = Some(Shot { shooter: j, next: row.start, end: row.end, power: u });
+                        self.shots = self.shots.saturating_add(1);
                         used += 1;
                     }
                     if !self.apply_shot(table, budget, &mut used, scratch.as_deref_mut(), 1) {

@@ -393,8 +393,9 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
             .iter()
             .fold(0u128, |acc, &v| acc.saturating_add(f32_to_exact(v)))
             .min(1u128 << EXACT_SHIFT);
-        let exponent =
-            quantize_row_into(spec.codec, values, target, &mut o, codes_at + s * spec.codec.code_bytes());
+        let receivers = &rows.receiver[s..e];
+        let at = codes_at + s * spec.codec.code_bytes();
+        let exponent = quantize_row_into(spec.codec, values, receivers, j as u32, target, &mut o, at);
         if let Some(b) = o.buf.get_mut(exps_at + j) {
             *b = exponent;
         }
@@ -410,17 +411,26 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
 /// The row rounding needs the codes of a row at once, held in a stack block of `BLOCK` codes: longer rows are
 /// quantized as consecutive chunks under one row exponent, each chunk rounded against what is left of the
 /// row's target, so the decoded row sum stays `<= target`.
-fn quantize_row_into(codec: FfCodec, values: &[f32], target: u128, o: &mut Out<'_>, at: usize) -> u8 {
+fn quantize_row_into(
+    codec: FfCodec,
+    values: &[f32],
+    receivers: &[u32],
+    shooter: u32,
+    target: u128,
+    o: &mut Out<'_>,
+    at: usize,
+) -> u8 {
     const BLOCK: usize = 256;
     let mut codes = [0u16; BLOCK];
     let max = values.iter().map(|&v| f32_to_exact(v)).max().unwrap_or(0);
     let e = codec::row_exponent_for(max);
     let mut remaining = target;
     let mut pos = at;
-    for chunk in values.chunks(BLOCK) {
+    for (chunk, chunk_receivers) in values.chunks(BLOCK).zip(receivers.chunks(BLOCK)) {
         let c = &mut codes[..chunk.len()];
         let chunk_sum = chunk.iter().fold(0u128, |acc, &v| acc.saturating_add(f32_to_exact(v)));
-        let decoded = codec::quantize_row_with_exponent(codec, chunk, chunk_sum.min(remaining), e, c);
+        let start = chunk_receivers.partition_point(|&r| r <= shooter);
+        let decoded = codec::quantize_row_with_exponent(codec, chunk, chunk_sum.min(remaining), e, start, c);
         remaining = remaining.saturating_sub(decoded);
         write_codes(codec, c, o, pos);
         pos += chunk.len() * codec.code_bytes();
