@@ -22,14 +22,9 @@
 //!   absolute error `< row_max * 2^-(M + 2^E - 2)`.
 //! - linear code (`E = 0`): absolute error `< row_max * 2^-(bits - 1)`.
 //!
-//! Measured on the form factors of a closed cube of 6 x 8 x 8 patches (`cargo run -p radiosity-core --example
-//! codec_error`, per-row L1 error of the decoded row divided by the row sum):
-//!
-//! | codec | mean row L1 rel. error | max row L1 rel. error | max entry rel. error (entries >= row max / 2^7) |
-//! |-------|------------------------|-----------------------|----------------------------------------------|
-//! | see [`FfCodec`] constants and the example output quoted in the crate docs | | | |
-//!
-//! The chosen defaults are [`FfCodec::FLOAT16`] (`E = 4, M = 12`) and [`FfCodec::FLOAT8`] (`E = 3, M = 5`).
+//! The crate docs ("Error bounds") give the measured errors of each codec on a closed cube (from the
+//! `codec_error` example) and why [`FfCodec::FLOAT16`] (`E = 4, M = 12`) and [`FfCodec::FLOAT8`]
+//! (`E = 3, M = 5`) are the defaults.
 //!
 //! # Row-sum rounding
 //! The writer rounds every entry down, then spends the remaining slack (exact target minus decoded sum,

@@ -66,9 +66,9 @@ fn two_patch<S: Arith>() {
     let q1 = b1 * p / (1.0 - p) * dp * 1.01;
     let q2 = b2 * (2f32.powi(-12) + 2f32.powi(-17) / 0.8 + q1 / b1) * 1.01;
     let rest = |bv: f32| truncation(2, TOL, 0.8, 1.0) + S::arith(bv, solver.shots(), 0.8, 1.0);
-    for c in 0..3 {
-        assert_close("B_1", b[0][c], b1, q1 + rest(b1));
-        assert_close("B_2", b[1][c], b2, q2 + rest(b2));
+    for (x1, x2) in b[0].iter().zip(&b[1]) {
+        assert_close("B_1", *x1, b1, q1 + rest(b1));
+        assert_close("B_2", *x2, b2, q2 + rest(b2));
     }
 }
 
@@ -148,8 +148,8 @@ fn static_base_costs_nothing<S: Arith>() {
     let mut s = three_patch_scene();
     s.base_solved = true;
     let g = [214.0 / 914.0, 304.0 / 914.0, 520.0 / 914.0]; // G_i = sum_j F_ij B_j, by hand
-    for i in 0..3 {
-        s.patches[i].base_irradiance = THREE_E.map(|e| e * g[i]);
+    for (patch, gi) in s.patches.iter_mut().zip(g) {
+        patch.base_irradiance = THREE_E.map(|e| e * gi);
     }
     let bytes = s.write();
     let t = Table::parse(&bytes).unwrap();
