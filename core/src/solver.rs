@@ -124,7 +124,15 @@ pub enum SolverError {
     WrongTable,
     /// A Jacobi sweep is half done; changes would be lost by its end-of-sweep copy.
     JacobiInProgress,
+    /// More patches than the solver's tree indexing supports ([`MAX_PATCHES`]).
+    TooManyPatches {
+        /// Patches in the table.
+        patches: u32,
+    },
 }
+
+/// Largest patch count the solver accepts (tree positions `< 2n` must fit in a `u32`).
+pub const MAX_PATCHES: u32 = 1 << 30;
 
 impl fmt::Display for SolverError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -139,6 +147,9 @@ impl fmt::Display for SolverError {
             }
             SolverError::WrongTable => write!(f, "table differs from the one the solver was created with"),
             SolverError::JacobiInProgress => write!(f, "a Jacobi sweep is in progress; finish it first"),
+            SolverError::TooManyPatches { patches } => {
+                write!(f, "{patches} patches: more than the solver supports ({MAX_PATCHES})")
+            }
         }
     }
 }
@@ -235,6 +246,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// [`SolverError::BufferTooSmall`] naming the buffer.
     pub fn new(table: &Table<'_>, buffers: Buffers<'b, S>, config: Config<S>) -> Result<Self, SolverError> {
         let n = table.patch_count();
+        if n > MAX_PATCHES {
+            return Err(SolverError::TooManyPatches { patches: n });
+        }
         let checks: [(&'static str, usize, u32); 6] = [
             ("power", buffers.power.len(), n),
             ("unshot", buffers.unshot.len(), n),
@@ -788,7 +802,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         let mut units = self.add_group_emission(table, group, delta);
         for k in table.group_members(group).unwrap_or(0..0) {
             if let Some(m) = table.member(k) {
-                units += self.update_leaf(m.patch);
+                units = units.saturating_add(self.update_leaf(m.patch));
             }
         }
         Ok(units)
@@ -822,9 +836,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if let Some(r) = self.buf.reflectance.get_mut(material as usize) {
             *r = new_codes;
         }
-        let mut units = 0;
+        let mut units = 0u32;
         for i in 0..self.n {
-            units += 1;
+            units = units.saturating_add(1);
             if table.material(i) != Some(material) {
                 continue;
             }
@@ -837,7 +851,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
             }
             add3(self.buf.power, i, d);
             add3(self.buf.unshot, i, d);
-            units += self.update_leaf(i);
+            units = units.saturating_add(self.update_leaf(i));
         }
         Ok(units)
     }

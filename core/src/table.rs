@@ -274,15 +274,18 @@ impl fmt::Display for TableError {
 
 impl core::error::Error for TableError {}
 
+// Byte offsets use checked arithmetic: on 32-bit targets `usize` is 32 bits.
 fn le_u16(s: &[u8], i: usize) -> u16 {
-    match s.get(i * 2..i * 2 + 2) {
+    let Some(at) = i.checked_mul(2) else { return 0 };
+    match s.get(at..at.saturating_add(2)) {
         Some(&[a, b]) => u16::from_le_bytes([a, b]),
         _ => 0,
     }
 }
 
 fn le_u32(s: &[u8], i: usize) -> u32 {
-    match s.get(i * 4..i * 4 + 4) {
+    let Some(at) = i.checked_mul(4) else { return 0 };
+    match s.get(at..at.saturating_add(4)) {
         Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
         _ => 0,
     }
@@ -452,7 +455,7 @@ impl<'a> Table<'a> {
         }
         for g in 0..self.header.group_count {
             for c in 0..3 {
-                if !le_f32(self.group_intensity, (g * 3 + c) as usize).is_finite() {
+                if !le_f32(self.group_intensity, g as usize * 3 + c).is_finite() {
                     return Err(TableError::BadIntensity { group: g });
                 }
             }
@@ -663,7 +666,8 @@ fn header_error(e: postcard::Error) -> TableError {
 }
 
 fn rgb16(s: &[u8], i: usize) -> [u16; 3] {
-    [le_u16(s, i * 3), le_u16(s, i * 3 + 1), le_u16(s, i * 3 + 2)]
+    let at = i.saturating_mul(3);
+    [le_u16(s, at), le_u16(s, at.saturating_add(1)), le_u16(s, at.saturating_add(2))]
 }
 
 fn check_offsets(s: &[u8], count: u32, total: u32, array: OffsetArray) -> Result<(), TableError> {
