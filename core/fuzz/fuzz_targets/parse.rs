@@ -1,0 +1,47 @@
+//! Fuzz target: `Table::parse` on arbitrary bytes must return (never panic), and every accessor plus a few
+//! bounded solver steps on an accepted table must not panic either.
+//!
+//! Run: `cd core/fuzz && cargo +nightly fuzz run parse`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use radiosity_core::{Buffers, Config, Solver, Table};
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(t) = Table::parse(data) else { return };
+    let n = t.patch_count();
+    // Keep memory bounded for huge (but valid) headers: only exercise small tables fully.
+    if n > 4096 || t.entry_count() > 1 << 20 {
+        return;
+    }
+    for i in 0..=n {
+        let _ = (t.area(i), t.material(i), t.base_emission(i), t.base_irradiance(i), t.row_sum(i));
+    }
+    for g in 0..=t.group_count() {
+        let _ = (t.group_id(g), t.default_intensity(g), t.group_members(g));
+    }
+    let n = n as usize;
+    let mut power = vec![[0.0f32; 3]; n];
+    let mut unshot = vec![[0.0f32; 3]; n];
+    let mut incident = vec![[0.0f32; 3]; n];
+    let mut tree = vec![0u32; n];
+    let mut intensity = vec![[0.0f32; 3]; t.group_count() as usize];
+    let mut reflectance = vec![[0u16; 3]; t.material_count() as usize];
+    let buffers = Buffers {
+        power: &mut power,
+        unshot: &mut unshot,
+        incident: &mut incident,
+        tree: &mut tree,
+        intensity: &mut intensity,
+        reflectance: &mut reflectance,
+    };
+    let Ok(mut s) = Solver::new(&t, buffers, Config { tolerance: 1e-3, overshoot: 16 }) else { return };
+    for _ in 0..4 {
+        let o = s.step(&t, 1000);
+        assert!(o.used() <= 1000);
+    }
+    let _ = s.set_light(&t, 0, [0.0; 3]);
+    let _ = s.set_reflectance(&t, 0, [0.5; 3]);
+    let o = s.step_gauss_seidel(&t, 1000);
+    assert!(o.used() <= 1000);
+});

@@ -1,0 +1,497 @@
+//! Quantization codecs: form factors, reflectance and emission, as small integer codes.
+//!
+//! Every decoded value is a *dyadic* number `mantissa * 2^-shift` ([`Frac`] for values in `[0, 1]`), so the
+//! f32 path and the integer fixed-point path decode the same code to the same exact value, and the table
+//! parser can sum a row's decoded form factors exactly in integer arithmetic.
+//!
+//! # Form-factor codes ([`FfCodec`])
+//! A row (one shooter) stores a *row exponent* `e` (one byte, `0..=64`) and one code of `bits` = 8 or 16 bits
+//! per entry. The code is a small unsigned float with `exponent_bits` = `E` exponent bits and
+//! `M = bits - E` mantissa bits, placed below the row scale `2^-e`:
+//! - field `x = code >> M`, `m = code & (2^M - 1)`;
+//! - `x == 0` (subnormal): `value = m * 2^-(e + M + 2^E - 2)`;
+//! - `x >= 1` (normal): `value = (2^M + m) * 2^-(e + M + 2^E - 1 - x)`.
+//!
+//! With `E = 0` this is a plain block-linear code `value = q * 2^-(e + bits - 1)`. In both cases code order is
+//! value order, so rounding down is a binary search. The writer picks `e = floor(-log2(row max))`, so the row's
+//! largest entry sits in the top binade `[2^-e, 2^(1-e))`.
+//!
+//! Worst-case error of one entry (round down, or bumped up by one code during slack distribution, so always
+//! less than one code step):
+//! - float code (`E >= 1`): relative error `< 2^-M` for entries `>= row_max * 2^-(2^E - 2)`; below that an
+//!   absolute error `< row_max * 2^-(M + 2^E - 2)`.
+//! - linear code (`E = 0`): absolute error `< row_max * 2^-(bits - 1)`.
+//!
+//! The crate docs ("Error bounds") give the measured errors of each codec on a closed cube (from the
+//! `codec_error` example) and why [`FfCodec::FLOAT16`] (`E = 4, M = 12`) and [`FfCodec::FLOAT8`]
+//! (`E = 3, M = 5`) are the defaults.
+//!
+//! # Row-sum rounding
+//! The writer rounds every entry down, then spends the remaining slack (exact target minus decoded sum,
+//! with the target capped at 1) on the entries whose fractional rounding loss is largest, one code step each,
+//! never exceeding the target. So every row's decoded sum is `<=` its true sum and `<= 1`, which makes the
+//! solver's iteration matrix `R F` have row sums `< 1` (reflectance codes are `< 1`): shooting converges.
+//!
+//! # Reflectance code
+//! `u16` `q`, `rho = q / 65536`, round to nearest, so `0 <= rho <= 65535/65536 < 1` always; absolute error
+//! `<= 2^-17` (7.6e-6) for inputs in `[0, 65535/65536]`.
+//!
+//! # Emission code (radiometric values: emission, irradiance)
+//! `u16` with 6 exponent bits `x` and 10 mantissa bits `m`: `x == 0`: `m * 2^-40`; else
+//! `(1024 + m) * 2^(x - 41)`. Range `[2^-30, (2 - 2^-10) * 2^32]` = `[9.3e-10, 8.6e9]` with relative error
+//! `<= 2^-11` (4.9e-4, round to nearest); below `2^-30` absolute error `<= 2^-41`. Code 0 is exactly 0.
+
+/// Fixed-point exponent used for exact sums of decoded form factors: values are held as integers in units of
+/// `2^-EXACT_SHIFT` in a `u128`.
+pub(crate) const EXACT_SHIFT: u32 = 100;
+
+/// Largest row exponent a table may hold.
+pub const MAX_ROW_EXPONENT: u8 = 64;
+
+/// A dyadic fraction `mantissa * 2^-shift`, the decoded form of every form-factor and reflectance code.
+///
+/// Decoding yields `mantissa < 2^17` and `shift <= 94` for form factors, `shift = 16` for reflectances.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frac {
+    /// Integer mantissa.
+    pub mantissa: u32,
+    /// Power-of-two divisor exponent.
+    pub shift: u32,
+}
+
+impl Frac {
+    /// Zero.
+    pub const ZERO: Frac = Frac { mantissa: 0, shift: 0 };
+
+    /// The value as f32 (exact for every code this crate decodes).
+    #[must_use]
+    pub fn to_f32(self) -> f32 {
+        self.mantissa as f32 * pow2_f32(-(self.shift as i32))
+    }
+
+    /// The value in units of `2^-EXACT_SHIFT` (truncated if `shift > EXACT_SHIFT`, which decoding never yields).
+    #[must_use]
+    pub(crate) fn to_exact(self) -> u128 {
+        if self.shift <= EXACT_SHIFT {
+            u128::from(self.mantissa) << (EXACT_SHIFT - self.shift)
+        } else {
+            u128::from(self.mantissa) >> (self.shift - EXACT_SHIFT).min(127)
+        }
+    }
+}
+
+/// `2^k` as f32 for `-126 <= k <= 127` (clamped outside), built from bits so it is exact and needs no FPU.
+#[must_use]
+pub(crate) fn pow2_f32(k: i32) -> f32 {
+    let k = k.clamp(-126, 127);
+    f32::from_bits(((k + 127) as u32) << 23)
+}
+
+/// A form-factor codec: code width and exponent bits (see the module docs for the decoding rule).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FfCodec {
+    /// Code width in bits: 8 or 16.
+    pub bits: u8,
+    /// Exponent bits `E`, `0..=4`; 0 is the block-linear code.
+    pub exponent_bits: u8,
+}
+
+/// Why an [`FfCodec`] is not usable.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CodecParamError {
+    /// Code width other than 8 or 16 bits.
+    Bits(u8),
+    /// More than 4 exponent bits, or no mantissa bit left.
+    ExponentBits(u8),
+}
+
+impl FfCodec {
+    /// 16-bit small float, 4 exponent bits, 12 mantissa bits (relative error `< 2^-12`). The default.
+    pub const FLOAT16: FfCodec = FfCodec { bits: 16, exponent_bits: 4 };
+    /// 8-bit small float, 3 exponent bits, 5 mantissa bits (relative error `< 2^-5`).
+    pub const FLOAT8: FfCodec = FfCodec { bits: 8, exponent_bits: 3 };
+    /// 16-bit block-linear code (absolute error `< row_max * 2^-15`).
+    pub const LINEAR16: FfCodec = FfCodec { bits: 16, exponent_bits: 0 };
+    /// 8-bit block-linear code (absolute error `< row_max * 2^-7`).
+    pub const LINEAR8: FfCodec = FfCodec { bits: 8, exponent_bits: 0 };
+
+    /// Checks the parameters.
+    ///
+    /// # Errors
+    /// [`CodecParamError`] naming the bad field.
+    pub fn check(self) -> Result<(), CodecParamError> {
+        if self.bits != 8 && self.bits != 16 {
+            return Err(CodecParamError::Bits(self.bits));
+        }
+        if self.exponent_bits > 4 || self.exponent_bits >= self.bits {
+            return Err(CodecParamError::ExponentBits(self.exponent_bits));
+        }
+        Ok(())
+    }
+
+    /// Bytes per code.
+    #[must_use]
+    pub fn code_bytes(self) -> usize {
+        usize::from(self.bits / 8)
+    }
+
+    /// Largest code.
+    #[must_use]
+    pub fn max_code(self) -> u16 {
+        if self.bits >= 16 {
+            u16::MAX
+        } else {
+            (1u16 << self.bits) - 1
+        }
+    }
+
+    fn mantissa_bits(self) -> u32 {
+        u32::from(self.bits.saturating_sub(self.exponent_bits))
+    }
+
+    /// Decodes `code` in a row with exponent `row_exponent` (assumes [`FfCodec::check`] passed; codes above
+    /// [`FfCodec::max_code`] are clamped).
+    #[must_use]
+    pub fn decode(self, code: u16, row_exponent: u8) -> Frac {
+        let code = u32::from(code.min(self.max_code()));
+        let m_bits = self.mantissa_bits().min(16);
+        let e_span = (1i32 << self.exponent_bits.min(4)) - 2; // 2^E - 2, -1 for E = 0
+        let x = code >> m_bits;
+        let m = code & ((1u32 << m_bits) - 1);
+        let base = i32::from(row_exponent) + m_bits as i32 + e_span;
+        if x == 0 {
+            Frac { mantissa: m, shift: base.max(0) as u32 }
+        } else {
+            let shift = base + 1 - x as i32;
+            Frac { mantissa: (1u32 << m_bits) | m, shift: shift.max(0) as u32 }
+        }
+    }
+
+    /// Largest code whose decoded value is `<= exact` (`exact` in units of `2^-EXACT_SHIFT`).
+    pub(crate) fn round_down(self, exact: u128, row_exponent: u8) -> u16 {
+        let (mut lo, mut hi) = (0u32, u32::from(self.max_code()));
+        // Invariant: decode(lo) <= exact (decode(0) = 0); answer in [lo, hi].
+        while lo < hi {
+            let mid = lo + (hi - lo).div_ceil(2);
+            if self.decode(mid as u16, row_exponent).to_exact() <= exact {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        lo as u16
+    }
+}
+
+/// Row exponent the writer picks for a row whose largest entry is `max_exact`: `floor(-log2(max))`, clamped
+/// to `0..=MAX_ROW_EXPONENT`.
+pub(crate) fn row_exponent_for(max_exact: u128) -> u8 {
+    if max_exact == 0 {
+        return 0;
+    }
+    let bit_len = 128 - max_exact.leading_zeros(); // max in [2^(bit_len-1-100), 2^(bit_len-100))
+    let e = EXACT_SHIFT as i32 + 1 - bit_len as i32;
+    e.clamp(0, i32::from(MAX_ROW_EXPONENT)) as u8
+}
+
+/// Exact value of a finite, non-negative f32 in units of `2^-EXACT_SHIFT` (values below `2^-100` truncate;
+/// saturates at `u128::MAX`). Negative and non-finite inputs give 0 (callers validate first).
+#[must_use]
+pub(crate) fn f32_to_exact(v: f32) -> u128 {
+    if v.is_nan() || v <= 0.0 || !v.is_finite() {
+        return 0;
+    }
+    let bits = v.to_bits();
+    let exp = ((bits >> 23) & 0xff) as i32;
+    let frac = bits & 0x7f_ffff;
+    let (m, e) = if exp == 0 { (frac, -149) } else { (frac | 0x80_0000, exp - 150) };
+    let s = e + EXACT_SHIFT as i32;
+    if s >= 0 {
+        if s > 100 {
+            u128::MAX
+        } else {
+            u128::from(m) << s
+        }
+    } else if s < -127 {
+        0
+    } else {
+        u128::from(m) >> (-s)
+    }
+}
+
+/// Quantizes one row of form factors in place of `codes`: round down, then distribute the slack.
+///
+/// `values` must be finite and non-negative; `target` (exact, `2^-EXACT_SHIFT` units) is the sum the decoded
+/// row may not exceed. Returns the row exponent. `codes.len()` must equal `values.len()`.
+#[cfg(test)]
+pub(crate) fn quantize_row(codec: FfCodec, values: &[f32], target: u128, codes: &mut [u16]) -> u8 {
+    let max = values.iter().map(|&v| f32_to_exact(v)).max().unwrap_or(0);
+    let e = row_exponent_for(max);
+    quantize_row_with_exponent(codec, values, target, e, 0, codes);
+    e
+}
+
+/// [`quantize_row`] with a given row exponent; returns the decoded sum (exact units).
+///
+/// Slack left after the threshold pass goes to the remaining entries in cyclic order from position `start`
+/// (the writer passes the first receiver after the shooter), so that in a symmetric scene every column gets
+/// the same share of bumps rather than the low-numbered patches getting them all.
+pub(crate) fn quantize_row_with_exponent(
+    codec: FfCodec,
+    values: &[f32],
+    target: u128,
+    e: u8,
+    start: usize,
+    codes: &mut [u16],
+) -> u128 {
+    let mut sum: u128 = 0;
+    for (c, &v) in codes.iter_mut().zip(values) {
+        *c = codec.round_down(f32_to_exact(v), e);
+        sum = sum.saturating_add(codec.decode(*c, e).to_exact());
+    }
+    let mut slack = target.saturating_sub(sum);
+    if slack == 0 {
+        return sum;
+    }
+    // Fractional loss of entry k, in 1/2^16 of its code step: loss / step. An entry gets at most one bump.
+    let frac_loss = |c: u16, v: f32| -> Option<(u32, u128)> {
+        if c >= codec.max_code() {
+            return None;
+        }
+        let lo = codec.decode(c, e).to_exact();
+        let hi = codec.decode(c + 1, e).to_exact();
+        let step = hi.saturating_sub(lo);
+        let loss = f32_to_exact(v).saturating_sub(lo);
+        if step == 0 || loss == 0 {
+            return None;
+        }
+        // loss < step, so the quotient fits in 16 bits; scale loss first without overflow (both < 2^101).
+        let q = if loss < (1u128 << 110) { (loss << 16) / step } else { loss / (step >> 16).max(1) };
+        Some((q.min(0xffff) as u32, step))
+    };
+    // Find the smallest threshold t such that bumping every entry with frac_loss >= t fits in the slack.
+    let cost_at = |t: u32| -> u128 {
+        let mut cost: u128 = 0;
+        for (&c, &v) in codes.iter().zip(values) {
+            if let Some((f, step)) = frac_loss(c, v) {
+                if f >= t {
+                    cost = cost.saturating_add(step);
+                }
+            }
+        }
+        cost
+    };
+    let (mut lo, mut hi) = (1u32, 0x1_0000u32); // cost_at(0x10000) = 0 always fits
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2;
+        if cost_at(mid) <= slack {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    let t = lo;
+    for (c, &v) in codes.iter_mut().zip(values) {
+        if let Some((f, step)) = frac_loss(*c, v) {
+            if f >= t && step <= slack {
+                *c += 1;
+                slack -= step;
+                sum += step;
+            }
+        }
+    }
+    // Entries below the threshold: hand out what is left in cyclic order from `start`.
+    let len = codes.len();
+    let start = if len == 0 { 0 } else { start % len };
+    for k in (start..len).chain(0..start) {
+        let (Some(c), Some(&v)) = (codes.get_mut(k), values.get(k)) else { continue };
+        if let Some((f, step)) = frac_loss(*c, v) {
+            if f < t && step <= slack {
+                *c += 1;
+                slack -= step;
+                sum += step;
+            }
+        }
+    }
+    sum
+}
+
+/// Decodes a reflectance code: `q / 65536`.
+#[must_use]
+pub fn decode_reflectance(code: u16) -> Frac {
+    Frac { mantissa: u32::from(code), shift: 16 }
+}
+
+/// Encodes a reflectance (round to nearest, clamped to `[0, 65535/65536]`; NaN gives 0).
+#[must_use]
+pub fn encode_reflectance(rho: f32) -> u16 {
+    if rho.is_nan() || rho <= 0.0 {
+        return 0;
+    }
+    let q = rho * 65536.0 + 0.5;
+    if q >= 65535.0 {
+        65535
+    } else {
+        q as u16
+    }
+}
+
+/// Decodes an emission code to `(mantissa, exponent)` with value `mantissa * 2^exponent`.
+#[must_use]
+pub fn decode_emission(code: u16) -> (u32, i32) {
+    let x = i32::from(code >> 10);
+    let m = u32::from(code & 0x3ff);
+    if x == 0 {
+        (m, -40)
+    } else {
+        (1024 + m, x - 41)
+    }
+}
+
+/// Decodes an emission code to f32 (exact).
+#[must_use]
+pub fn decode_emission_f32(code: u16) -> f32 {
+    let (m, e) = decode_emission(code);
+    m as f32 * pow2_f32(e)
+}
+
+/// Largest value the emission code represents: `(2 - 2^-10) * 2^32`.
+pub const EMISSION_MAX: f32 = 2047.0 * 4_194_304.0; // 2047 * 2^22
+
+/// Encodes a non-negative radiometric value (emission, irradiance) to the nearest emission code.
+///
+/// Returns `None` for negative, non-finite or too large (`> EMISSION_MAX`) values.
+#[must_use]
+pub fn encode_emission(v: f32) -> Option<u16> {
+    if !(0.0..=EMISSION_MAX).contains(&v) {
+        return None;
+    }
+    // Largest code with decode <= v (decode is monotone in the code and exact in f32).
+    let (mut lo, mut hi) = (0u32, 0xffffu32);
+    while lo < hi {
+        let mid = lo + (hi - lo).div_ceil(2);
+        if decode_emission_f32(mid as u16) <= v {
+            lo = mid;
+        } else {
+            hi = mid - 1;
+        }
+    }
+    if lo == 0xffff {
+        return Some(0xffff);
+    }
+    let below = decode_emission_f32(lo as u16);
+    let above = decode_emission_f32(lo as u16 + 1);
+    // Both differences are exact: the two neighbours are within a factor 2 of v (Sterbenz).
+    Some(if above - v <= v - below { lo as u16 + 1 } else { lo as u16 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn float_codes_are_monotone_and_continuous() {
+        for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
+            let mut prev = 0u128;
+            for c in 1..=codec.max_code() {
+                let v = codec.decode(c, 3).to_exact();
+                assert!(v > prev, "{codec:?} code {c} not above code {}", c - 1);
+                prev = v;
+            }
+            // The top code sits just below 2^(1-e).
+            assert!(prev < 1u128 << (EXACT_SHIFT - 2), "{codec:?} top code {prev} reaches 2^-2");
+        }
+    }
+
+    #[test]
+    fn row_exponent_puts_max_in_top_binade() {
+        assert_eq!(row_exponent_for(f32_to_exact(1.0)), 0);
+        assert_eq!(row_exponent_for(f32_to_exact(0.5)), 1);
+        assert_eq!(row_exponent_for(f32_to_exact(0.49)), 2);
+        assert_eq!(row_exponent_for(f32_to_exact(1e-30)), MAX_ROW_EXPONENT);
+    }
+
+    #[test]
+    fn emission_code_extremes() {
+        assert_eq!(encode_emission(0.0), Some(0));
+        assert_eq!(decode_emission_f32(encode_emission(EMISSION_MAX).unwrap()), EMISSION_MAX);
+        assert_eq!(encode_emission(EMISSION_MAX * 1.001), None);
+        assert_eq!(encode_emission(-1.0), None);
+        assert_eq!(encode_emission(f32::NAN), None);
+        assert_eq!(decode_emission_f32(encode_emission(1.0).unwrap()), 1.0);
+    }
+
+    /// Relative error bound of the row codec for entries in the normal range, absolute bound below it.
+    fn check_row(codec: FfCodec, values: &[f32]) -> Result<(), TestCaseError> {
+        let target = values.iter().fold(0u128, |s, &v| s + f32_to_exact(v)).min(1u128 << EXACT_SHIFT);
+        let mut codes = [0u16; 64];
+        let codes = &mut codes[..values.len()];
+        let e = quantize_row(codec, values, target, codes);
+        let mut sum = 0u128;
+        let max = values.iter().copied().fold(0.0f32, f32::max);
+        let m_bits = i32::from(codec.bits - codec.exponent_bits);
+        let normal_floor = if codec.exponent_bits == 0 {
+            f32::INFINITY
+        } else {
+            max * pow2_f32(-((1i32 << codec.exponent_bits) - 2))
+        };
+        for (&c, &v) in codes.iter().zip(values) {
+            let d = codec.decode(c, e);
+            sum += d.to_exact();
+            let err = (d.to_f32() - v).abs();
+            if v >= normal_floor {
+                // Relative error < 2^-M (one code step in the normal range), plus f32 rounding of the check.
+                prop_assert!(
+                    err <= v * pow2_f32(-m_bits) * (1.0 + 1e-6),
+                    "{codec:?} v={v} d={} err={err}",
+                    d.to_f32()
+                );
+            } else {
+                let abs_bound = if codec.exponent_bits == 0 {
+                    max * pow2_f32(-(i32::from(codec.bits) - 1))
+                } else {
+                    max * pow2_f32(-(m_bits + (1i32 << codec.exponent_bits) - 2))
+                };
+                prop_assert!(err <= abs_bound * (1.0 + 1e-6), "{codec:?} v={v} err={err} bound={abs_bound}");
+            }
+        }
+        prop_assert!(sum <= target, "{codec:?} decoded sum above target");
+        Ok(())
+    }
+
+    proptest! {
+        #[test]
+        fn codec_error_bounds_hold_on_random_rows(
+            raw in proptest::collection::vec((0.0f32..1.0, 0i32..30), 1..64),
+        ) {
+            // Entries spread over many binades, then scaled so the row sums to at most 1.
+            let mut values = [0.0f32; 64];
+            let n = raw.len();
+            for (v, &(m, k)) in values.iter_mut().zip(&raw) {
+                *v = m * pow2_f32(-k);
+            }
+            let s: f32 = values[..n].iter().sum();
+            if s > 1.0 {
+                for v in &mut values[..n] { *v /= s * 1.0001; }
+            }
+            for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
+                check_row(codec, &values[..n])?;
+            }
+        }
+
+        #[test]
+        fn emission_relative_error_bound(v in 1e-9f32..8e9) {
+            let d = decode_emission_f32(encode_emission(v).unwrap());
+            let bound = if v >= pow2_f32(-30) { v * pow2_f32(-11) } else { pow2_f32(-41) };
+            prop_assert!((d - v).abs() <= bound * (1.0 + 1e-6), "v={} d={}", v, d);
+        }
+
+        #[test]
+        fn reflectance_abs_error_bound(rho in 0.0f32..0.99998) {
+            let d = decode_reflectance(encode_reflectance(rho)).to_f32();
+            // 2^-17 from rounding plus the f32 rounding of rho * 65536 (an ulp of values < 65536, 2^-8 / 65536).
+            prop_assert!((d - rho).abs() <= pow2_f32(-17) + pow2_f32(-24), "rho={} d={}", rho, d);
+        }
+    }
+}

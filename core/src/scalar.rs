@@ -1,0 +1,203 @@
+//! Arithmetic for the solver: one trait, [`Scalar`], with an `f32` implementation for FPU devices and a
+//! fixed-point one, [`Fixed`] (Q32.32 in an `i64`, integer only), for FPU-less devices.
+//!
+//! Every operation the solver uses is here, so both paths run the same solver code and the same tests.
+//! Fixed-point operations saturate instead of wrapping: range `[-2^31, 2^31)` (about +-2.1e9) with resolution
+//! `2^-32` (2.3e-10). Power values (`B * A`, see the crate docs) must stay inside that range; a saturated
+//! value makes the solver report [`crate::solver::NoProgressReason::NotFinite`].
+
+use crate::codec::{pow2_f32, Frac};
+
+/// Numbers the solver computes with.
+pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
+    /// Zero.
+    const ZERO: Self;
+    /// Sum (saturating for fixed point).
+    #[must_use]
+    fn add(self, other: Self) -> Self;
+    /// Difference (saturating for fixed point).
+    #[must_use]
+    fn sub(self, other: Self) -> Self;
+    /// Product (saturating for fixed point).
+    #[must_use]
+    fn mul(self, other: Self) -> Self;
+    /// Quotient; division by zero gives zero.
+    #[must_use]
+    fn div(self, other: Self) -> Self;
+    /// Product with a dyadic fraction (form factor, reflectance); fixed point rounds toward negative infinity.
+    #[must_use]
+    fn mul_frac(self, f: Frac) -> Self;
+    /// Absolute value (saturating for fixed point).
+    #[must_use]
+    fn abs(self) -> Self;
+    /// `mantissa * 2^exponent` (used to decode emission codes without floating point).
+    #[must_use]
+    fn from_dyadic(mantissa: u32, exponent: i32) -> Self;
+    /// Conversion from f32 (fixed point decodes the bits with integer operations and saturates; NaN gives 0).
+    #[must_use]
+    fn from_f32(v: f32) -> Self;
+    /// Conversion to f32 (for display and tests).
+    #[must_use]
+    fn to_f32(self) -> f32;
+    /// Whether the value is usable: finite for f32, not saturated for fixed point.
+    #[must_use]
+    fn is_usable(self) -> bool;
+}
+
+impl Scalar for f32 {
+    const ZERO: f32 = 0.0;
+    fn add(self, other: f32) -> f32 {
+        self + other
+    }
+    fn sub(self, other: f32) -> f32 {
+        self - other
+    }
+    fn mul(self, other: f32) -> f32 {
+        self * other
+    }
+    fn div(self, other: f32) -> f32 {
+        if other == 0.0 {
+            0.0
+        } else {
+            self / other
+        }
+    }
+    fn mul_frac(self, f: Frac) -> f32 {
+        self * f.to_f32()
+    }
+    fn abs(self) -> f32 {
+        libm::fabsf(self)
+    }
+    fn from_dyadic(mantissa: u32, exponent: i32) -> f32 {
+        mantissa as f32 * pow2_f32(exponent)
+    }
+    fn from_f32(v: f32) -> f32 {
+        v
+    }
+    fn to_f32(self) -> f32 {
+        self
+    }
+    fn is_usable(self) -> bool {
+        self.is_finite()
+    }
+}
+
+/// Q32.32 fixed point in an `i64`: value = `raw / 2^32`. Saturating, integer only.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Fixed(pub i64);
+
+/// Fractional bits of [`Fixed`].
+pub const FIXED_FRAC_BITS: u32 = 32;
+
+impl Fixed {
+    /// Largest value.
+    pub const MAX: Fixed = Fixed(i64::MAX);
+    /// Smallest value.
+    pub const MIN: Fixed = Fixed(i64::MIN);
+
+    fn saturate(v: i128) -> Fixed {
+        Fixed(v.clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64)
+    }
+}
+
+/// `v * 2^shift` for `shift` in any range, saturating to i64 (integer only).
+fn shift_saturating(v: i128, shift: i32) -> Fixed {
+    if shift >= 0 {
+        if shift >= 64 || v.unsigned_abs() > (i64::MAX as u128) >> shift {
+            return if v > 0 {
+                Fixed::MAX
+            } else if v < 0 {
+                Fixed::MIN
+            } else {
+                Fixed(0)
+            };
+        }
+        Fixed::saturate(v << shift)
+    } else {
+        Fixed::saturate(if -shift >= 127 {
+            if v < 0 {
+                -1
+            } else {
+                0
+            }
+        } else {
+            v >> (-shift)
+        })
+    }
+}
+
+impl Scalar for Fixed {
+    const ZERO: Fixed = Fixed(0);
+    fn add(self, other: Fixed) -> Fixed {
+        Fixed(self.0.saturating_add(other.0))
+    }
+    fn sub(self, other: Fixed) -> Fixed {
+        Fixed(self.0.saturating_sub(other.0))
+    }
+    fn mul(self, other: Fixed) -> Fixed {
+        Fixed::saturate((i128::from(self.0) * i128::from(other.0)) >> FIXED_FRAC_BITS)
+    }
+    fn div(self, other: Fixed) -> Fixed {
+        if other.0 == 0 {
+            return Fixed(0);
+        }
+        Fixed::saturate((i128::from(self.0) << FIXED_FRAC_BITS) / i128::from(other.0))
+    }
+    fn mul_frac(self, f: Frac) -> Fixed {
+        // |self| < 2^63 and mantissa < 2^32: the product fits in i128.
+        let p = i128::from(self.0) * i128::from(f.mantissa);
+        shift_saturating(p, -(f.shift.min(127) as i32))
+    }
+    fn abs(self) -> Fixed {
+        Fixed(self.0.saturating_abs())
+    }
+    fn from_dyadic(mantissa: u32, exponent: i32) -> Fixed {
+        shift_saturating(i128::from(mantissa), exponent.saturating_add(FIXED_FRAC_BITS as i32))
+    }
+    fn from_f32(v: f32) -> Fixed {
+        let bits = v.to_bits();
+        let exp = ((bits >> 23) & 0xff) as i32;
+        if exp == 0xff {
+            // Infinity saturates; NaN gives 0.
+            return if bits & 0x7f_ffff != 0 {
+                Fixed(0)
+            } else if bits >> 31 != 0 {
+                Fixed::MIN
+            } else {
+                Fixed::MAX
+            };
+        }
+        let frac = i128::from(bits & 0x7f_ffff);
+        let (m, e) = if exp == 0 { (frac, -149) } else { (frac | 0x80_0000, exp - 150) };
+        let m = if bits >> 31 != 0 { -m } else { m };
+        shift_saturating(m, e + FIXED_FRAC_BITS as i32)
+    }
+    fn to_f32(self) -> f32 {
+        self.0 as f32 * pow2_f32(-(FIXED_FRAC_BITS as i32))
+    }
+    fn is_usable(self) -> bool {
+        self.0 != i64::MAX && self.0 != i64::MIN
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_conversions_and_saturation() {
+        assert_eq!(Fixed::from_f32(1.5), Fixed(3 << 31));
+        assert_eq!(Fixed::from_f32(-0.25), Fixed(-(1 << 30)));
+        assert_eq!(Fixed::from_f32(1e12), Fixed::MAX);
+        assert_eq!(Fixed::from_f32(-1e12), Fixed::MIN);
+        assert_eq!(Fixed::from_f32(f32::NAN), Fixed(0));
+        assert_eq!(Fixed::from_dyadic(3, -1).to_f32(), 1.5);
+        assert_eq!(Fixed::MAX.add(Fixed(1)), Fixed::MAX);
+        assert_eq!(Fixed::MIN.abs(), Fixed::MAX);
+        assert_eq!(Fixed::from_f32(3.0).mul(Fixed::from_f32(-0.5)).to_f32(), -1.5);
+        assert_eq!(Fixed::from_f32(3.0).div(Fixed::from_f32(-0.5)).to_f32(), -6.0);
+        assert_eq!(Fixed::from_f32(3.0).div(Fixed(0)), Fixed(0));
+        assert_eq!(Fixed::from_f32(3.0).mul_frac(Frac { mantissa: 1, shift: 2 }).to_f32(), 0.75);
+        assert_eq!(Fixed::MAX.mul(Fixed::MAX), Fixed::MAX);
+    }
+}

@@ -1,0 +1,858 @@
+//! Solver state in caller-supplied buffers, bounded steps (shooting, Gauss-Seidel, Jacobi) and relighting.
+//!
+//! The state is [`Solver`], generic over the arithmetic ([`Scalar`]: `f32` or [`Fixed`](crate::Fixed)). It
+//! borrows every buffer from the caller ([`Buffers`]), sized by the table's counts; nothing is allocated and
+//! nothing is sized for a worst case. Each step takes a budget in work units (see the crate docs, "Cost
+//! model") and never spends more.
+
+use core::fmt;
+
+use crate::codec::{decode_emission, decode_reflectance, encode_reflectance, Frac};
+use crate::scalar::Scalar;
+use crate::table::Table;
+
+/// Caller-supplied buffers. Every slice must hold at least the count named (extra elements are unused).
+#[derive(Debug)]
+pub struct Buffers<'b, S> {
+    /// Power `Phi_i = B_i A_i` (RGB) per patch: patch count.
+    pub power: &'b mut [[S; 3]],
+    /// Unshot power (RGB) per patch: patch count.
+    pub unshot: &'b mut [[S; 3]],
+    /// Incident power `H_i = sum_j F_ji Phi_j` received so far (RGB) per patch, before reflection: patch count.
+    /// Reflectance edits need it.
+    pub incident: &'b mut [[S; 3]],
+    /// Tournament tree over unshot power: patch count.
+    pub tree: &'b mut [u32],
+    /// Current intensity (RGB) per light group: light group count.
+    pub intensity: &'b mut [[S; 3]],
+    /// Current reflectance codes (RGB) per material: material count.
+    pub reflectance: &'b mut [[u16; 3]],
+}
+
+/// Solver settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Config<S> {
+    /// Converged when every patch's unshot power magnitude (`|r| + |g| + |b|`, power units) is at most this.
+    pub tolerance: S,
+    /// Overshooting: a shot sends `(1 + overshoot / 256)` times the unshot power and leaves the excess as
+    /// negative unshot power (0 = plain progressive refinement). Shooting only.
+    pub overshoot: u8,
+}
+
+/// What a step did, and what the caller should do next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// Every patch's unshot power is within the tolerance. Further steps do nothing until a light or
+    /// reflectance changes.
+    Converged {
+        /// Work units used.
+        used: u32,
+    },
+    /// The budget ran out before convergence: call again with more budget (next frame).
+    BudgetSpent {
+        /// Work units used (never more than the budget).
+        used: u32,
+    },
+    /// The step cannot make progress; more budget of the same kind will not help unless the reason says so.
+    NoProgress {
+        /// Work units used.
+        used: u32,
+        /// Why.
+        reason: NoProgressReason,
+    },
+}
+
+impl Outcome {
+    /// Work units used.
+    #[must_use]
+    pub fn used(self) -> u32 {
+        match self {
+            Outcome::Converged { used }
+            | Outcome::BudgetSpent { used }
+            | Outcome::NoProgress { used, .. } => used,
+        }
+    }
+}
+
+/// Why a step made no progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NoProgressReason {
+    /// The budget is smaller than the smallest indivisible action (one entry plus its tree update).
+    BudgetTooSmall {
+        /// Units the next action needs.
+        needed: u32,
+    },
+    /// The largest unshot power is not finite (f32) or saturated (fixed point): the state has overflowed.
+    NotFinite,
+    /// The table is not the one the solver was created with (CRC or counts differ).
+    WrongTable,
+    /// A Jacobi sweep is half done: finish it with [`Solver::step_jacobi`] before shooting or Gauss-Seidel.
+    JacobiInProgress,
+    /// The Jacobi scratch buffer is shorter than the patch count.
+    ScratchTooSmall,
+}
+
+/// Why the solver cannot be created or a change cannot be applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SolverError {
+    /// A buffer is shorter than the table needs.
+    BufferTooSmall {
+        /// Which buffer.
+        buffer: &'static str,
+        /// Elements needed.
+        needed: u32,
+        /// Elements given.
+        got: usize,
+    },
+    /// The light group does not exist.
+    NoSuchGroup {
+        /// The group asked for.
+        group: u32,
+    },
+    /// The material does not exist.
+    NoSuchMaterial {
+        /// The material asked for.
+        material: u32,
+    },
+    /// An intensity is not finite, or a reflectance not in `[0, 1)`.
+    BadValue {
+        /// Channel (0 = red, 1 = green, 2 = blue).
+        channel: u8,
+    },
+    /// The table is not the one the solver was created with.
+    WrongTable,
+    /// A Jacobi sweep is half done; changes would be lost by its end-of-sweep copy.
+    JacobiInProgress,
+    /// More patches than the solver's tree indexing supports ([`MAX_PATCHES`]).
+    TooManyPatches {
+        /// Patches in the table.
+        patches: u32,
+    },
+}
+
+/// Largest patch count the solver accepts (tree positions `< 2n` must fit in a `u32`).
+pub const MAX_PATCHES: u32 = 1 << 30;
+
+impl fmt::Display for SolverError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            SolverError::BufferTooSmall { buffer, needed, got } => {
+                write!(f, "solver buffer `{buffer}` too small: {got} elements, need {needed}")
+            }
+            SolverError::NoSuchGroup { group } => write!(f, "no light group {group} in the table"),
+            SolverError::NoSuchMaterial { material } => write!(f, "no material {material} in the table"),
+            SolverError::BadValue { channel } => {
+                write!(f, "value of channel {channel} not finite or out of range")
+            }
+            SolverError::WrongTable => write!(f, "table differs from the one the solver was created with"),
+            SolverError::JacobiInProgress => write!(f, "a Jacobi sweep is in progress; finish it first"),
+            SolverError::TooManyPatches { patches } => {
+                write!(f, "{patches} patches: more than the solver supports ({MAX_PATCHES})")
+            }
+        }
+    }
+}
+
+impl core::error::Error for SolverError {}
+
+/// A row being applied: shooter, next entry position, end of row, and the power being shot.
+#[derive(Clone, Copy, Debug)]
+struct Shot<S> {
+    shooter: u32,
+    next: u32,
+    end: u32,
+    power: [S; 3],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum TreeState {
+    Valid,
+    /// Rebuilding bottom-up; the next internal node to compute (counts down to 1).
+    Rebuilding(u32),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Phase {
+    /// Jacobi only: zeroing the scratch buffer, next patch.
+    Clear(u32),
+    /// Visiting rows, next row.
+    Rows(u32),
+    /// End-of-sweep scan (Jacobi: copy scratch into unshot), next patch.
+    Scan(u32),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Sweep<S> {
+    jacobi: bool,
+    phase: Phase,
+    max: S,
+}
+
+/// Solver state: the current solution of one table, in the caller's buffers.
+#[derive(Debug)]
+pub struct Solver<'b, S> {
+    buf: Buffers<'b, S>,
+    n: u32,
+    groups: u32,
+    materials: u32,
+    table_crc: u32,
+    config: Config<S>,
+    shot: Option<Shot<S>>,
+    tree: TreeState,
+    sweep: Option<Sweep<S>>,
+    shots: u32,
+}
+
+fn get3<S: Scalar>(s: &[[S; 3]], i: u32) -> [S; 3] {
+    s.get(i as usize).copied().unwrap_or([S::ZERO; 3])
+}
+
+fn add3<S: Scalar>(s: &mut [[S; 3]], i: u32, d: [S; 3]) {
+    if let Some(v) = s.get_mut(i as usize) {
+        for (a, b) in v.iter_mut().zip(d) {
+            *a = a.add(b);
+        }
+    }
+}
+
+fn magnitude<S: Scalar>(v: [S; 3]) -> S {
+    v[0].abs().add(v[1].abs()).add(v[2].abs())
+}
+
+fn area<S: Scalar>(table: &Table<'_>, patch: u32) -> S {
+    S::from_f32(table.area(patch).unwrap_or(0.0))
+}
+
+fn emission<S: Scalar>(code: u16) -> S {
+    let (m, e) = decode_emission(code);
+    S::from_dyadic(m, e)
+}
+
+/// Number of internal tree nodes on the path from a leaf to the root, at most: `floor(log2(2n - 1))`.
+fn tree_depth(n: u32) -> u32 {
+    let leaves_end = (u64::from(n) * 2).saturating_sub(1).max(1);
+    63 - leaves_end.leading_zeros()
+}
+
+impl<'b, S: Scalar> Solver<'b, S> {
+    /// Creates the solver for `table`: loads reflectances and default intensities, and sets the cold start
+    /// (static base plus every light group at its default intensity, as unshot power).
+    ///
+    /// Cost: `O(patches + members)`, outside any budget. The selection tree is built by the first steps,
+    /// inside their budgets.
+    ///
+    /// # Errors
+    /// [`SolverError::BufferTooSmall`] naming the buffer.
+    pub fn new(table: &Table<'_>, buffers: Buffers<'b, S>, config: Config<S>) -> Result<Self, SolverError> {
+        let n = table.patch_count();
+        if n > MAX_PATCHES {
+            return Err(SolverError::TooManyPatches { patches: n });
+        }
+        let checks: [(&'static str, usize, u32); 6] = [
+            ("power", buffers.power.len(), n),
+            ("unshot", buffers.unshot.len(), n),
+            ("incident", buffers.incident.len(), n),
+            ("tree", buffers.tree.len(), n),
+            ("intensity", buffers.intensity.len(), table.group_count()),
+            ("reflectance", buffers.reflectance.len(), table.material_count()),
+        ];
+        for (buffer, got, needed) in checks {
+            if got < needed as usize {
+                return Err(SolverError::BufferTooSmall { buffer, needed, got });
+            }
+        }
+        let mut s = Solver {
+            buf: buffers,
+            n,
+            groups: table.group_count(),
+            materials: table.material_count(),
+            table_crc: table.crc(),
+            config,
+            shot: None,
+            tree: TreeState::Rebuilding(n.saturating_sub(1)),
+            sweep: None,
+            shots: 0,
+        };
+        s.reset(table);
+        Ok(s)
+    }
+
+    fn same_table(&self, table: &Table<'_>) -> bool {
+        table.crc() == self.table_crc
+            && table.patch_count() == self.n
+            && table.group_count() == self.groups
+            && table.material_count() == self.materials
+    }
+
+    /// Resets to the cold start: table reflectances, default intensities, static base, lights as unshot power.
+    ///
+    /// A different table is ignored (the state stays as it was).
+    pub fn reset(&mut self, table: &Table<'_>) {
+        if !self.same_table(table) {
+            return;
+        }
+        for m in 0..self.materials {
+            if let Some(r) = self.buf.reflectance.get_mut(m as usize) {
+                *r = table.reflectance(m).unwrap_or([0; 3]);
+            }
+        }
+        for g in 0..self.groups {
+            if let Some(v) = self.buf.intensity.get_mut(g as usize) {
+                let d = table.default_intensity(g).unwrap_or([0.0; 3]);
+                *v = [S::from_f32(d[0]), S::from_f32(d[1]), S::from_f32(d[2])];
+            }
+        }
+        let solved = table.base_solved();
+        for i in 0..self.n {
+            let a: S = area(table, i);
+            let e = table.base_emission(i).unwrap_or([0; 3]);
+            let g = table.base_irradiance(i).unwrap_or([0; 3]);
+            let rho = self.rho(table, i);
+            let mut p = [S::ZERO; 3];
+            let mut h = [S::ZERO; 3];
+            for c in 0..3 {
+                h[c] = emission::<S>(g[c]).mul(a);
+                p[c] = emission::<S>(e[c]).mul(a).add(h[c].mul_frac(rho[c]));
+            }
+            if let Some(v) = self.buf.power.get_mut(i as usize) {
+                *v = p;
+            }
+            if let Some(v) = self.buf.incident.get_mut(i as usize) {
+                *v = h;
+            }
+            if let Some(v) = self.buf.unshot.get_mut(i as usize) {
+                *v = if solved { [S::ZERO; 3] } else { p };
+            }
+        }
+        for g in 0..self.groups {
+            let rgb = get3(self.buf.intensity, g);
+            self.add_group_emission(table, g, rgb);
+        }
+        self.shot = None;
+        self.sweep = None;
+        self.shots = 0;
+        self.tree = TreeState::Rebuilding(self.n.saturating_sub(1));
+    }
+
+    /// Adds `scale` times group `g`'s unit emission (times area) to power and unshot power; returns members.
+    fn add_group_emission(&mut self, table: &Table<'_>, g: u32, scale: [S; 3]) -> u32 {
+        let members = table.group_members(g).unwrap_or(0..0);
+        let count = members.end.saturating_sub(members.start);
+        for k in members {
+            let Some(m) = table.member(k) else { continue };
+            let a: S = area(table, m.patch);
+            let mut d = [S::ZERO; 3];
+            for c in 0..3 {
+                d[c] = scale[c].mul(emission::<S>(m.emission[c])).mul(a);
+            }
+            add3(self.buf.power, m.patch, d);
+            add3(self.buf.unshot, m.patch, d);
+        }
+        count
+    }
+
+    fn rho(&self, table: &Table<'_>, patch: u32) -> [Frac; 3] {
+        let m = table.material(patch).unwrap_or(0);
+        let r = self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]);
+        [decode_reflectance(r[0]), decode_reflectance(r[1]), decode_reflectance(r[2])]
+    }
+
+    /// Number of patches.
+    #[must_use]
+    pub fn patch_count(&self) -> u32 {
+        self.n
+    }
+
+    /// Rows started (shots, or row visits of a sweep) since the last reset; saturates at `u32::MAX`.
+    #[must_use]
+    pub fn shots(&self) -> u32 {
+        self.shots
+    }
+
+    /// Power `Phi_i = B_i A_i` of `patch` (RGB), or `None` out of range.
+    #[must_use]
+    pub fn power(&self, patch: u32) -> Option<[S; 3]> {
+        self.buf.power.get(patch as usize).copied().filter(|_| patch < self.n)
+    }
+
+    /// Unshot power of `patch` (RGB), or `None` out of range. Excludes a shot in flight.
+    #[must_use]
+    pub fn unshot(&self, patch: u32) -> Option<[S; 3]> {
+        self.buf.unshot.get(patch as usize).copied().filter(|_| patch < self.n)
+    }
+
+    /// Radiosity `B_i = Phi_i / A_i` (W/m^2, RGB) of `patch`, or `None` out of range or for another table.
+    #[must_use]
+    pub fn radiosity(&self, table: &Table<'_>, patch: u32) -> Option<[S; 3]> {
+        if !self.same_table(table) {
+            return None;
+        }
+        let p = self.power(patch)?;
+        let a: S = area(table, patch);
+        Some([p[0].div(a), p[1].div(a), p[2].div(a)])
+    }
+
+    /// Current intensity of light `group`.
+    #[must_use]
+    pub fn intensity(&self, group: u32) -> Option<[S; 3]> {
+        self.buf.intensity.get(group as usize).copied().filter(|_| group < self.groups)
+    }
+
+    /// Sum of all unshot power (RGB, power units), including the part of a shot in flight not yet delivered
+    /// (its power times the form factors of the entries left). Cost `O(patches + row length)`.
+    #[must_use]
+    pub fn total_unshot(&self, table: &Table<'_>) -> [S; 3] {
+        let mut t = [S::ZERO; 3];
+        if let Some(shot) = self.shot {
+            for k in shot.next..shot.end {
+                if let Some((_, f)) = table.entry(shot.shooter, k) {
+                    for (tc, pc) in t.iter_mut().zip(shot.power) {
+                        *tc = tc.add(pc.mul_frac(f));
+                    }
+                }
+            }
+        }
+        for u in self.buf.unshot.iter().take(self.n as usize) {
+            for c in 0..3 {
+                t[c] = t[c].add(u[c]);
+            }
+        }
+        t
+    }
+
+    /// The ambient term for display of an unconverged state (Cohen, Chen, Wallace, Greenberg, "A progressive
+    /// refinement approach to fast radiosity image generation", SIGGRAPH 1988, section 3):
+    /// `ambient = (sum of unshot power / total area) / (1 - rho_avg)`, `rho_avg` the area-weighted mean
+    /// reflectance. Display `B_i + rho_i * ambient` ([`Solver::radiosity_with_ambient`]). Meant for closed
+    /// scenes. Cost `O(patches)`, outside any budget.
+    #[must_use]
+    pub fn ambient(&self, table: &Table<'_>) -> [S; 3] {
+        if !self.same_table(table) {
+            return [S::ZERO; 3];
+        }
+        let unshot = self.total_unshot(table);
+        let mut area_sum = S::ZERO;
+        let mut rho_area = [S::ZERO; 3];
+        for i in 0..self.n {
+            let a: S = area(table, i);
+            area_sum = area_sum.add(a);
+            let rho = self.rho(table, i);
+            for c in 0..3 {
+                rho_area[c] = rho_area[c].add(a.mul_frac(rho[c]));
+            }
+        }
+        let one = S::from_dyadic(1, 0);
+        let mut out = [S::ZERO; 3];
+        for c in 0..3 {
+            let rho_avg = rho_area[c].div(area_sum);
+            out[c] = unshot[c].div(area_sum).div(one.sub(rho_avg));
+        }
+        out
+    }
+
+    /// `B_i + rho_i * ambient` for `patch` (see [`Solver::ambient`]).
+    #[must_use]
+    pub fn radiosity_with_ambient(&self, table: &Table<'_>, patch: u32, ambient: [S; 3]) -> Option<[S; 3]> {
+        let b = self.radiosity(table, patch)?;
+        let rho = self.rho(table, patch);
+        Some([0, 1, 2].map(|c| b[c].add(ambient[c].mul_frac(rho[c]))))
+    }
+
+    // ---- selection tree -------------------------------------------------------------------------------
+
+    fn key(&self, i: u32) -> S {
+        magnitude(get3(self.buf.unshot, i))
+    }
+
+    /// Winner of tree position `k` (internal node or leaf).
+    fn winner_at(&self, k: u32) -> u32 {
+        if k >= self.n {
+            k - self.n
+        } else {
+            self.buf.tree.get(k as usize).copied().unwrap_or(0)
+        }
+    }
+
+    /// The better of two patches: larger key, ties to the lower index.
+    fn better(&self, a: u32, b: u32) -> u32 {
+        let (ka, kb) = (self.key(a), self.key(b));
+        if ka > kb || (ka == kb && a < b) {
+            a
+        } else {
+            b
+        }
+    }
+
+    fn recompute(&mut self, k: u32) -> u32 {
+        let w = self.better(self.winner_at(2 * k), self.winner_at(2 * k + 1));
+        if let Some(t) = self.buf.tree.get_mut(k as usize) {
+            *t = w;
+        }
+        w
+    }
+
+    /// Updates the path of `patch`'s leaf after its key changed; returns nodes visited (work units).
+    fn update_leaf(&mut self, patch: u32) -> u32 {
+        if self.tree != TreeState::Valid {
+            return 0;
+        }
+        let mut k = (self.n + patch) / 2;
+        let mut visited = 0;
+        while k >= 1 {
+            let old = self.winner_at(k);
+            let new = self.recompute(k);
+            visited += 1;
+            if new == old && old != patch {
+                break;
+            }
+            k /= 2;
+        }
+        visited
+    }
+
+    fn root(&self) -> u32 {
+        if self.n <= 1 {
+            0
+        } else {
+            self.winner_at(1)
+        }
+    }
+
+    // ---- steps ----------------------------------------------------------------------------------------
+
+    /// Applies entries of the shot in flight while the budget allows. Returns `true` when the row is done.
+    /// `scratch`: Jacobi's receiving buffer; `None` sends received power to the unshot buffer.
+    fn apply_shot(
+        &mut self,
+        table: &Table<'_>,
+        budget: u32,
+        used: &mut u32,
+        mut scratch: Option<&mut [[S; 3]]>,
+        per_entry: u32,
+    ) -> bool {
+        let Some(mut shot) = self.shot else { return true };
+        while shot.next < shot.end {
+            if budget - *used < per_entry {
+                self.shot = Some(shot);
+                return false;
+            }
+            if let Some((i, f)) = table.entry(shot.shooter, shot.next) {
+                let rho = self.rho(table, i);
+                let mut t = [S::ZERO; 3];
+                let mut r = [S::ZERO; 3];
+                for c in 0..3 {
+                    t[c] = shot.power[c].mul_frac(f);
+                    r[c] = t[c].mul_frac(rho[c]);
+                }
+                add3(self.buf.incident, i, t);
+                add3(self.buf.power, i, r);
+                *used += 1;
+                match scratch.as_deref_mut() {
+                    Some(s) => add3(s, i, r),
+                    None => {
+                        add3(self.buf.unshot, i, r);
+                        *used += self.update_leaf(i);
+                    }
+                }
+            } else {
+                *used += 1;
+            }
+            shot.next += 1;
+        }
+        self.shot = None;
+        true
+    }
+
+    /// Starts shooting `shooter`'s unshot power times `omega_extra` (overshoot/256 extra).
+    fn start_shot(&mut self, table: &Table<'_>, shooter: u32, overshoot: u8) -> u32 {
+        let u = get3(self.buf.unshot, shooter);
+        let extra = Frac { mantissa: u32::from(overshoot), shift: 8 };
+        let power = u.map(|x| x.add(x.mul_frac(extra)));
+        if let Some(v) = self.buf.unshot.get_mut(shooter as usize) {
+            for c in 0..3 {
+                v[c] = v[c].sub(power[c]);
+            }
+        }
+        let row = table.row(shooter).unwrap_or(0..0);
+        self.shot = Some(Shot { shooter, next: row.start, end: row.end, power });
+        self.shots = self.shots.saturating_add(1);
+        1 + self.update_leaf(shooter)
+    }
+
+    /// Worst-case units of one shooting entry: the entry plus a full leaf-to-root path.
+    fn shooting_entry_cost(&self) -> u32 {
+        1 + tree_depth(self.n)
+    }
+
+    /// Progressive-refinement shooting (Southwell iteration; Cohen et al. 1988) for at most `budget` work
+    /// units: repeatedly shoot the patch with the largest unshot power (tournament tree), resuming a row cut
+    /// short by the previous step.
+    ///
+    /// Cost: 1 unit per tree node rebuilt; per shot 1 unit plus the shooter's leaf path (`<= depth` nodes);
+    /// per entry 1 unit plus the receiver's leaf path (`<= depth`), where `depth = floor(log2(2n - 1))`.
+    /// An action runs only if its worst case fits in what is left of the budget.
+    pub fn step(&mut self, table: &Table<'_>, budget: u32) -> Outcome {
+        let mut used = 0u32;
+        if !self.same_table(table) {
+            return Outcome::NoProgress { used, reason: NoProgressReason::WrongTable };
+        }
+        if self.sweep.is_some_and(|s| s.jacobi) {
+            return Outcome::NoProgress { used, reason: NoProgressReason::JacobiInProgress };
+        }
+        // A Gauss-Seidel sweep left half done is abandoned (its in-flight row is finished below): shooting
+        // works on the same residual.
+        self.sweep = None;
+        let per_entry = self.shooting_entry_cost();
+        loop {
+            if let TreeState::Rebuilding(mut k) = self.tree {
+                while k >= 1 {
+                    if used >= budget {
+                        self.tree = TreeState::Rebuilding(k);
+                        return self.spent(used, 1);
+                    }
+                    self.recompute(k);
+                    used += 1;
+                    k -= 1;
+                }
+                self.tree = TreeState::Valid;
+            }
+            if self.shot.is_some() {
+                if !self.apply_shot(table, budget, &mut used, None, per_entry) {
+                    return self.spent(used, per_entry);
+                }
+                continue;
+            }
+            let w = self.root();
+            let key = self.key(w);
+            if !key.is_usable() {
+                return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
+            }
+            if key <= self.config.tolerance || self.n == 0 {
+                return Outcome::Converged { used };
+            }
+            if budget - used < per_entry {
+                return self.spent(used, per_entry);
+            }
+            used += self.start_shot(table, w, self.config.overshoot);
+        }
+    }
+
+    fn spent(&self, used: u32, needed: u32) -> Outcome {
+        if used == 0 {
+            Outcome::NoProgress { used, reason: NoProgressReason::BudgetTooSmall { needed } }
+        } else {
+            Outcome::BudgetSpent { used }
+        }
+    }
+
+    /// Gauss-Seidel sweeps for at most `budget` work units, in residual form: each sweep shoots every
+    /// patch's whole unshot power in index order, which is exactly a Gauss-Seidel sweep on `(I - R F) B = E`
+    /// (each patch relaxed with the latest values of the others), reading shooter rows.
+    ///
+    /// Cost: 1 unit per row visited, 1 per entry, 1 per patch in the end-of-sweep convergence scan.
+    pub fn step_gauss_seidel(&mut self, table: &Table<'_>, budget: u32) -> Outcome {
+        self.sweep_step(table, None, budget)
+    }
+
+    /// Jacobi sweeps for at most `budget` work units, in residual form: each sweep shoots every patch's unshot
+    /// power as it was at the start of the sweep, collecting what is received in `scratch` (patch count
+    /// elements, the same buffer on every call of a sweep), which becomes the unshot power at the end of the
+    /// sweep: `B_{k+1} = E + R F B_k`.
+    ///
+    /// Cost: 1 unit per patch to clear `scratch`, 1 per row visited, 1 per entry, 1 per patch in the
+    /// end-of-sweep copy and convergence scan.
+    pub fn step_jacobi(&mut self, table: &Table<'_>, scratch: &mut [[S; 3]], budget: u32) -> Outcome {
+        if scratch.len() < self.n as usize {
+            return Outcome::NoProgress { used: 0, reason: NoProgressReason::ScratchTooSmall };
+        }
+        self.sweep_step(table, Some(scratch), budget)
+    }
+
+    fn sweep_step(&mut self, table: &Table<'_>, mut scratch: Option<&mut [[S; 3]]>, budget: u32) -> Outcome {
+        let mut used = 0u32;
+        if !self.same_table(table) {
+            return Outcome::NoProgress { used, reason: NoProgressReason::WrongTable };
+        }
+        let jacobi = scratch.is_some();
+        match self.sweep {
+            Some(s) if s.jacobi == jacobi => {}
+            Some(s) if s.jacobi => {
+                return Outcome::NoProgress { used, reason: NoProgressReason::JacobiInProgress };
+            }
+            _ => {
+                // Coming from shooting or a half-done Gauss-Seidel sweep: finish the row in flight into the
+                // unshot buffer (the tree is not maintained from here on), then start a fresh sweep.
+                self.tree = TreeState::Rebuilding(self.n.saturating_sub(1));
+                if !self.apply_shot(table, budget, &mut used, None, 1) {
+                    return self.spent(used, 1);
+                }
+                self.sweep = None;
+            }
+        }
+        let mut sweep = self.sweep.unwrap_or(Sweep {
+            jacobi,
+            phase: if jacobi { Phase::Clear(0) } else { Phase::Rows(0) },
+            max: S::ZERO,
+        });
+        loop {
+            if used >= budget {
+                self.sweep = Some(sweep);
+                return self.spent(used, 1);
+            }
+            match sweep.phase {
+                Phase::Clear(i) if i < self.n => {
+                    if let Some(s) = scratch.as_deref_mut().and_then(|s| s.get_mut(i as usize)) {
+                        *s = [S::ZERO; 3];
+                    }
+                    used += 1;
+                    sweep.phase = Phase::Clear(i + 1);
+                }
+                Phase::Clear(_) => sweep.phase = Phase::Rows(0),
+                Phase::Rows(j) if j < self.n => {
+                    if self.shot.is_none() {
+                        // Row visit: take the shooter's residual (Jacobi keeps it until the end-of-sweep copy).
+                        let u = get3(self.buf.unshot, j);
+                        if !jacobi {
+                            if let Some(v) = self.buf.unshot.get_mut(j as usize) {
+                                *v = [S::ZERO; 3];
+                            }
+                        }
+                        let row = table.row(j).unwrap_or(0..0);
+                        self.shot = Some(Shot { shooter: j, next: row.start, end: row.end, power: u });
+                        self.shots = self.shots.saturating_add(1);
+                        used += 1;
+                    }
+                    if !self.apply_shot(table, budget, &mut used, scratch.as_deref_mut(), 1) {
+                        self.sweep = Some(sweep);
+                        return self.spent(used, 1);
+                    }
+                    sweep.phase = Phase::Rows(j + 1);
+                }
+                Phase::Rows(_) => {
+                    sweep.phase = Phase::Scan(0);
+                    sweep.max = S::ZERO;
+                }
+                Phase::Scan(i) if i < self.n => {
+                    if let Some(s) = scratch.as_deref_mut().and_then(|s| s.get_mut(i as usize)) {
+                        if let Some(v) = self.buf.unshot.get_mut(i as usize) {
+                            *v = *s;
+                        }
+                    }
+                    let k = self.key(i);
+                    if k > sweep.max || !k.is_usable() {
+                        sweep.max = k;
+                    }
+                    used += 1;
+                    sweep.phase = Phase::Scan(i + 1);
+                }
+                Phase::Scan(_) => {
+                    self.sweep = None;
+                    if !sweep.max.is_usable() {
+                        return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
+                    }
+                    if sweep.max <= self.config.tolerance {
+                        return Outcome::Converged { used };
+                    }
+                    sweep = Sweep {
+                        jacobi,
+                        phase: if jacobi { Phase::Clear(0) } else { Phase::Rows(0) },
+                        max: S::ZERO,
+                    };
+                }
+            }
+        }
+    }
+
+    // ---- relighting -----------------------------------------------------------------------------------
+
+    fn check_change(&self, table: &Table<'_>) -> Result<(), SolverError> {
+        if !self.same_table(table) {
+            return Err(SolverError::WrongTable);
+        }
+        if self.sweep.is_some_and(|s| s.jacobi) {
+            return Err(SolverError::JacobiInProgress);
+        }
+        Ok(())
+    }
+
+    /// Sets light `group` to intensity `rgb`: the emission change (positive or negative) of every member is
+    /// injected as unshot power, keeping the current solution as a warm start. Returns the work done (one
+    /// unit per member plus its tree path), outside any step budget.
+    ///
+    /// # Errors
+    /// [`SolverError::NoSuchGroup`], [`SolverError::BadValue`] (not finite), [`SolverError::WrongTable`],
+    /// [`SolverError::JacobiInProgress`].
+    pub fn set_light(&mut self, table: &Table<'_>, group: u32, rgb: [f32; 3]) -> Result<u32, SolverError> {
+        self.check_change(table)?;
+        if group >= self.groups {
+            return Err(SolverError::NoSuchGroup { group });
+        }
+        for (c, v) in rgb.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(SolverError::BadValue { channel: c as u8 });
+            }
+        }
+        let new = rgb.map(S::from_f32);
+        let old = self.intensity(group).unwrap_or([S::ZERO; 3]);
+        let delta = [new[0].sub(old[0]), new[1].sub(old[1]), new[2].sub(old[2])];
+        if let Some(v) = self.buf.intensity.get_mut(group as usize) {
+            *v = new;
+        }
+        let mut units = self.add_group_emission(table, group, delta);
+        for k in table.group_members(group).unwrap_or(0..0) {
+            if let Some(m) = table.member(k) {
+                units = units.saturating_add(self.update_leaf(m.patch));
+            }
+        }
+        Ok(units)
+    }
+
+    /// Sets the reflectance of `material` to `rgb` (each in `[0, 1)`, quantized by the reflectance codec):
+    /// for every patch `i` of the material, `(rho_new - rho_old) H_i` (its incident power so far) is added to
+    /// its power and injected as unshot power, so the solve converges to the cold solve of the edited scene.
+    /// Returns the work done (one unit per patch scanned plus tree paths), outside any step budget.
+    ///
+    /// # Errors
+    /// [`SolverError::NoSuchMaterial`], [`SolverError::BadValue`], [`SolverError::WrongTable`],
+    /// [`SolverError::JacobiInProgress`].
+    pub fn set_reflectance(
+        &mut self,
+        table: &Table<'_>,
+        material: u32,
+        rgb: [f32; 3],
+    ) -> Result<u32, SolverError> {
+        self.check_change(table)?;
+        if material >= self.materials {
+            return Err(SolverError::NoSuchMaterial { material });
+        }
+        for (c, v) in rgb.iter().enumerate() {
+            if !(0.0..1.0).contains(v) {
+                return Err(SolverError::BadValue { channel: c as u8 });
+            }
+        }
+        let new_codes = rgb.map(encode_reflectance);
+        let old_codes = self.buf.reflectance.get(material as usize).copied().unwrap_or([0; 3]);
+        if let Some(r) = self.buf.reflectance.get_mut(material as usize) {
+            *r = new_codes;
+        }
+        let mut units = 0u32;
+        for i in 0..self.n {
+            units = units.saturating_add(1);
+            if table.material(i) != Some(material) {
+                continue;
+            }
+            let h = get3(self.buf.incident, i);
+            let mut d = [S::ZERO; 3];
+            for c in 0..3 {
+                d[c] = h[c]
+                    .mul_frac(decode_reflectance(new_codes[c]))
+                    .sub(h[c].mul_frac(decode_reflectance(old_codes[c])));
+            }
+            add3(self.buf.power, i, d);
+            add3(self.buf.unshot, i, d);
+            units = units.saturating_add(self.update_leaf(i));
+        }
+        Ok(units)
+    }
+}

@@ -1,0 +1,452 @@
+//! The table writer: quantizes a [`TableSpec`] into a caller's buffer, in the layout [`Table::parse`] reads.
+//!
+//! Std-free so the host and the device share one implementation of the layout.
+//!
+//! [`Table::parse`]: crate::table::Table::parse
+
+use core::fmt;
+
+use crate::codec::{self, f32_to_exact, FfCodec, EXACT_SHIFT};
+use crate::crc::crc32;
+use crate::table::{Header, Layout, FORMAT_VERSION, MAGIC, MAX_HEADER_LEN};
+
+/// One patch as the writer takes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PatchSpec {
+    /// Area (scene units squared), finite and positive.
+    pub area: f32,
+    /// Index into [`TableSpec::materials`].
+    pub material: u32,
+    /// Static emission (W/m^2, RGB): the folded static lights.
+    pub base_emission: [f32; 3],
+    /// Static irradiance (W/m^2, RGB): `sum_j F_ij B_static_j`, the light arriving from the static solution
+    /// (zero if the host does not solve the static lights; see [`TableSpec::base_solved`]).
+    pub base_irradiance: [f32; 3],
+}
+
+/// One light-group member: a patch and its emission at unit intensity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MemberSpec {
+    /// The patch.
+    pub patch: u32,
+    /// Emission at unit intensity (W/m^2, RGB).
+    pub emission: [f32; 3],
+}
+
+/// One light group as the writer takes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroupSpec<'a> {
+    /// Identifier chosen by the host (e.g. a hash of the material name).
+    pub id: u32,
+    /// Intensity (RGB multiplier) the solver starts with.
+    pub default_intensity: [f32; 3],
+    /// Member patches.
+    pub members: &'a [MemberSpec],
+}
+
+/// Form factors as compressed sparse shooter rows: row `j` holds the receivers `i` with `F_ji`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowsSpec<'a> {
+    /// `row_start[j]..row_start[j + 1]` index the entries of row `j`; length patch count + 1.
+    pub row_start: &'a [u32],
+    /// Receiver of each entry, strictly increasing within a row.
+    pub receiver: &'a [u32],
+    /// `F_ji` of each entry, finite and in `[0, 1]`.
+    pub form_factor: &'a [f32],
+}
+
+/// Everything a table holds, as borrowed slices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TableSpec<'a> {
+    /// Patches.
+    pub patches: &'a [PatchSpec],
+    /// Reflectance (RGB, each in `[0, 1)`) per material.
+    pub materials: &'a [[f32; 3]],
+    /// Light groups (the lights that may change at run time).
+    pub groups: &'a [GroupSpec<'a>],
+    /// Form factors.
+    pub rows: RowsSpec<'a>,
+    /// Form-factor codec.
+    pub codec: FfCodec,
+    /// `true`: `base_irradiance` is the converged static solution, the solver starts with the static power
+    /// already shot. `false`: the solver shoots the static emission itself.
+    pub base_solved: bool,
+}
+
+/// Largest amount by which a row's sum may exceed 1 before the writer rejects it (f32 rounding of a closed
+/// row computed in f64 is far below this; anything larger is a form-factor bug, never renormalized).
+pub const ROW_SUM_SLACK: f32 = 1e-5;
+
+/// What is wrong with a [`TableSpec`], or why it does not fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum WriteError {
+    /// The output buffer is too small.
+    BufferTooSmall {
+        /// Bytes needed.
+        needed: usize,
+        /// Bytes given.
+        got: usize,
+    },
+    /// A count does not fit the format (u32 counts, at most 65536 materials).
+    TooMany {
+        /// What is counted.
+        what: &'static str,
+    },
+    /// `rows.row_start` has the wrong length, does not start at 0, decreases, or does not end at the entry
+    /// count; or `receiver` and `form_factor` differ in length.
+    BadRows,
+    /// An index is out of range.
+    IndexOutOfRange {
+        /// What the index refers to.
+        what: &'static str,
+        /// Position of the offending item.
+        position: usize,
+        /// The index.
+        index: u32,
+    },
+    /// A value is not finite or out of its range.
+    BadValue {
+        /// Which field.
+        what: &'static str,
+        /// Position of the offending item.
+        position: usize,
+        /// The value.
+        value: f32,
+    },
+    /// A row's receivers are not strictly increasing.
+    UnsortedRow {
+        /// The row.
+        row: usize,
+    },
+    /// A row's form factors sum to more than `1 + ROW_SUM_SLACK`.
+    RowSumExceedsOne {
+        /// The row.
+        row: usize,
+    },
+    /// The codec parameters are not valid.
+    BadCodec,
+}
+
+impl fmt::Display for WriteError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            WriteError::BufferTooSmall { needed, got } => {
+                write!(f, "buffer too small: {got} bytes, need {needed}")
+            }
+            WriteError::TooMany { what } => write!(f, "too many {what} for the table format"),
+            WriteError::BadRows => {
+                write!(f, "form-factor rows: row_start/receiver/form_factor lengths inconsistent")
+            }
+            WriteError::IndexOutOfRange { what, position, index } => {
+                write!(f, "{what} at position {position}: index {index} out of range")
+            }
+            WriteError::BadValue { what, position, value } => {
+                write!(f, "{what} at position {position}: value {value} not finite or out of range")
+            }
+            WriteError::UnsortedRow { row } => {
+                write!(f, "form-factor row {row}: receivers not strictly increasing")
+            }
+            WriteError::RowSumExceedsOne { row } => write!(f, "form-factor row {row}: sum exceeds 1"),
+            WriteError::BadCodec => write!(f, "form-factor codec parameters invalid"),
+        }
+    }
+}
+
+impl core::error::Error for WriteError {}
+
+fn count(n: usize, what: &'static str) -> Result<u32, WriteError> {
+    u32::try_from(n).map_err(|_| WriteError::TooMany { what })
+}
+
+fn header_of(spec: &TableSpec<'_>) -> Result<Header, WriteError> {
+    spec.codec.check().map_err(|_| WriteError::BadCodec)?;
+    let patch_count = count(spec.patches.len(), "patches")?;
+    if spec.materials.len() > 0x1_0000 {
+        return Err(WriteError::TooMany { what: "materials" });
+    }
+    let member_total = spec.groups.iter().try_fold(0usize, |s, g| s.checked_add(g.members.len()));
+    Ok(Header {
+        magic: MAGIC,
+        version: FORMAT_VERSION,
+        patch_count,
+        material_count: count(spec.materials.len(), "materials")?,
+        group_count: count(spec.groups.len(), "light groups")?,
+        member_count: count(member_total.ok_or(WriteError::TooMany { what: "members" })?, "members")?,
+        entry_count: count(spec.rows.receiver.len(), "form-factor entries")?,
+        ff_bits: spec.codec.bits,
+        ff_exponent_bits: spec.codec.exponent_bits,
+        index_bytes: if patch_count <= 0x1_0000 { 2 } else { 4 },
+        base_solved: spec.base_solved,
+    })
+}
+
+fn header_bytes(h: &Header, buf: &mut [u8; MAX_HEADER_LEN]) -> Result<usize, WriteError> {
+    postcard::to_slice(h, buf).map(|s| s.len()).map_err(|_| WriteError::TooMany { what: "header bytes" })
+}
+
+/// Bytes [`write_table`] needs for `spec`.
+///
+/// # Errors
+/// [`WriteError::TooMany`] or [`WriteError::BadCodec`] if the counts or codec do not fit the format.
+pub fn required_len(spec: &TableSpec<'_>) -> Result<usize, WriteError> {
+    let h = header_of(spec)?;
+    let mut hb = [0u8; MAX_HEADER_LEN];
+    let hl = header_bytes(&h, &mut hb)?;
+    let layout = Layout::new(&h).ok_or(WriteError::TooMany { what: "bytes" })?;
+    hl.checked_add(layout.end).and_then(|x| x.checked_add(4)).ok_or(WriteError::TooMany { what: "bytes" })
+}
+
+fn check_value(what: &'static str, position: usize, v: f32, ok: bool) -> Result<(), WriteError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(WriteError::BadValue { what, position, value: v })
+    }
+}
+
+fn emission_codes(what: &'static str, position: usize, rgb: [f32; 3]) -> Result<[u16; 3], WriteError> {
+    let mut out = [0u16; 3];
+    for (o, v) in out.iter_mut().zip(rgb) {
+        *o = codec::encode_emission(v).ok_or(WriteError::BadValue { what, position, value: v })?;
+    }
+    Ok(out)
+}
+
+/// A cursor over the output buffer (the length was checked up front, writes past it are dropped).
+struct Out<'b> {
+    buf: &'b mut [u8],
+    at: usize,
+}
+
+impl Out<'_> {
+    fn bytes(&mut self, b: &[u8]) {
+        if let Some(d) = self.buf.get_mut(self.at..self.at + b.len()) {
+            d.copy_from_slice(b);
+        }
+        self.at += b.len();
+    }
+    fn u16(&mut self, v: u16) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn u32(&mut self, v: u32) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn index(&mut self, v: u32, width: u8) {
+        if width == 2 {
+            self.u16(v as u16);
+        } else {
+            self.u32(v);
+        }
+    }
+}
+
+/// Validates `spec`, quantizes it and writes the table into `out`; returns the number of bytes written.
+///
+/// Form factors are quantized with `spec.codec` by the row rounding of [`crate::codec`] (decoded row sum
+/// `<=` true sum, capped at 1); reflectances and emissions with their codecs.
+///
+/// # Errors
+/// A [`WriteError`] naming the first bad field, or [`WriteError::BufferTooSmall`].
+pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteError> {
+    let h = header_of(spec)?;
+    let needed = required_len(spec)?;
+    if out.len() < needed {
+        return Err(WriteError::BufferTooSmall { needed, got: out.len() });
+    }
+    let n = spec.patches.len();
+    let rows = spec.rows;
+    if rows.row_start.len() != n + 1 || rows.receiver.len() != rows.form_factor.len() {
+        return Err(WriteError::BadRows);
+    }
+    let mut prev = 0u32;
+    for (k, &s) in rows.row_start.iter().enumerate() {
+        if (k == 0 && s != 0) || s < prev || s as usize > rows.receiver.len() {
+            return Err(WriteError::BadRows);
+        }
+        prev = s;
+    }
+    if prev as usize != rows.receiver.len() {
+        return Err(WriteError::BadRows);
+    }
+    // Validate everything before writing anything.
+    for (p, patch) in spec.patches.iter().enumerate() {
+        check_value("patch area", p, patch.area, patch.area.is_finite() && patch.area > 0.0)?;
+        if patch.material as usize >= spec.materials.len() {
+            return Err(WriteError::IndexOutOfRange {
+                what: "patch material",
+                position: p,
+                index: patch.material,
+            });
+        }
+        emission_codes("patch base emission", p, patch.base_emission)?;
+        emission_codes("patch base irradiance", p, patch.base_irradiance)?;
+    }
+    for (m, rho) in spec.materials.iter().enumerate() {
+        for &r in rho {
+            check_value("material reflectance", m, r, (0.0..1.0).contains(&r))?;
+        }
+    }
+    for (g, group) in spec.groups.iter().enumerate() {
+        for &v in &group.default_intensity {
+            check_value("light group default intensity", g, v, v.is_finite())?;
+        }
+        for (k, member) in group.members.iter().enumerate() {
+            if member.patch as usize >= n {
+                return Err(WriteError::IndexOutOfRange {
+                    what: "light group member",
+                    position: k,
+                    index: member.patch,
+                });
+            }
+            emission_codes("light group member emission", k, member.emission)?;
+        }
+    }
+    for j in 0..n {
+        let (s, e) = (rows.row_start[j] as usize, rows.row_start[j + 1] as usize);
+        let mut sum = 0u128;
+        for k in s..e {
+            let (r, f) = (rows.receiver[k], rows.form_factor[k]);
+            if r as usize >= n {
+                return Err(WriteError::IndexOutOfRange {
+                    what: "form-factor receiver",
+                    position: k,
+                    index: r,
+                });
+            }
+            if k > s && rows.receiver[k - 1] >= r {
+                return Err(WriteError::UnsortedRow { row: j });
+            }
+            check_value("form factor", k, f, f.is_finite() && (0.0..=1.0).contains(&f))?;
+            sum = sum.saturating_add(f32_to_exact(f));
+        }
+        if sum > f32_to_exact(1.0 + ROW_SUM_SLACK) {
+            return Err(WriteError::RowSumExceedsOne { row: j });
+        }
+    }
+
+    let mut hb = [0u8; MAX_HEADER_LEN];
+    let hl = header_bytes(&h, &mut hb)?;
+    let mut o = Out { buf: out, at: 0 };
+    o.bytes(hb.get(..hl).unwrap_or(&[]));
+    for p in spec.patches {
+        o.u32(p.area.to_bits());
+    }
+    for p in spec.patches {
+        o.u16(p.material as u16);
+    }
+    for (k, p) in spec.patches.iter().enumerate() {
+        for c in emission_codes("patch base emission", k, p.base_emission)? {
+            o.u16(c);
+        }
+    }
+    for (k, p) in spec.patches.iter().enumerate() {
+        for c in emission_codes("patch base irradiance", k, p.base_irradiance)? {
+            o.u16(c);
+        }
+    }
+    for rho in spec.materials {
+        for &r in rho {
+            o.u16(codec::encode_reflectance(r));
+        }
+    }
+    for g in spec.groups {
+        o.u32(g.id);
+    }
+    for g in spec.groups {
+        for v in g.default_intensity {
+            o.u32(v.to_bits());
+        }
+    }
+    let mut start = 0u32;
+    o.u32(0);
+    for g in spec.groups {
+        start += g.members.len() as u32;
+        o.u32(start);
+    }
+    for g in spec.groups {
+        for m in g.members {
+            o.index(m.patch, h.index_bytes);
+        }
+    }
+    for g in spec.groups {
+        for (k, m) in g.members.iter().enumerate() {
+            for c in emission_codes("light group member emission", k, m.emission)? {
+                o.u16(c);
+            }
+        }
+    }
+    for &s in rows.row_start {
+        o.u32(s);
+    }
+    // Row exponents and codes: quantize each row through a fixed scratch block, in chunks if the row is long.
+    let exps_at = o.at;
+    o.at += n;
+    for &r in rows.receiver {
+        o.index(r, h.index_bytes);
+    }
+    let codes_at = o.at;
+    for j in 0..n {
+        let (s, e) = (rows.row_start[j] as usize, rows.row_start[j + 1] as usize);
+        let values = &rows.form_factor[s..e];
+        let target = values
+            .iter()
+            .fold(0u128, |acc, &v| acc.saturating_add(f32_to_exact(v)))
+            .min(1u128 << EXACT_SHIFT);
+        let receivers = &rows.receiver[s..e];
+        let at = codes_at + s * spec.codec.code_bytes();
+        let exponent = quantize_row_into(spec.codec, values, receivers, j as u32, target, &mut o, at);
+        if let Some(b) = o.buf.get_mut(exps_at + j) {
+            *b = exponent;
+        }
+    }
+    o.at = codes_at + rows.receiver.len() * spec.codec.code_bytes();
+    let crc = crc32(o.buf.get(..o.at).unwrap_or(&[]));
+    o.u32(crc);
+    Ok(o.at)
+}
+
+/// Quantizes one row and writes its codes at byte offset `at`; returns the row exponent.
+///
+/// The row rounding needs the codes of a row at once, held in a stack block of `BLOCK` codes: longer rows are
+/// quantized as consecutive chunks under one row exponent, each chunk rounded against what is left of the
+/// row's target, so the decoded row sum stays `<= target`.
+fn quantize_row_into(
+    codec: FfCodec,
+    values: &[f32],
+    receivers: &[u32],
+    shooter: u32,
+    target: u128,
+    o: &mut Out<'_>,
+    at: usize,
+) -> u8 {
+    const BLOCK: usize = 1024;
+    let mut codes = [0u16; BLOCK];
+    let max = values.iter().map(|&v| f32_to_exact(v)).max().unwrap_or(0);
+    let e = codec::row_exponent_for(max);
+    let mut remaining = target;
+    let mut pos = at;
+    for (chunk, chunk_receivers) in values.chunks(BLOCK).zip(receivers.chunks(BLOCK)) {
+        let c = &mut codes[..chunk.len()];
+        let chunk_sum = chunk.iter().fold(0u128, |acc, &v| acc.saturating_add(f32_to_exact(v)));
+        let start = chunk_receivers.partition_point(|&r| r <= shooter);
+        let decoded = codec::quantize_row_with_exponent(codec, chunk, chunk_sum.min(remaining), e, start, c);
+        remaining = remaining.saturating_sub(decoded);
+        write_codes(codec, c, o, pos);
+        pos += chunk.len() * codec.code_bytes();
+    }
+    e
+}
+
+fn write_codes(codec: FfCodec, codes: &[u16], o: &mut Out<'_>, at: usize) {
+    let saved = o.at;
+    o.at = at;
+    for &c in codes {
+        if codec.bits == 8 {
+            o.bytes(&[c as u8]);
+        } else {
+            o.u16(c);
+        }
+    }
+    o.at = saved;
+}

@@ -1,0 +1,140 @@
+//! Shared helpers for the integration tests: an owned scene that turns into a `TableSpec`, and solvers with
+//! owned buffers.
+#![allow(dead_code)]
+
+use radiosity_core::{
+    write_table, Buffers, Config, FfCodec, GroupSpec, MemberSpec, PatchSpec, RowsSpec, Scalar, Solver, Table,
+    TableSpec,
+};
+
+/// An owned scene description (what the host would hold before writing a table).
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub patches: Vec<PatchSpec>,
+    pub materials: Vec<[f32; 3]>,
+    /// (id, default intensity, members)
+    pub groups: Vec<(u32, [f32; 3], Vec<MemberSpec>)>,
+    /// Dense shooter rows: `rows[j]` = receivers `(i, F_ji)`, sorted.
+    pub rows: Vec<Vec<(u32, f32)>>,
+    pub codec: FfCodec,
+    pub base_solved: bool,
+}
+
+impl Scene {
+    pub fn new(n: usize) -> Scene {
+        Scene {
+            patches: vec![
+                PatchSpec {
+                    area: 1.0,
+                    material: 0,
+                    base_emission: [0.0; 3],
+                    base_irradiance: [0.0; 3]
+                };
+                n
+            ],
+            materials: vec![[0.5; 3]],
+            groups: Vec::new(),
+            rows: vec![Vec::new(); n],
+            codec: FfCodec::FLOAT16,
+            base_solved: false,
+        }
+    }
+
+    pub fn write(&self) -> Vec<u8> {
+        let mut row_start = vec![0u32];
+        let mut receiver = Vec::new();
+        let mut form_factor = Vec::new();
+        for r in &self.rows {
+            for &(i, f) in r {
+                receiver.push(i);
+                form_factor.push(f);
+            }
+            row_start.push(receiver.len() as u32);
+        }
+        let groups: Vec<GroupSpec<'_>> = self
+            .groups
+            .iter()
+            .map(|(id, d, m)| GroupSpec { id: *id, default_intensity: *d, members: m })
+            .collect();
+        let spec = TableSpec {
+            patches: &self.patches,
+            materials: &self.materials,
+            groups: &groups,
+            rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
+            codec: self.codec,
+            base_solved: self.base_solved,
+        };
+        let len = radiosity_core::required_len(&spec).expect("required_len");
+        let mut out = vec![0u8; len];
+        let written = write_table(&spec, &mut out).expect("write_table");
+        assert_eq!(written, len);
+        out
+    }
+}
+
+/// Owned solver buffers.
+pub struct Store<S> {
+    pub power: Vec<[S; 3]>,
+    pub unshot: Vec<[S; 3]>,
+    pub incident: Vec<[S; 3]>,
+    pub tree: Vec<u32>,
+    pub intensity: Vec<[S; 3]>,
+    pub reflectance: Vec<[u16; 3]>,
+}
+
+impl<S: Scalar> Store<S> {
+    pub fn for_table(t: &Table<'_>) -> Store<S> {
+        let n = t.patch_count() as usize;
+        Store {
+            power: vec![[S::ZERO; 3]; n],
+            unshot: vec![[S::ZERO; 3]; n],
+            incident: vec![[S::ZERO; 3]; n],
+            tree: vec![0; n],
+            intensity: vec![[S::ZERO; 3]; t.group_count() as usize],
+            reflectance: vec![[0; 3]; t.material_count() as usize],
+        }
+    }
+
+    pub fn solver<'b>(&'b mut self, t: &Table<'_>, config: Config<S>) -> Solver<'b, S> {
+        let b = Buffers {
+            power: &mut self.power,
+            unshot: &mut self.unshot,
+            incident: &mut self.incident,
+            tree: &mut self.tree,
+            intensity: &mut self.intensity,
+            reflectance: &mut self.reflectance,
+        };
+        Solver::new(t, b, config).expect("buffers sized from the table")
+    }
+}
+
+/// Steps until converged; panics (test failure) if it does not converge within `max_units`.
+pub fn converge<S: Scalar>(s: &mut Solver<'_, S>, t: &Table<'_>, per_step: u32, max_units: u64) -> u64 {
+    let mut total = 0u64;
+    loop {
+        let o = s.step(t, per_step);
+        assert!(o.used() <= per_step, "budget {per_step} exceeded: {o:?}");
+        total += u64::from(o.used());
+        match o {
+            radiosity_core::Outcome::Converged { .. } => return total,
+            radiosity_core::Outcome::BudgetSpent { .. } => {}
+            other => panic!("no progress: {other:?}"),
+        }
+        assert!(total <= max_units, "not converged within {max_units} units");
+    }
+}
+
+/// Radiosity of every patch as f32 triples.
+pub fn radiosities<S: Scalar>(s: &Solver<'_, S>, t: &Table<'_>) -> Vec<[f32; 3]> {
+    (0..t.patch_count()).map(|i| s.radiosity(t, i).unwrap().map(|x| x.to_f32())).collect()
+}
+
+/// Asserts `|a - b| <= tol` with both values and the difference in the message.
+#[track_caller]
+pub fn assert_close(what: &str, actual: f32, expected: f32, tol: f32) {
+    let d = (actual - expected).abs();
+    assert!(d <= tol, "{what}: actual {actual}, expected {expected}, |diff| {d} > allowed {tol}");
+}
+
+/// Fixed-point resolution, as a tolerance unit.
+pub const FIXED_EPS: f32 = 1.0 / 4_294_967_296.0;

@@ -1,0 +1,338 @@
+//! Table format: golden bytes, named corruption cases, writer errors, and parse never panicking on mutated
+//! or truncated bytes.
+
+mod common;
+
+use common::{Scene, Store};
+use proptest::prelude::*;
+use radiosity_core::crc::crc32;
+use radiosity_core::table::{IndexArray, OffsetArray, QuantParam};
+use radiosity_core::{Config, FfCodec, MemberSpec, Table, TableError, WriteError, FORMAT_VERSION};
+
+/// The tiny table the golden bytes pin: 2 patches, 1 material, 1 light group with 1 member, 2 entries.
+fn tiny() -> Scene {
+    let mut s = Scene::new(2);
+    s.patches[0].base_emission = [1.0, 0.0, 0.0];
+    s.patches[1].area = 2.0;
+    s.patches[1].base_irradiance = [0.0, 0.5, 0.0];
+    s.materials = vec![[0.5, 0.25, 0.75]];
+    s.groups = vec![(0xABCD, [1.0, 1.0, 1.0], vec![MemberSpec { patch: 1, emission: [2.0, 2.0, 2.0] }])];
+    s.rows = vec![vec![(1, 0.5)], vec![(0, 0.25)]];
+    s
+}
+
+/// Payload section offsets of the tiny table (header is 14 bytes), mirroring the layout in the crate docs.
+const HEADER: usize = 14;
+const AREA: usize = HEADER;
+const MATERIAL: usize = HEADER + 8;
+const GROUP_INTENSITY: usize = HEADER + 46;
+const GROUP_START: usize = HEADER + 58;
+const MEMBER_PATCH: usize = HEADER + 66;
+const ROW_START: usize = HEADER + 74;
+const ROW_EXPONENT: usize = HEADER + 86;
+const RECEIVER: usize = HEADER + 88;
+const CODE: usize = HEADER + 92;
+const TOTAL: usize = HEADER + 96 + 4;
+
+#[rustfmt::skip]
+const GOLDEN: [u8; TOTAL] = [
+    // header (postcard): magic, version 1, 2 patches, 1 material, 1 group, 1 member, 2 entries,
+    // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved
+    0x52, 0x46, 0x54, 0x1a, 0x01, 0x02, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00,
+    // areas (f32): 1.0, 2.0
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x00, 0x40,
+    // materials (u16): 0, 0
+    0x00, 0x00, 0x00, 0x00,
+    // base emission codes: patch 0 (1, 0, 0), patch 1 (0, 0, 0); 1.0 = (1024 + 0) * 2^(31 - 41): x 31 = 0x7c00
+    0x00, 0x7c, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+    // base irradiance codes: patch 0 zero, patch 1 (0, 0.5, 0); 0.5: x 30 = 0x7800
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x78, 0x00, 0x00,
+    // reflectance codes: 0.5, 0.25, 0.75 = 0x8000, 0x4000, 0xc000
+    0x00, 0x80, 0x00, 0x40, 0x00, 0xc0,
+    // group ids
+    0xcd, 0xab, 0x00, 0x00,
+    // group default intensities (f32 x 3)
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x80, 0x3f,
+    // group member starts: 0, 1
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00,
+    // member patch: 1
+    0x01, 0x00,
+    // member emission codes: 2.0 x 3: x 32 = 0x8000
+    0x00, 0x80, 0x00, 0x80, 0x00, 0x80,
+    // row starts: 0, 1, 2
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+    // row exponents: 0.5 -> 1, 0.25 -> 2
+    0x01, 0x02,
+    // receivers: 1, 0
+    0x01, 0x00, 0x00, 0x00,
+    // codes: top binade value 2^-e = x 15, m 0 = 0xf000
+    0x00, 0xf0, 0x00, 0xf0,
+    // CRC-32 over everything above
+    0xf6, 0xa8, 0x25, 0xc4,
+];
+
+#[test]
+fn golden_bytes_pin_the_layout() {
+    let bytes = tiny().write();
+    assert_eq!(bytes.len(), TOTAL);
+    assert_eq!(&bytes[..TOTAL - 4], &GOLDEN[..TOTAL - 4], "layout changed: bump FORMAT_VERSION");
+    assert_eq!(&bytes[TOTAL - 4..], &GOLDEN[TOTAL - 4..], "CRC of golden bytes");
+    let t = Table::parse(&GOLDEN).expect("golden table parses");
+    assert_eq!(t.patch_count(), 2);
+    assert_eq!(t.area(1), Some(2.0));
+    assert_eq!(t.row(0), Some(0..1));
+    assert_eq!(t.entry(0, 0).map(|(r, f)| (r, f.to_f32())), Some((1, 0.5)));
+    assert_eq!(t.entry(1, 1).map(|(r, f)| (r, f.to_f32())), Some((0, 0.25)));
+    assert_eq!(t.find_group(0xABCD), Some(0));
+    assert_eq!(t.default_intensity(0), Some([1.0; 3]));
+    assert_eq!(t.area(2), None);
+    assert_eq!(t.entry_code(2), None);
+}
+
+fn fix_crc(b: &mut [u8]) {
+    let n = b.len() - 4;
+    let c = crc32(&b[..n]);
+    b[n..].copy_from_slice(&c.to_le_bytes());
+}
+
+fn corrupt(f: impl FnOnce(&mut Vec<u8>), fix: bool) -> Result<(), TableError> {
+    let mut b = GOLDEN.to_vec();
+    f(&mut b);
+    if fix {
+        fix_crc(&mut b);
+    }
+    Table::parse(&b).map(|_| ())
+}
+
+#[test]
+fn named_corruptions_map_to_their_errors() {
+    use TableError as E;
+    assert_eq!(corrupt(|b| b[0] = b'X', false), Err(E::BadMagic { found: *b"XFT\x1a" }));
+    assert_eq!(
+        corrupt(|b| b[4] = 2, false),
+        Err(E::UnsupportedVersion { found: 2, expected: FORMAT_VERSION })
+    );
+    let msg = E::UnsupportedVersion { found: 2, expected: 1 }.to_string();
+    assert_eq!(msg, "unsupported table format version 2, expected 1");
+    assert_eq!(
+        corrupt(|b| b.truncate(TOTAL - 1), false),
+        Err(E::Truncated { expected: TOTAL, actual: TOTAL - 1 })
+    );
+    assert_eq!(corrupt(|b| b.truncate(8), false), Err(E::TruncatedHeader));
+    assert_eq!(corrupt(|b| b.truncate(2), false), Err(E::TruncatedHeader));
+    assert_eq!(corrupt(|b| b.push(0), false), Err(E::TrailingBytes { expected: TOTAL, actual: TOTAL + 1 }));
+    assert!(matches!(corrupt(|b| b[AREA + 1] ^= 1, false), Err(E::CrcMismatch { .. })));
+    assert_eq!(
+        corrupt(|b| b[RECEIVER] = 5, true),
+        Err(E::IndexOutOfRange { array: IndexArray::EntryReceiver, position: 0, index: 5, bound: 2 })
+    );
+    assert_eq!(
+        corrupt(|b| b[MATERIAL + 2] = 1, true),
+        Err(E::IndexOutOfRange { array: IndexArray::PatchMaterial, position: 1, index: 1, bound: 1 })
+    );
+    assert_eq!(
+        corrupt(|b| b[MEMBER_PATCH] = 2, true),
+        Err(E::IndexOutOfRange { array: IndexArray::MemberPatch, position: 0, index: 2, bound: 2 })
+    );
+    assert_eq!(
+        corrupt(|b| b[ROW_START + 4] = 3, true),
+        Err(E::NonMonotoneOffsets { array: OffsetArray::RowStart, position: 1 })
+    );
+    assert_eq!(
+        corrupt(|b| b[GROUP_START] = 1, true),
+        Err(E::NonMonotoneOffsets { array: OffsetArray::GroupStart, position: 0 })
+    );
+    // Row 0 starts at 0 and holds both entries, receivers 1 then 0.
+    assert_eq!(corrupt(|b| b[ROW_START + 4] = 2, true), Err(E::UnsortedRow { row: 0 }));
+    // Row 1's code at the top of row exponent 0: nearly 2.
+    assert_eq!(
+        corrupt(
+            |b| {
+                b[ROW_EXPONENT + 1] = 0;
+                b[CODE + 2] = 0xff;
+                b[CODE + 3] = 0xff;
+            },
+            true
+        ),
+        Err(E::RowSumExceedsOne { row: 1 })
+    );
+    assert_eq!(
+        corrupt(|b| b[10] = 12, true),
+        Err(E::BadQuantParams { param: QuantParam::FfBits, value: 12 })
+    );
+    assert_eq!(
+        corrupt(|b| b[11] = 5, true),
+        Err(E::BadQuantParams { param: QuantParam::FfExponentBits, value: 5 })
+    );
+    assert_eq!(
+        corrupt(|b| b[12] = 3, true),
+        Err(E::BadQuantParams { param: QuantParam::IndexBytes, value: 3 })
+    );
+    assert_eq!(
+        corrupt(|b| b[ROW_EXPONENT] = 65, true),
+        Err(E::BadQuantParams { param: QuantParam::RowExponent, value: 0 })
+    );
+    assert_eq!(corrupt(|b| b[AREA + 3] = 0xff, true), Err(E::BadArea { patch: 0 }));
+    assert_eq!(corrupt(|b| b[AREA + 3] = 0xbf, true), Err(E::BadArea { patch: 0 }));
+    // 1.0f32 = 0x3f800000; high byte 0x7f makes it +infinity, then 0x7f80_8000 is a NaN.
+    assert_eq!(corrupt(|b| b[GROUP_INTENSITY + 3] = 0x7f, true), Err(E::BadIntensity { group: 0 }));
+    assert_eq!(
+        corrupt(
+            |b| {
+                b[GROUP_INTENSITY + 2] = 0x80;
+                b[GROUP_INTENSITY + 3] = 0x7f;
+            },
+            true
+        ),
+        Err(E::BadIntensity { group: 0 })
+    );
+    // A header whose counts overflow the address space.
+    let mut huge = Vec::from(&GOLDEN[..5]);
+    huge.extend_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x0f]); // patch count 2^32 - 1
+    huge.extend_from_slice(&[1, 1, 1, 2, 16, 4, 4, 0]);
+    huge.extend_from_slice(&[0; 8]);
+    assert!(matches!(Table::parse(&huge), Err(E::CountsTooLarge | E::Truncated { .. })));
+}
+
+#[test]
+fn writer_rejects_bad_specs() {
+    let mut s = tiny();
+    s.rows[0] = vec![(0, 0.6), (1, 0.6)];
+    assert_eq!(try_write(&s), Err(WriteError::RowSumExceedsOne { row: 0 }));
+    let mut s = tiny();
+    s.rows[0] = vec![(1, 0.1), (0, 0.1)];
+    assert_eq!(try_write(&s), Err(WriteError::UnsortedRow { row: 0 }));
+    let mut s = tiny();
+    s.rows[0] = vec![(7, 0.1)];
+    assert_eq!(
+        try_write(&s),
+        Err(WriteError::IndexOutOfRange { what: "form-factor receiver", position: 0, index: 7 })
+    );
+    let mut s = tiny();
+    s.materials[0][1] = 1.0;
+    assert_eq!(
+        try_write(&s),
+        Err(WriteError::BadValue { what: "material reflectance", position: 0, value: 1.0 })
+    );
+    let mut s = tiny();
+    s.patches[1].area = 0.0;
+    assert_eq!(try_write(&s), Err(WriteError::BadValue { what: "patch area", position: 1, value: 0.0 }));
+    let mut s = tiny();
+    s.codec = FfCodec { bits: 16, exponent_bits: 9 };
+    assert_eq!(try_write(&s), Err(WriteError::BadCodec));
+    let s = tiny();
+    let mut small = [0u8; 20];
+    assert!(matches!(write_into(&s, &mut small), Err(WriteError::BufferTooSmall { needed: TOTAL, got: 20 })));
+}
+
+fn write_into(s: &Scene, out: &mut [u8]) -> Result<usize, WriteError> {
+    let mut row_start = vec![0u32];
+    let mut receiver = Vec::new();
+    let mut form_factor = Vec::new();
+    for r in &s.rows {
+        for &(i, f) in r {
+            receiver.push(i);
+            form_factor.push(f);
+        }
+        row_start.push(receiver.len() as u32);
+    }
+    let groups: Vec<_> = s
+        .groups
+        .iter()
+        .map(|(id, d, m)| radiosity_core::GroupSpec { id: *id, default_intensity: *d, members: m })
+        .collect();
+    let spec = radiosity_core::TableSpec {
+        patches: &s.patches,
+        materials: &s.materials,
+        groups: &groups,
+        rows: radiosity_core::RowsSpec {
+            row_start: &row_start,
+            receiver: &receiver,
+            form_factor: &form_factor,
+        },
+        codec: s.codec,
+        base_solved: s.base_solved,
+    };
+    radiosity_core::write_table(&spec, out)
+}
+
+fn try_write(s: &Scene) -> Result<usize, WriteError> {
+    let mut out = vec![0u8; 4096];
+    write_into(s, &mut out)
+}
+
+/// A medium table with 8-bit codes and several groups, for the mutation test.
+fn medium() -> Vec<u8> {
+    let mut s = Scene::new(6);
+    s.codec = FfCodec::FLOAT8;
+    s.materials = vec![[0.3, 0.5, 0.7], [0.9, 0.1, 0.0]];
+    for i in 0..6 {
+        s.patches[i].material = (i % 2) as u32;
+        s.rows[i] = (0..6).filter(|&j| j != i).map(|j| (j as u32, 0.05 + 0.02 * j as f32)).collect();
+    }
+    s.groups = vec![
+        (1, [1.0, 0.5, 0.2], vec![MemberSpec { patch: 0, emission: [3.0, 2.0, 1.0] }]),
+        (
+            2,
+            [0.0; 3],
+            vec![MemberSpec { patch: 3, emission: [1.0; 3] }, MemberSpec { patch: 4, emission: [1e6; 3] }],
+        ),
+    ];
+    s.write()
+}
+
+/// Everything a caller can do with a parsed table, to show no accessor panics.
+fn exercise(bytes: &[u8]) {
+    let Ok(t) = Table::parse(bytes) else { return };
+    for i in 0..t.patch_count() + 2 {
+        let _ = (t.area(i), t.material(i), t.base_emission(i), t.base_irradiance(i), t.row_sum(i));
+        if let Some(r) = t.row(i) {
+            for k in r.start..r.end + 1 {
+                let _ = t.entry(i, k);
+            }
+        }
+    }
+    for g in 0..t.group_count() + 1 {
+        let _ = (t.group_id(g), t.default_intensity(g), t.group_members(g).map(|r| r.map(|k| t.member(k))));
+    }
+    let mut store = Store::<f32>::for_table(&t);
+    let mut s = store.solver(&t, Config { tolerance: 1e-3, overshoot: 0 });
+    let _ = s.step(&t, 500);
+    let _ = s.set_light(&t, 0, [2.0; 3]);
+    let _ = s.step(&t, 500);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+    #[test]
+    fn parse_never_panics_on_mutations(
+        which in 0usize..2,
+        flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6),
+        cut in any::<usize>(),
+        truncate in any::<bool>(),
+        fix in any::<bool>(),
+    ) {
+        let mut b = if which == 0 { GOLDEN.to_vec() } else { medium() };
+        for (pos, v) in flips {
+            let len = b.len();
+            b[pos % len] = v;
+        }
+        if fix {
+            fix_crc(&mut b);
+        }
+        if truncate {
+            b.truncate(cut % (b.len() + 1));
+        }
+        exercise(&b);
+    }
+
+    #[test]
+    fn parse_never_panics_on_random_bytes(mut b in proptest::collection::vec(any::<u8>(), 0..200)) {
+        // Give random bytes a valid magic and version half the time so the header decoder is reached.
+        if b.len() >= 5 && b[0] & 1 == 0 {
+            b[..5].copy_from_slice(&GOLDEN[..5]);
+        }
+        exercise(&b);
+    }
+}

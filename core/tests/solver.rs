@@ -1,0 +1,511 @@
+//! Solver tests on hand-made tables, run on both arithmetic paths (f32 and Q32.32 fixed point).
+//!
+//! Tolerances are sums of three derived terms:
+//! - quantization: from the codec bounds (form factors `< 2^-12` relative for FLOAT16 entries in the normal
+//!   range, row-sum deficit `< 2^-15` for the furnace rows, reflectance `<= 2^-17` absolute);
+//! - truncation: converged means every patch's unshot magnitude `<= tol`, so at most `n * tol` power per channel
+//!   is left; spread through `(I - R F)^-1` it changes a patch by at most `n * tol / ((1 - rho_max) * A_min)`;
+//! - arithmetic: f32 rounds each receipt (two products and a sum, `3 * 2^-24` relative) and each hop of a path
+//!   (mean path length `1 / (1 - rho)`), so `3 * 2^-24 * (K + 1 / (1 - rho)) * B` for `K` shots; fixed point
+//!   floors each product (`2 * 2^-32` power per receipt, sums exact) so `2 * 2^-32 * K / ((1 - rho) * A_min)`.
+
+mod common;
+
+use common::{assert_close, converge, radiosities, Scene, Store, FIXED_EPS};
+use proptest::prelude::*;
+use radiosity_core::{Config, Fixed, MemberSpec, NoProgressReason, Outcome, Scalar, Table};
+
+/// The arithmetic error term of each path (see the module docs).
+trait Arith: Scalar {
+    fn arith(b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32;
+}
+
+impl Arith for f32 {
+    fn arith(b: f32, shots: u32, rho_max: f32, _area_min: f32) -> f32 {
+        3.0 * f32::EPSILON / 2.0 * (shots as f32 + 1.0 / (1.0 - rho_max)) * b.abs()
+    }
+}
+
+impl Arith for Fixed {
+    fn arith(_b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32 {
+        2.0 * FIXED_EPS * shots as f32 / ((1.0 - rho_max) * area_min)
+    }
+}
+
+fn truncation(n: usize, tol: f32, rho_max: f32, area_min: f32) -> f32 {
+    n as f32 * tol / ((1.0 - rho_max) * area_min)
+}
+
+const TOL: f32 = 1e-6;
+
+fn config<S: Scalar>() -> Config<S> {
+    Config { tolerance: S::from_f32(TOL), overshoot: 0 }
+}
+
+/// Two patches, areas 1 and 2, `F_12 = 0.4`, `F_21 = 0.2` (reciprocity), rho 0.5 and 0.8, `E_1 = 1` from a
+/// light group. By hand: `B_1 = 1 / (1 - rho_1 rho_2 F_12 F_21)`, `B_2 = rho_2 F_21 B_1`.
+fn two_patch<S: Arith>() {
+    let mut s = Scene::new(2);
+    s.patches[1].area = 2.0;
+    s.patches[1].material = 1;
+    s.materials = vec![[0.5; 3], [0.8; 3]];
+    s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
+    s.groups = vec![(7, [1.0; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 100, 1_000_000);
+    let b = radiosities(&solver, &t);
+    let p = 0.5 * 0.8 * 0.4 * 0.2;
+    let b1 = 1.0 / (1.0 - p);
+    let b2 = 0.8 * 0.2 * b1;
+    // Quantization: dp/p <= 2 * 2^-12 (both form factors) + 2^-17 / 0.8 (rho_2; 0.5 is exact), first order
+    // with a 1% allowance for the second-order terms.
+    let dp = 2.0 * 2f32.powi(-12) + 2f32.powi(-17) / 0.8;
+    let q1 = b1 * p / (1.0 - p) * dp * 1.01;
+    let q2 = b2 * (2f32.powi(-12) + 2f32.powi(-17) / 0.8 + q1 / b1) * 1.01;
+    let rest = |bv: f32| truncation(2, TOL, 0.8, 1.0) + S::arith(bv, solver.shots(), 0.8, 1.0);
+    for (x1, x2) in b[0].iter().zip(&b[1]) {
+        assert_close("B_1", *x1, b1, q1 + rest(b1));
+        assert_close("B_2", *x2, b2, q2 + rest(b2));
+    }
+}
+
+/// Three patches of area 1 with dyadic form factors (exact in FLOAT16): `F_12 = 0.25`, `F_13 = 0.5`,
+/// `F_23 = 0.125`, rho = 0.5, 0.25, 0.75, `E = (1, 0.5, 0.25)` on patch 1. By hand (substitution):
+/// `B = (1021, 76, 390) / 914` times `E`.
+fn three_patch_scene() -> Scene {
+    let mut s = Scene::new(3);
+    s.materials = vec![[0.5; 3], [0.25; 3], [0.75; 3]];
+    for i in 0..3 {
+        s.patches[i].material = i as u32;
+    }
+    s.patches[0].base_emission = [1.0, 0.5, 0.25];
+    s.rows = vec![vec![(1, 0.25), (2, 0.5)], vec![(0, 0.25), (2, 0.125)], vec![(0, 0.5), (1, 0.125)]];
+    s
+}
+
+const THREE_B: [f32; 3] = [1021.0 / 914.0, 76.0 / 914.0, 390.0 / 914.0];
+const THREE_E: [f32; 3] = [1.0, 0.5, 0.25];
+
+fn check_three<S: Arith>(b: &[[f32; 3]], shots: u32, extra: f32) {
+    for (i, bi) in b.iter().enumerate() {
+        for c in 0..3 {
+            let want = THREE_B[i] * THREE_E[c];
+            let tol = truncation(3, TOL, 0.75, 1.0) + S::arith(want, shots, 0.75, 1.0) + extra;
+            assert_close("three-patch B", bi[c], want, tol);
+        }
+    }
+}
+
+fn three_patch<S: Arith>() {
+    let bytes = three_patch_scene().write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 7, 1_000_000);
+    check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
+}
+
+/// Shooting with overshoot, Gauss-Seidel and Jacobi reach the same answer.
+fn three_patch_other_methods<S: Arith>() {
+    let bytes = three_patch_scene().write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, Config { tolerance: S::from_f32(TOL), overshoot: 64 });
+    converge(&mut solver, &t, 5, 1_000_000);
+    check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
+
+    for jacobi in [false, true] {
+        let mut store = Store::<S>::for_table(&t);
+        let mut solver = store.solver(&t, config());
+        let mut scratch = vec![[S::ZERO; 3]; 3];
+        let mut total = 0u64;
+        loop {
+            let o = if jacobi {
+                solver.step_jacobi(&t, &mut scratch, 4)
+            } else {
+                solver.step_gauss_seidel(&t, 4)
+            };
+            assert!(o.used() <= 4, "{o:?}");
+            total += u64::from(o.used());
+            match o {
+                Outcome::Converged { .. } => break,
+                Outcome::BudgetSpent { .. } => {}
+                other => panic!("{other:?}"),
+            }
+            assert!(total < 1_000_000);
+        }
+        check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
+        // The result is converged for shooting too: its step finds nothing to shoot after the tree rebuild.
+        assert_eq!(solver.step(&t, 100), Outcome::Converged { used: 2 });
+    }
+}
+
+/// A static base solved by the host: the solver starts converged and only builds its tree.
+fn static_base_costs_nothing<S: Arith>() {
+    let mut s = three_patch_scene();
+    s.base_solved = true;
+    let g = [214.0 / 914.0, 304.0 / 914.0, 520.0 / 914.0]; // G_i = sum_j F_ij B_j, by hand
+    for (patch, gi) in s.patches.iter_mut().zip(g) {
+        patch.base_irradiance = THREE_E.map(|e| e * gi);
+    }
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    assert_eq!(solver.step(&t, 100), Outcome::Converged { used: 2 }, "only the 2 internal tree nodes");
+    assert_eq!(solver.shots(), 0);
+    // The irradiance went through the emission code: relative error <= 2^-11, times rho <= 0.75.
+    let b = radiosities(&solver, &t);
+    for (i, bi) in b.iter().enumerate() {
+        for c in 0..3 {
+            let want = THREE_B[i] * THREE_E[c];
+            assert_close("static base B", bi[c], want, 2f32.powi(-11) * want + S::arith(want, 1, 0.75, 1.0));
+        }
+    }
+}
+
+/// White furnace: 7 patches of area 1, `F_ij = 1/6` for `j != i` (closed, reciprocal), uniform rho, `E = 1`:
+/// `B = E / (1 - rho)`. The writer hands out row slack cyclically from the shooter, so the quantized matrix
+/// is circulant like the exact one: B stays uniform, `B = E / (1 - rho_q s_q)` with the decoded row sum `s_q`.
+fn furnace<S: Arith>(rho: f32) {
+    let n = 7;
+    let mut s = Scene::new(n);
+    s.materials = vec![[rho; 3]];
+    for i in 0..n {
+        s.patches[i].base_emission = [1.0; 3];
+        s.rows[i] = (0..n as u32).filter(|&j| j != i as u32).map(|j| (j, 1.0 / 6.0)).collect();
+    }
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 1000, 50_000_000);
+    let b = radiosities(&solver, &t);
+    let rho_q = radiosity_core::codec::decode_reflectance(t.reflectance(0).unwrap()[0]).to_f32();
+    let s_q = t.row_sum(0).unwrap();
+    let exact = 1.0 / (1.0 - rho);
+    let quantized = 1.0 / (1.0 - rho_q * s_q);
+    // Solver error against the quantized system (s_q summed in f32: 6 terms, 6 * 2^-24 relative).
+    let solve_tol = truncation(n, TOL, rho, 1.0)
+        + S::arith(quantized, solver.shots(), rho, 1.0)
+        + quantized * quantized * rho * 6.0 * f32::EPSILON / 2.0;
+    // Quantization: row-sum deficit < 2^-15 (one top-binade step of 1/6, whose row exponent is 3), and
+    // |rho_q - rho| <= 2^-17: dB = B^2 (rho * ds + drho).
+    let quant_tol = exact * exact * (rho * 2f32.powi(-15) + 2f32.powi(-17)) * 1.01;
+    for bi in &b {
+        for &x in bi {
+            assert_close("furnace B vs quantized system", x, quantized, solve_tol);
+            assert_close("furnace B vs E/(1-rho)", x, exact, solve_tol + quant_tol);
+        }
+    }
+}
+
+/// Ambient term (Cohen et al. 1988): in a furnace with exact form factors (n = 5, F = 1/4) and rho = 0.5,
+/// the area-weighted mean of `B + rho * ambient` is exactly `E / (1 - rho)` at any point of the solve.
+fn ambient_in_furnace<S: Arith>() {
+    let n = 5;
+    let mut s = Scene::new(n);
+    for i in 0..n {
+        s.patches[i].base_emission = [1.0; 3];
+        s.rows[i] = (0..n as u32).filter(|&j| j != i as u32).map(|j| (j, 0.25)).collect();
+    }
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    for _ in 0..3 {
+        let o = solver.step(&t, 9);
+        assert!(matches!(o, Outcome::BudgetSpent { .. }), "{o:?}");
+        let amb = solver.ambient(&t);
+        let mean: f32 = (0..n as u32)
+            .map(|i| solver.radiosity_with_ambient(&t, i, amb).unwrap()[0].to_f32())
+            .sum::<f32>()
+            / n as f32;
+        let plain: f32 =
+            (0..n as u32).map(|i| solver.radiosity(&t, i).unwrap()[0].to_f32()).sum::<f32>() / n as f32;
+        assert!(plain < 1.9, "state should be unconverged, mean B {plain}");
+        // Arithmetic only: a handful of shots on values <= 2.
+        assert_close("ambient-corrected mean", mean, 2.0, S::arith(2.0, solver.shots() + 8, 0.5, 1.0));
+    }
+}
+
+/// The scene for relighting: three-patch system plus a light group on patch 1 (and static emission on 0).
+fn relight_scene(intensity: [f32; 3], rho1: [f32; 3]) -> Scene {
+    let mut s = three_patch_scene();
+    s.materials[1] = rho1;
+    s.groups = vec![(42, intensity, vec![MemberSpec { patch: 1, emission: [2.0, 1.0, 3.0] }])];
+    s
+}
+
+fn cold<S: Arith>(scene: &Scene) -> (Vec<[f32; 3]>, u32) {
+    let bytes = scene.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 50, 10_000_000);
+    (radiosities(&solver, &t), solver.shots())
+}
+
+fn compare(what: &str, a: &[[f32; 3]], b: &[[f32; 3]], tol: impl Fn(f32) -> f32) {
+    for (x, y) in a.iter().zip(b) {
+        for c in 0..3 {
+            assert_close(what, x[c], y[c], tol(y[c]));
+        }
+    }
+}
+
+/// Warm starts (dim to zero and back, change colour, edit a reflectance) converge to the cold solves.
+fn relighting<S: Arith>() {
+    let base = relight_scene([1.0; 3], [0.25; 3]);
+    let bytes = base.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 50, 10_000_000);
+    let (cold_default, k0) = cold::<S>(&base);
+    // Two converged solves differ by at most the sum of their truncation and arithmetic terms. rho_max 0.75.
+    let tol =
+        |shots: u32| move |b: f32| 2.0 * truncation(3, TOL, 0.75, 1.0) + 2.0 * S::arith(b, shots, 0.75, 1.0);
+
+    solver.set_light(&t, 0, [0.0; 3]).unwrap();
+    converge(&mut solver, &t, 50, 10_000_000);
+    let (cold_off, _) = cold::<S>(&relight_scene([0.0; 3], [0.25; 3]));
+    compare("dimmed to zero", &radiosities(&solver, &t), &cold_off, tol(solver.shots()));
+
+    solver.set_light(&t, 0, [1.0; 3]).unwrap();
+    converge(&mut solver, &t, 50, 10_000_000);
+    compare("back to default", &radiosities(&solver, &t), &cold_default, tol(solver.shots().max(k0)));
+
+    solver.set_light(&t, 0, [0.5, 2.0, 0.0]).unwrap();
+    converge(&mut solver, &t, 50, 10_000_000);
+    let (cold_colour, k1) = cold::<S>(&relight_scene([0.5, 2.0, 0.0], [0.25; 3]));
+    compare("colour change", &radiosities(&solver, &t), &cold_colour, tol(solver.shots().max(k1)));
+
+    // Reflectance edit mid-solve (not converged), then converge: same as the cold solve of the edited scene.
+    solver.set_light(&t, 0, [1.0; 3]).unwrap();
+    let _ = solver.step(&t, 7);
+    solver.set_reflectance(&t, 1, [0.9, 0.0, 0.6]).unwrap();
+    converge(&mut solver, &t, 50, 10_000_000);
+    let (cold_edit, k2) = cold::<S>(&relight_scene([1.0; 3], [0.9, 0.0, 0.6]));
+    let k_edit = solver.shots().max(k2);
+    let tol_edit = move |b: f32| 2.0 * truncation(3, TOL, 0.9, 1.0) + 2.0 * S::arith(b, k_edit, 0.9, 1.0);
+    compare("reflectance edit", &radiosities(&solver, &t), &cold_edit, tol_edit);
+}
+
+/// Same inputs and budgets give bit-identical states.
+fn determinism<S: Arith>() {
+    let bytes = relight_scene([1.0; 3], [0.25; 3]).write();
+    let t = Table::parse(&bytes).unwrap();
+    let run = || {
+        let mut store = Store::<S>::for_table(&t);
+        let mut solver = store.solver(&t, Config { tolerance: S::from_f32(TOL), overshoot: 32 });
+        let mut log = Vec::new();
+        for k in 0..40u32 {
+            log.push(solver.step(&t, 3 + k % 5));
+            if k % 7 == 0 {
+                solver.set_light(&t, 0, [k as f32 * 0.1, 1.0, 0.0]).unwrap();
+            }
+            if k == 20 {
+                solver.set_reflectance(&t, 2, [0.5, 0.1, 0.2]).unwrap();
+            }
+        }
+        let state: Vec<_> = (0..3).map(|i| (solver.power(i), solver.unshot(i))).collect();
+        format!("{log:?} {state:?}")
+    };
+    assert_eq!(run(), run());
+}
+
+macro_rules! both_paths {
+    ($($name:ident => $body:expr;)*) => {
+        mod f32_path {
+            use super::*;
+            $(#[test] fn $name() { type S = f32; $body })*
+        }
+        mod fixed_path {
+            use super::*;
+            $(#[test] fn $name() { type S = Fixed; $body })*
+        }
+    };
+}
+
+both_paths! {
+    two_patch_by_hand => two_patch::<S>();
+    three_patch_by_hand => three_patch::<S>();
+    gauss_seidel_jacobi_overshoot => three_patch_other_methods::<S>();
+    static_base => static_base_costs_nothing::<S>();
+    white_furnace_0_5 => furnace::<S>(0.5);
+    white_furnace_0_9 => furnace::<S>(0.9);
+    white_furnace_0_99 => furnace::<S>(0.99);
+    ambient => ambient_in_furnace::<S>();
+    warm_start_equals_cold_solve => relighting::<S>();
+    deterministic => determinism::<S>();
+}
+
+#[test]
+fn small_budgets_and_wrong_tables_are_reported() {
+    let bytes = three_patch_scene().write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<f32>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    // Tree rebuild: 2 nodes, then a shot needs 1 + depth (2) = 3 units.
+    assert_eq!(
+        solver.step(&t, 0),
+        Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 1 } }
+    );
+    assert_eq!(solver.step(&t, 2), Outcome::BudgetSpent { used: 2 });
+    assert_eq!(
+        solver.step(&t, 2),
+        Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 3 } }
+    );
+    let other = three_patch_scene();
+    let mut other = other;
+    other.materials[0] = [0.1; 3];
+    let other_bytes = other.write();
+    let t2 = Table::parse(&other_bytes).unwrap();
+    assert_eq!(solver.step(&t2, 100), Outcome::NoProgress { used: 0, reason: NoProgressReason::WrongTable });
+    assert!(solver.set_light(&t, 0, [1.0; 3]).is_err(), "no light group in this table");
+    assert!(solver.set_reflectance(&t, 0, [1.0, 0.0, 0.0]).is_err(), "reflectance 1 is rejected");
+    assert!(solver.set_reflectance(&t, 3, [0.1; 3]).is_err(), "no material 3");
+}
+
+// ---- property test: budgets are never exceeded, and any warm-start history ends at the cold solve -------
+
+#[derive(Clone, Debug)]
+enum Op {
+    Shoot(u32),
+    GaussSeidel(u32),
+    Jacobi(u32),
+    Light(u32, [f32; 3]),
+    Reflectance(u32, [f32; 3]),
+}
+
+fn op() -> impl Strategy<Value = Op> {
+    let rgb = || (0.0f32..4.0, 0.0f32..4.0, 0.0f32..4.0).prop_map(|(a, b, c)| [a, b, c]);
+    let rho = || (0.0f32..0.9, 0.0f32..0.9, 0.0f32..0.9).prop_map(|(a, b, c)| [a, b, c]);
+    prop_oneof![
+        4 => (0u32..60).prop_map(Op::Shoot),
+        1 => (0u32..60).prop_map(Op::GaussSeidel),
+        1 => (0u32..60).prop_map(Op::Jacobi),
+        2 => (0u32..2, rgb()).prop_map(|(g, c)| Op::Light(g, c)),
+        1 => (0u32..2, rho()).prop_map(|(m, c)| Op::Reflectance(m, c)),
+    ]
+}
+
+fn random_scene() -> impl Strategy<Value = Scene> {
+    (1usize..9)
+        .prop_flat_map(|n| {
+            (
+                Just(n),
+                proptest::collection::vec(0.5f32..2.0, n),
+                proptest::collection::vec(proptest::collection::vec(0.0f32..1.0, n), n),
+                proptest::collection::vec(0.2f32..1.0, n),
+                proptest::collection::vec(0usize..n, 1..4),
+            )
+        })
+        .prop_map(|(n, areas, weights, sums, members)| {
+            let mut s = Scene::new(n);
+            s.materials = vec![[0.5, 0.7, 0.3], [0.9, 0.2, 0.6]];
+            for i in 0..n {
+                s.patches[i].area = areas[i];
+                s.patches[i].material = (i % 2) as u32;
+                // Sparse: weights below 0.4 are dropped; the rest scaled to the row's sum.
+                let kept: Vec<(u32, f32)> = weights[i]
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &w)| w >= 0.4)
+                    .map(|(j, &w)| (j as u32, w))
+                    .collect();
+                let total: f32 = kept.iter().map(|x| x.1).sum();
+                s.rows[i] = kept.into_iter().map(|(j, w)| (j, w / total * sums[i] * 0.999)).collect();
+            }
+            s.groups = vec![
+                (1, [1.0; 3], vec![MemberSpec { patch: members[0] as u32, emission: [1.0, 2.0, 0.5] }]),
+                (
+                    2,
+                    [0.5; 3],
+                    members.iter().map(|&p| MemberSpec { patch: p as u32, emission: [0.3; 3] }).collect(),
+                ),
+            ];
+            s
+        })
+}
+
+fn budget_and_warm_start<S: Arith>(scene: &Scene, ops: &[Op]) -> Result<(), TestCaseError> {
+    let bytes = scene.write();
+    let t = Table::parse(&bytes).unwrap();
+    let n = t.patch_count() as usize;
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    let mut scratch = vec![[S::ZERO; 3]; n];
+    let mut final_scene = scene.clone();
+    for op in ops {
+        let budget_check = |o: Outcome, b: u32| -> Result<(), TestCaseError> {
+            prop_assert!(o.used() <= b, "budget {} exceeded: {:?}", b, o);
+            Ok(())
+        };
+        match *op {
+            Op::Shoot(b) => budget_check(solver.step(&t, b), b)?,
+            Op::GaussSeidel(b) => budget_check(solver.step_gauss_seidel(&t, b), b)?,
+            Op::Jacobi(b) => budget_check(solver.step_jacobi(&t, &mut scratch, b), b)?,
+            Op::Light(g, rgb) => {
+                if solver.set_light(&t, g, rgb).is_ok() {
+                    final_scene.groups[g as usize].1 = rgb;
+                }
+            }
+            Op::Reflectance(m, rgb) => {
+                if solver.set_reflectance(&t, m, rgb).is_ok() {
+                    final_scene.materials[m as usize] = rgb;
+                }
+            }
+        }
+    }
+    // Finish: a Jacobi sweep in progress first, then shooting.
+    loop {
+        match solver.step(&t, 1000) {
+            Outcome::Converged { .. } => break,
+            Outcome::BudgetSpent { .. } => {}
+            Outcome::NoProgress { reason: NoProgressReason::JacobiInProgress, .. } => {
+                let o = solver.step_jacobi(&t, &mut scratch, 1000);
+                prop_assert!(o.used() <= 1000);
+            }
+            other => prop_assert!(false, "{:?}", other),
+        }
+        prop_assert!(solver.shots() < 10_000_000);
+    }
+    let warm = radiosities(&solver, &t);
+    let (cold, k) = cold::<S>(&final_scene);
+    let area_min = scene.patches.iter().map(|p| p.area).fold(f32::INFINITY, f32::min);
+    // rho_max 0.9 (materials and edits stay below 0.9).
+    let shots = solver.shots().max(k);
+    for (x, y) in warm.iter().zip(&cold) {
+        for c in 0..3 {
+            let tol = 2.0 * truncation(n, TOL, 0.9, area_min)
+                + 2.0 * S::arith(y[c].max(x[c]), shots, 0.9, area_min);
+            prop_assert!((x[c] - y[c]).abs() <= tol, "warm {} cold {} tol {}", x[c], y[c], tol);
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, ..ProptestConfig::default() })]
+
+    #[test]
+    fn budget_never_exceeded_and_warm_start_matches_cold_f32(
+        scene in random_scene(),
+        ops in proptest::collection::vec(op(), 0..40),
+    ) {
+        budget_and_warm_start::<f32>(&scene, &ops)?;
+    }
+
+    #[test]
+    fn budget_never_exceeded_and_warm_start_matches_cold_fixed(
+        scene in random_scene(),
+        ops in proptest::collection::vec(op(), 0..40),
+    ) {
+        budget_and_warm_start::<Fixed>(&scene, &ops)?;
+    }
+}
