@@ -3,4 +3,5 @@
 //! Scene loading, meshing into patches, form factors with Embree occlusion rays, the f64 reference solve, table
 //! writing, checks and reports. The physics conventions are those of `radiosity-core`.
 
+pub mod embree;
 pub mod patch;
