@@ -4,4 +4,5 @@
 //! writing, checks and reports. The physics conventions are those of `radiosity-core`.
 
 pub mod embree;
+pub mod formfactor;
 pub mod patch;
