@@ -1,0 +1,312 @@
+//! Tests of the safe Embree wrapper: occlusion between facing quads, occluders, rays that start or end on
+//! surfaces, packets against single rays, closest hits, errors, and a Monte Carlo form factor.
+
+use glam::Vec3;
+use radiosity_host::embree::{Device, EmbreeError, Ray, SceneOptions, TriangleScene};
+
+/// Exact form factor between two facing, aligned unit squares at distance 1 (closed form for parallel
+/// rectangles; e.g. Howell's catalogue of configuration factors, C-11).
+const F_FACING_UNIT_SQUARES: f64 = 0.199825;
+
+/// SplitMix64 (Steele, Lea, Flood 2014): a tiny seeded generator so the tests are reproducible.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+}
+
+/// Appends the quad `a, b, c, d` (counter-clockwise seen from its normal side) as two triangles.
+fn push_quad(vertices: &mut Vec<Vec3>, triangles: &mut Vec<[u32; 3]>, quad: [Vec3; 4]) {
+    let base = vertices.len() as u32;
+    vertices.extend_from_slice(&quad);
+    triangles.push([base, base + 1, base + 2]);
+    triangles.push([base, base + 2, base + 3]);
+}
+
+/// Unit square at height `z`, facing up (`up = true`) or down.
+fn square_at(z: f32, up: bool) -> [Vec3; 4] {
+    let q = [Vec3::new(0.0, 0.0, z), Vec3::new(1.0, 0.0, z), Vec3::new(1.0, 1.0, z), Vec3::new(0.0, 1.0, z)];
+    if up {
+        q
+    } else {
+        [q[0], q[3], q[2], q[1]]
+    }
+}
+
+/// The floor square (z = 0, facing up) and the ceiling square (z = 1, facing down), plus `extra` quads.
+fn facing_quads(extra: &[[Vec3; 4]], options: SceneOptions) -> TriangleScene {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    push_quad(&mut vertices, &mut triangles, square_at(0.0, true));
+    push_quad(&mut vertices, &mut triangles, square_at(1.0, false));
+    for quad in extra {
+        push_quad(&mut vertices, &mut triangles, *quad);
+    }
+    Device::new().unwrap().triangle_scene(&vertices, &triangles, options).unwrap()
+}
+
+fn point_on_square(rng: &mut SplitMix64, z: f32) -> Vec3 {
+    Vec3::new(rng.unit() as f32, rng.unit() as f32, z)
+}
+
+#[test]
+fn segment_between_facing_quads_is_unoccluded() {
+    for options in [SceneOptions::default(), SceneOptions { robust: true }] {
+        let scene = facing_quads(&[], options);
+        let ray = Ray::segment(Vec3::new(0.5, 0.5, 0.0), Vec3::new(0.5, 0.5, 1.0), scene.offset());
+        assert!(!scene.occluded(&ray));
+        assert_eq!(scene.intersect(&ray), None);
+    }
+}
+
+#[test]
+fn occluder_between_quads_blocks_segment() {
+    // A plate at z = 0.5 covering x in [0.25, 0.75]: segments through its middle are blocked, segments at
+    // x = 0.1 pass beside it.
+    let plate = [
+        Vec3::new(0.25, 0.0, 0.5),
+        Vec3::new(0.75, 0.0, 0.5),
+        Vec3::new(0.75, 1.0, 0.5),
+        Vec3::new(0.25, 1.0, 0.5),
+    ];
+    let scene = facing_quads(&[plate], SceneOptions::default());
+    let blocked = Ray::segment(Vec3::new(0.5, 0.5, 0.0), Vec3::new(0.5, 0.5, 1.0), scene.offset());
+    assert!(scene.occluded(&blocked));
+    let beside = Ray::segment(Vec3::new(0.1, 0.5, 0.0), Vec3::new(0.1, 0.5, 1.0), scene.offset());
+    assert!(!scene.occluded(&beside));
+
+    // The closest hit is the plate (triangles 4 and 5) at half the segment, seen from below: the plate is
+    // counter-clockwise seen from +z, so its normal is +z.
+    let hit = scene.intersect(&blocked).expect("the plate is hit");
+    assert!(hit.primitive == 4 || hit.primitive == 5, "hit triangle {}", hit.primitive);
+    assert_eq!(hit.geometry, 0);
+    // The plate is at t = 0.5 exactly; Embree's t is accurate to a few f32 ulps.
+    assert!((hit.t - 0.5).abs() < 1e-6, "t = {}", hit.t);
+    assert!((hit.normal - Vec3::Z).length() < 1e-6, "normal {:?}", hit.normal);
+    let [u, v] = hit.barycentric;
+    assert!((0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v) && u + v <= 1.0 + 1e-6);
+}
+
+#[test]
+fn closest_hit_reports_primitive_barycentrics_and_orientation() {
+    // Two triangles at z = 1 and z = 2, both counter-clockwise seen from -z (normal -z); a ray up from the
+    // origin region hits the nearer one.
+    let vertices = [
+        Vec3::new(0.0, 0.0, 2.0),
+        Vec3::new(0.0, 1.0, 2.0),
+        Vec3::new(1.0, 0.0, 2.0),
+        Vec3::new(0.0, 0.0, 1.0),
+        Vec3::new(0.0, 1.0, 1.0),
+        Vec3::new(1.0, 0.0, 1.0),
+    ];
+    let scene = Device::new()
+        .unwrap()
+        .triangle_scene(&vertices, &[[0, 1, 2], [3, 4, 5]], Default::default())
+        .unwrap();
+    let ray = Ray::new(Vec3::new(0.25, 0.5, 0.0), Vec3::Z, 0.0, f32::INFINITY);
+    let hit = scene.intersect(&ray).unwrap();
+    assert_eq!(hit.primitive, 1);
+    assert!((hit.t - 1.0).abs() < 1e-6);
+    // Point = (1 - u - v) p0 + u p1 + v p2 with p1 = (0, 1), p2 = (1, 0): u = y = 0.5, v = x = 0.25.
+    assert!((hit.barycentric[0] - 0.5).abs() < 1e-6 && (hit.barycentric[1] - 0.25).abs() < 1e-6);
+    assert!((hit.normal + Vec3::Z).length() < 1e-6, "normal {:?}", hit.normal);
+    // A ray pointing away misses everything.
+    assert_eq!(scene.intersect(&Ray::new(Vec3::ZERO, -Vec3::Z, 0.0, f32::INFINITY)), None);
+}
+
+#[test]
+fn rays_starting_on_a_surface_do_not_hit_it() {
+    // Segments from random points on the floor square to random points on the ceiling square, in a scene of
+    // just those two squares: neither end surface may count. Also rays leaving the floor upwards and sideways
+    // at grazing angles with only tnear = offset. The offset is RELATIVE_OFFSET (2^-13) of the scene scale,
+    // about 1000 f32 ulps of the coordinates, so rounding in Embree's hit distance cannot reach past it.
+    let mut rng = SplitMix64(7);
+    for options in [SceneOptions::default(), SceneOptions { robust: true }] {
+        let scene = facing_quads(&[], options);
+        let offset = scene.offset();
+        for _ in 0..2000 {
+            let from = point_on_square(&mut rng, 0.0);
+            let to = point_on_square(&mut rng, 1.0);
+            assert!(!scene.occluded(&Ray::segment(from, to, offset)), "{from} -> {to}");
+            // A unit-length direction leaving the floor, elevation down to ~0.6 degrees.
+            let elevation = 0.01 + 1.5 * rng.unit() as f32;
+            let azimuth = std::f32::consts::TAU * rng.unit() as f32;
+            let dir =
+                Vec3::new(elevation.cos() * azimuth.cos(), elevation.cos() * azimuth.sin(), elevation.sin());
+            // Stop before the ceiling plane so only the floor could be hit.
+            let tfar = 0.9 / dir.z;
+            assert!(!scene.occluded(&Ray::new(from, dir, offset, tfar)), "{from} along {dir}");
+        }
+    }
+}
+
+#[test]
+fn segment_ending_exactly_on_target_is_not_occluded() {
+    let scene = facing_quads(&[], SceneOptions::default());
+    // Ends at the centre, on an edge and on a corner of the ceiling square.
+    for to in [Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.5, 1.0, 1.0), Vec3::new(1.0, 1.0, 1.0)] {
+        let from = Vec3::new(0.5, 0.5, 0.0);
+        assert!(!scene.occluded(&Ray::segment(from, to, scene.offset())), "segment to {to}");
+    }
+    // Why the shortening matters: Embree's tfar is inclusive, so the same segment with tfar = 1 exactly hits the
+    // ceiling at t = 1 (all coordinates here are exact in f32, so the hit distance is exactly 1).
+    let raw = Ray::new(Vec3::new(0.5, 0.5, 0.0), Vec3::Z, scene.offset(), 1.0);
+    assert!(scene.occluded(&raw));
+}
+
+#[test]
+fn packets_agree_with_single_rays() {
+    let plate = [
+        Vec3::new(0.25, 0.0, 0.5),
+        Vec3::new(0.75, 0.0, 0.5),
+        Vec3::new(0.75, 1.0, 0.5),
+        Vec3::new(0.25, 1.0, 0.5),
+    ];
+    let scene = facing_quads(&[plate], SceneOptions::default());
+    let mut rng = SplitMix64(11);
+    let rays: Vec<Ray> = (0..37)
+        .map(|_| Ray::segment(point_on_square(&mut rng, 0.0), point_on_square(&mut rng, 1.0), scene.offset()))
+        .collect();
+    let single: Vec<bool> = rays.iter().map(|r| scene.occluded(r)).collect();
+    // Both outcomes occur, so the comparison means something.
+    assert!(single.iter().any(|&o| o) && single.iter().any(|&o| !o));
+    let mut many = vec![false; rays.len()];
+    scene.occluded_many(&rays, &mut many);
+    assert_eq!(single, many);
+    // A partial packet: lanes beyond the slice are inactive and report nothing.
+    let bits = scene.occluded16(&rays[..5]);
+    assert_eq!(bits >> 5, 0);
+    for (k, &o) in single[..5].iter().enumerate() {
+        assert_eq!(bits & (1 << k) != 0, o);
+    }
+    // An empty segment (shorter than twice the offset) is never occluded.
+    let tiny =
+        Ray::segment(Vec3::new(0.5, 0.5, 0.5), Vec3::new(0.5, 0.5, 0.5 + scene.offset()), scene.offset());
+    assert!(!scene.occluded(&tiny));
+    assert_eq!(scene.occluded16(&[tiny]), 0);
+    // Invalid rays (NaN origin, infinite direction) never reach Embree and hit nothing, even aimed at the plate.
+    let nan = Ray::new(Vec3::new(f32::NAN, 0.5, 0.0), Vec3::Z, 0.0, 1.0);
+    let inf = Ray::new(Vec3::new(0.5, 0.5, 0.0), Vec3::new(0.0, 0.0, f32::INFINITY), 0.0, 1.0);
+    for ray in [nan, inf] {
+        assert!(!scene.occluded(&ray));
+        assert_eq!(scene.intersect(&ray), None);
+        assert_eq!(scene.occluded16(&[ray, ray]), 0);
+    }
+}
+
+#[test]
+fn scene_is_shared_across_threads() {
+    fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<TriangleScene>();
+    assert_send_sync::<Device>();
+    let plate = [
+        Vec3::new(0.25, 0.0, 0.5),
+        Vec3::new(0.75, 0.0, 0.5),
+        Vec3::new(0.75, 1.0, 0.5),
+        Vec3::new(0.25, 1.0, 0.5),
+    ];
+    let scene = facing_quads(&[plate], SceneOptions::default());
+    let counts: Vec<usize> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..4)
+            .map(|_| {
+                let scene = &scene;
+                s.spawn(move || {
+                    (0..1000)
+                        .filter(|k| {
+                            let x = (*k as f32 + 0.5) / 1000.0;
+                            scene.occluded(&Ray::segment(
+                                Vec3::new(x, 0.5, 0.0),
+                                Vec3::new(x, 0.5, 1.0),
+                                scene.offset(),
+                            ))
+                        })
+                        .count()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    // x in (0.25, 0.75) is blocked: 500 of the 1000 midpoints.
+    assert_eq!(counts, vec![500; 4]);
+}
+
+#[test]
+fn bad_input_and_embree_errors_are_reported() {
+    let device = Device::new().unwrap();
+    let err =
+        device.triangle_scene(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 3]], Default::default()).unwrap_err();
+    assert_eq!(err, EmbreeError::VertexOutOfRange { triangle: 0, vertex: 3, vertex_count: 3 });
+    assert!(err.to_string().contains("triangle 0 refers to vertex 3"), "{err}");
+    let err = device
+        .triangle_scene(
+            &[Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Y],
+            &[[0, 1, 2]],
+            Default::default(),
+        )
+        .unwrap_err();
+    assert!(matches!(err, EmbreeError::NonFiniteVertex { index: 1, .. }), "{err}");
+    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config.
+    let err = Device::with_config("threads=abc").unwrap_err();
+    assert!(err.to_string().contains("RTC_ERROR_") && err.to_string().contains("threads=abc"), "{err}");
+    // An empty scene is valid and occludes nothing.
+    let empty = device.triangle_scene(&[], &[], Default::default()).unwrap();
+    assert!(!empty.occluded(&Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)));
+}
+
+#[test]
+fn monte_carlo_form_factor_of_facing_unit_squares() {
+    // F = (1/A_i) int_i int_j cos(t_i) cos(t_j) / (pi r^2) V dA_j dA_i. With x uniform on i and y uniform on j
+    // (both of area 1) one sample is g = cos cos / (pi r^2) * V, an unbiased estimate of F. The visibility comes
+    // from Embree (16-wide packets); the standard error is the sample standard deviation / sqrt(n).
+    let scene = facing_quads(&[], SceneOptions::default());
+    let mut rng = SplitMix64(2024);
+    let n = 1 << 15;
+    let mut sum = 0.0f64;
+    let mut sum_sq = 0.0f64;
+    let mut visible = 0usize;
+    let mut rays = Vec::with_capacity(16);
+    let mut kernels = Vec::with_capacity(16);
+    for _ in 0..n / 16 {
+        rays.clear();
+        kernels.clear();
+        for _ in 0..16 {
+            let x = [rng.unit(), rng.unit(), 0.0];
+            let y = [rng.unit(), rng.unit(), 1.0];
+            let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+            let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            // cos at both ends is d_z / r; distance is 1 between the planes.
+            kernels.push(d[2] * d[2] / (std::f64::consts::PI * r2 * r2));
+            let from = Vec3::new(x[0] as f32, x[1] as f32, 0.0);
+            let to = Vec3::new(y[0] as f32, y[1] as f32, 1.0);
+            rays.push(Ray::segment(from, to, scene.offset()));
+        }
+        let blocked = scene.occluded16(&rays);
+        for (k, g) in kernels.iter().enumerate() {
+            let g = if blocked & (1 << k) == 0 { *g } else { 0.0 };
+            visible += usize::from(blocked & (1 << k) == 0);
+            sum += g;
+            sum_sq += g * g;
+        }
+    }
+    let n = n as f64;
+    let mean = sum / n;
+    let variance = (sum_sq / n - mean * mean) * n / (n - 1.0);
+    let standard_error = (variance / n).sqrt();
+    assert_eq!(visible as f64, n, "nothing lies between the squares");
+    assert!(
+        (mean - F_FACING_UNIT_SQUARES).abs() <= 3.0 * standard_error,
+        "estimate {mean} vs exact {F_FACING_UNIT_SQUARES}: difference {} > 3 standard errors ({standard_error})",
+        (mean - F_FACING_UNIT_SQUARES).abs()
+    );
+}

@@ -1,0 +1,319 @@
+//! Tests of the patch-to-patch form factors against closed forms, closure, reciprocity, occlusion, convergence
+//! and determinism. Patches are built in code.
+
+use glam::DVec3;
+use radiosity_host::formfactor::{
+    compute_form_factors, point_to_polygon, FormFactorOptions, FormFactorStats,
+};
+use radiosity_host::patch::{FormFactorMatrix, Patch};
+
+/// Facing, aligned unit squares at distance 1 (closed form for parallel rectangles, Howell's catalogue C-11).
+const F_FACING: f64 = 0.199_824_855_6;
+/// Perpendicular unit squares sharing an edge (closed form, Howell's catalogue C-14).
+const F_PERPENDICULAR: f64 = 0.200_043_776_2;
+
+/// A patch from a convex polygon given counter-clockwise seen from its front.
+fn patch(face: usize, vertices: Vec<DVec3>) -> Patch {
+    let n = vertices.len();
+    let mut twice_area = DVec3::ZERO;
+    for k in 0..n {
+        twice_area += vertices[k].cross(vertices[(k + 1) % n]);
+    }
+    let centroid = vertices.iter().copied().sum::<DVec3>() / n as f64;
+    Patch {
+        face,
+        material: 0,
+        area: 0.5 * twice_area.length(),
+        normal: twice_area.normalize(),
+        centroid,
+        vertices,
+    }
+}
+
+/// Parallelogram `origin + s a + t b`, `s, t` in [0, 1], front side `a x b`.
+fn quad(face: usize, origin: DVec3, a: DVec3, b: DVec3) -> Patch {
+    patch(face, vec![origin, origin + a, origin + a + b, origin + b])
+}
+
+/// Floor `[0,1]^2` at z = 0 facing up, ceiling at z = 1 facing down.
+fn facing_squares() -> Vec<Patch> {
+    vec![quad(0, DVec3::ZERO, DVec3::X, DVec3::Y), quad(1, DVec3::Z, DVec3::Y, DVec3::X)]
+}
+
+/// Floor `[0,1]^2` facing up and the wall x = 0 facing +x, sharing the edge along y.
+fn perpendicular_squares() -> Vec<Patch> {
+    vec![quad(0, DVec3::ZERO, DVec3::X, DVec3::Y), quad(1, DVec3::ZERO, DVec3::Y, DVec3::Z)]
+}
+
+fn quiet(samples_per_patch: usize, rays_per_pair: usize, seed: u64) -> FormFactorOptions {
+    FormFactorOptions {
+        samples_per_patch,
+        rays_per_pair,
+        seed,
+        progress: false,
+        ..FormFactorOptions::default()
+    }
+}
+
+fn entry(m: &FormFactorMatrix, i: usize, j: usize) -> f64 {
+    m.row(i).find(|&(c, _)| c == j).map_or(0.0, |(_, f)| f)
+}
+
+fn relative_error(value: f64, exact: f64) -> f64 {
+    (value - exact).abs() / exact
+}
+
+fn defaults() -> FormFactorOptions {
+    FormFactorOptions { progress: false, ..FormFactorOptions::default() }
+}
+
+#[test]
+fn point_kernel_matches_closed_form() {
+    // Differential area on the axis of a coaxial square of half-side a at height h, facing it:
+    // F = 4 / (2π) * ( X / sqrt(1 + X^2) * atan(Y / sqrt(1 + X^2)) + (same with X, Y swapped) ), X = Y = a / h
+    // (Howell's catalogue B-3, split into 4 corner rectangles).
+    let (a, h) = (0.5, 1.0);
+    let x = a / h;
+    let s = (1.0f64 + x * x).sqrt();
+    let exact = 4.0 * 2.0 * (x / s) * (x / s).atan() / (2.0 * std::f64::consts::PI);
+    let square = vec![DVec3::new(-a, -a, h), DVec3::new(-a, a, h), DVec3::new(a, a, h), DVec3::new(a, -a, h)];
+    let f = point_to_polygon(DVec3::ZERO, DVec3::Z, &square, -DVec3::Z);
+    // Pure f64 arithmetic on ~20 operations: a relative error of a few hundred eps at most.
+    assert!(relative_error(f, exact) < 1e-13, "{f} vs {exact}");
+    // Seen from behind, or facing away: zero.
+    assert_eq!(point_to_polygon(DVec3::ZERO, DVec3::Z, &square, DVec3::Z), 0.0);
+    assert_eq!(point_to_polygon(DVec3::ZERO, -DVec3::Z, &square, -DVec3::Z), 0.0);
+    // Half of the square below the tangent plane (tilted point normal +x at the square's edge x = -a) is
+    // clipped away: the remaining half sees F of a point at the corner-edge of a tilted configuration, which must
+    // be strictly between 0 and the full value.
+    let tilted = point_to_polygon(DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0).normalize(), &square, -DVec3::Z);
+    assert!(tilted > 0.0 && tilted < 1.0);
+}
+
+#[test]
+fn facing_unit_squares_at_default_settings() {
+    let (m, stats) = compute_form_factors(&facing_squares(), &defaults()).unwrap();
+    // Target from the issue: within 0.5%.
+    for (i, j) in [(0, 1), (1, 0)] {
+        let f = entry(&m, i, j);
+        assert!(relative_error(f, F_FACING) < 0.005, "F_{i}{j} = {f} vs {F_FACING}");
+    }
+    assert_eq!(stats.patches, 2);
+    assert_eq!(stats.nonzeros, 2);
+    assert!(stats.rays_cast > 0);
+    assert!(stats.row_sum_max < 1.0, "an open scene loses energy");
+}
+
+#[test]
+fn perpendicular_squares_sharing_an_edge_at_default_settings() {
+    let (m, _) = compute_form_factors(&perpendicular_squares(), &defaults()).unwrap();
+    for (i, j) in [(0, 1), (1, 0)] {
+        let f = entry(&m, i, j);
+        assert!(relative_error(f, F_PERPENDICULAR) < 0.005, "F_{i}{j} = {f} vs {F_PERPENDICULAR}");
+    }
+}
+
+#[test]
+fn error_falls_as_samples_grow() {
+    // Shared-edge pair (the hardest near field), nothing occludes: the error is the Gauss-Legendre quadrature error
+    // of the unoccluded form factor, deterministic, for 2 x 2, 4 x 4 and 8 x 8 points. It must fall at each step,
+    // by at least 10x (a rule exact for polynomials of degree 2n - 1 on a kernel whose derivative is only weakly
+    // singular at the edge; measured: about 1000x per step).
+    let errors: Vec<f64> = [4, 16, 64]
+        .iter()
+        .map(|&samples| {
+            let (m, _) = compute_form_factors(&perpendicular_squares(), &quiet(samples, 16, 1)).unwrap();
+            (entry(&m, 0, 1) - F_PERPENDICULAR).abs()
+        })
+        .collect();
+    println!("|error| for 4, 16, 64 samples per patch: {errors:?}");
+    assert!(errors[0] > 10.0 * errors[1] && errors[1] > 10.0 * errors[2], "{errors:?}");
+}
+
+/// The inside of the unit cube, each face split into `k x k` patches, all facing inwards.
+fn furnace_cube(k: usize) -> Vec<Patch> {
+    let mut patches = Vec::new();
+    let step = 1.0 / k as f64;
+    // (origin, a, b) with a x b pointing into the cube.
+    let faces = [
+        (DVec3::ZERO, DVec3::X, DVec3::Y), // z = 0, normal +z
+        (DVec3::Z, DVec3::Y, DVec3::X),    // z = 1, normal -z
+        (DVec3::ZERO, DVec3::Y, DVec3::Z), // x = 0, normal +x
+        (DVec3::X, DVec3::Z, DVec3::Y),    // x = 1, normal -x
+        (DVec3::ZERO, DVec3::Z, DVec3::X), // y = 0, normal +y
+        (DVec3::Y, DVec3::X, DVec3::Z),    // y = 1, normal -y
+    ];
+    for (face, (origin, a, b)) in faces.into_iter().enumerate() {
+        for s in 0..k {
+            for t in 0..k {
+                let o = origin + a * (s as f64 * step) + b * (t as f64 * step);
+                patches.push(quad(face, o, a * step, b * step));
+            }
+        }
+    }
+    patches
+}
+
+#[test]
+fn closed_cube_rows_sum_to_one() {
+    let patches = furnace_cube(3);
+    let (m, stats) = compute_form_factors(&patches, &defaults()).unwrap();
+    assert_eq!(stats.patches, 54);
+    // Nothing occludes inside a convex box, so each sample point's kernels sum to 1 over the 45 patches of the
+    // other faces exactly in exact arithmetic; f64 rounding over a few hundred operations per point leaves far
+    // less than 1e-9. The issue requires 1e-4 (the furnace at rho = 0.99 multiplies row-sum error by 100).
+    for i in 0..m.n {
+        let sum = m.row_sum(i);
+        assert!((sum - 1.0).abs() < 1e-9, "row {i} sums to {sum}");
+    }
+    assert!((stats.row_sum_min - 1.0).abs() < 1e-4 && (stats.row_sum_max - 1.0).abs() < 1e-4, "{stats:?}");
+    // Coplanar patches of the same face never see each other.
+    for i in 0..m.n {
+        for (j, _) in m.row(i) {
+            assert_ne!(patches[i].face, patches[j].face, "coplanar pair {i}, {j}");
+        }
+    }
+}
+
+#[test]
+fn reciprocity_holds_within_quadrature_error() {
+    // A 2 x 1 floor and a 1 x 0.5 wall sharing an edge: unequal areas, no occlusion, so each F is the
+    // Gauss-Legendre quadrature of the exact point kernel over its own patch, and the only source of
+    // non-reciprocity is that quadrature error. Estimate it per entry as the change from the default 4 x 4 rule to
+    // 8 x 8 (which converges far faster than that change, see `error_falls_as_samples_grow`); reciprocity must then
+    // hold within twice the summed error estimates of the two sides.
+    let patches = vec![
+        quad(0, DVec3::ZERO, DVec3::new(2.0, 0.0, 0.0), DVec3::Y),
+        quad(1, DVec3::ZERO, DVec3::Y, DVec3::new(0.0, 0.0, 0.5)),
+    ];
+    let (m, stats) = compute_form_factors(&patches, &defaults()).unwrap();
+    let (fine, _) = compute_form_factors(&patches, &quiet(64, 16, 1)).unwrap();
+    let e_01 = (entry(&m, 0, 1) - entry(&fine, 0, 1)).abs();
+    let e_10 = (entry(&m, 1, 0) - entry(&fine, 1, 0)).abs();
+    let forward = patches[0].area * entry(&m, 0, 1);
+    let backward = patches[1].area * entry(&m, 1, 0);
+    let tolerance = 2.0 * (patches[0].area * e_01 + patches[1].area * e_10) + 64.0 * f64::EPSILON;
+    assert!(
+        (forward - backward).abs() <= tolerance,
+        "A0 F01 = {forward}, A1 F10 = {backward}, allowed {tolerance}"
+    );
+    // The reported statistic is the same quantity (relative to A_i F_ij, worst of both directions).
+    let reported = (forward - backward).abs() / forward.min(backward);
+    assert!((stats.reciprocity_error_max - reported).abs() <= 1e-12, "{stats:?} vs {reported}");
+}
+
+/// Floor and ceiling unit squares with a plate at z = 0.5 over x in [0, 0.5] (facing down, so the floor sees its
+/// front and the ceiling its back).
+fn half_blocked() -> Vec<Patch> {
+    let mut patches = facing_squares();
+    patches.push(quad(2, DVec3::new(0.0, 0.0, 0.5), DVec3::Y, DVec3::new(0.5, 0.0, 0.0)));
+    patches
+}
+
+#[test]
+fn half_blocking_plate_halves_the_form_factor() {
+    // A segment from x on the floor to y on the ceiling crosses z = 0.5 at its midpoint, which the plate covers
+    // exactly when x_1 + y_1 < 1. Mirroring both points in x = 0.5 swaps that set with x_1 + y_1 > 1 and keeps the
+    // kernel, so exactly half of F is blocked: F = F_FACING / 2.
+    let exact = F_FACING / 2.0;
+    let rays = 1 << 14;
+    let options = quiet(16, rays, 5);
+    let (m, stats) = compute_form_factors(&half_blocked(), &options).unwrap();
+    let f = entry(&m, 0, 1);
+    // Error bound: F = U v, U the unoccluded value (quadrature error ~1e-7, negligible), v the ratio estimate
+    // sum w V / sum w over R rays with w = cos cos / r^2. Its variance is about E[w^2 (V - v)^2] / (R E[w]^2), and
+    // (V - v)^2 = 1/4 exactly since v = 1/2 and V is 0 or 1. With x, y uniform on unit squares, E[w] = pi F_FACING,
+    // and w <= 1 (r >= 1), so E[w^2] <= E[w]: Var(v) <= 1 / (4 R pi F_FACING) (stratification only lowers it).
+    // Four standard deviations of U v, U = F_FACING:
+    let tolerance = 4.0 * F_FACING * (1.0 / (4.0 * rays as f64 * std::f64::consts::PI * F_FACING)).sqrt();
+    assert!((f - exact).abs() < tolerance, "F = {f}, exact {exact}, allowed {tolerance}");
+    // The ceiling sees only the plate's back: nothing; the floor sees its front.
+    assert_eq!(entry(&m, 1, 2), 0.0);
+    assert!(entry(&m, 0, 2) > 0.0);
+    assert!(stats.rays_cast >= rays as u64);
+}
+
+#[test]
+fn same_seed_same_matrix_for_any_thread_count() {
+    let patches = furnace_cube(2).into_iter().chain(half_blocked()).collect::<Vec<_>>();
+    let run = |threads| {
+        let options = FormFactorOptions { threads: Some(threads), ..quiet(9, 18, 42) };
+        compute_form_factors(&patches, &options).unwrap()
+    };
+    let (one, stats_one): (FormFactorMatrix, FormFactorStats) = run(1);
+    let (two, _) = run(2);
+    assert_eq!(one, two);
+    assert!(stats_one.rays_cast > 0);
+    let (other_seed, _) =
+        compute_form_factors(&patches, &FormFactorOptions { threads: Some(2), ..quiet(9, 18, 43) }).unwrap();
+    assert_ne!(one, other_seed, "the seed matters");
+}
+
+#[test]
+fn bad_patches_and_options_are_rejected() {
+    let mut patches = facing_squares();
+    patches[1].vertices.truncate(2);
+    let err = compute_form_factors(&patches, &defaults()).unwrap_err();
+    assert!(err.to_string().contains("patch 1: 2 vertices"), "{err}");
+    let mut patches = facing_squares();
+    patches[0].area = 0.0;
+    let err = compute_form_factors(&patches, &defaults()).unwrap_err();
+    assert!(err.to_string().contains("patch 0: area 0"), "{err}");
+    let err = compute_form_factors(&facing_squares(), &quiet(0, 1, 1)).unwrap_err();
+    assert!(err.to_string().contains("samples_per_patch"), "{err}");
+}
+
+#[test]
+fn estimator_beats_area_sampling_per_ray() {
+    // Accuracy per ray on the half-blocked pair (exact F = F_FACING / 2): RMS error over 16 seeds of
+    // (a) this module's estimator with R rays per pair, and (b) plain area sampling (x, y uniform on the squares,
+    // F ~ mean of cos cos / (pi r^2) V), with the same R visibility rays, the estimator of the Embree tests.
+    // The kernel-times-visibility estimator must be more accurate per ray, and its error must fall as rays grow
+    // (each 4x step should halve it, 1/sqrt(R); 16 seeds keep the RMS estimate within about 20%).
+    let exact = F_FACING / 2.0;
+    let patches = half_blocked();
+    let seeds = 16;
+    let mut previous = f64::INFINITY;
+    for rays in [16usize, 64, 256] {
+        let ours = (0..seeds)
+            .map(|seed| {
+                let (m, _) = compute_form_factors(&patches, &quiet(16, rays, seed)).unwrap();
+                (entry(&m, 0, 1) - exact).powi(2)
+            })
+            .sum::<f64>()
+            / seeds as f64;
+        let plain =
+            (0..seeds).map(|seed| (area_sampling(rays, seed) - exact).powi(2)).sum::<f64>() / seeds as f64;
+        println!(
+            "rays per pair {rays:4}: rms error estimator {:.2e}, area sampling {:.2e}",
+            ours.sqrt(),
+            plain.sqrt()
+        );
+        assert!(ours < plain, "rays {rays}: {} vs {}", ours.sqrt(), plain.sqrt());
+        assert!(ours.sqrt() < 0.75 * previous, "rays {rays}: {} after {previous}", ours.sqrt());
+        previous = ours.sqrt();
+    }
+}
+
+/// Plain area-sampling estimate of F(floor -> ceiling) with the half plate, visibility decided analytically
+/// (the plate blocks exactly when the midpoint's x < 0.5), so only the estimator's own variance is measured.
+fn area_sampling(samples: usize, seed: u64) -> f64 {
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ 0xD1B5_4A32_D192_ED03;
+    let mut unit = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut sum = 0.0;
+    for _ in 0..samples {
+        let (x0, x1, y0, y1) = (unit(), unit(), unit(), unit());
+        if x0 + y0 < 1.0 {
+            continue;
+        }
+        let r2 = (x0 - y0).powi(2) + (x1 - y1).powi(2) + 1.0;
+        sum += 1.0 / (std::f64::consts::PI * r2 * r2);
+    }
+    sum / samples as f64
+}
