@@ -5,8 +5,11 @@
 
 pub mod embree;
 pub mod formfactor;
+pub mod lighting;
 pub mod mesh;
 pub mod metrics;
+pub mod output;
 pub mod patch;
+pub mod pipeline;
 pub mod reference;
 pub mod scene;

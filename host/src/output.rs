@@ -1,0 +1,51 @@
+//! Machine-readable output: the patch table CSV of the design contract, and the output format switch.
+//!
+//! The patch CSV header is fixed:
+//! `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. Numbers are printed with Rust's
+//! shortest round-trip formatting, so an f64 read back from the CSV is the f64 that was written.
+
+use std::io::{self, Write};
+
+use crate::patch::Patch;
+
+/// Output format of a command.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Human-readable text (the default).
+    #[default]
+    Text,
+    /// Comma-separated values with a header line.
+    Csv,
+    /// JSON.
+    Json,
+}
+
+/// Header of the patch table CSV.
+pub const PATCH_CSV_HEADER: &str = "patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b";
+
+/// Writes the patch table CSV: one row per patch with its geometry, reflectance `rho`, emission `e` and
+/// radiosity `b`.
+///
+/// # Errors
+/// Any error of `out`.
+///
+/// # Panics
+/// If `rho`, `e` or `b` is shorter than `patches`.
+pub fn write_patch_csv(
+    out: &mut impl Write,
+    patches: &[Patch],
+    rho: &[[f64; 3]],
+    e: &[[f64; 3]],
+    b: &[[f64; 3]],
+) -> io::Result<()> {
+    writeln!(out, "{PATCH_CSV_HEADER}")?;
+    for (k, p) in patches.iter().enumerate() {
+        let (c, n) = (p.centroid, p.normal);
+        write!(out, "{k},{},{},{},{},{},{},{},{}", p.face, c.x, c.y, c.z, n.x, n.y, n.z, p.area)?;
+        for v in [rho[k], e[k], b[k]] {
+            write!(out, ",{},{},{}", v[0], v[1], v[2])?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
