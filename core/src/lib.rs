@@ -100,7 +100,29 @@
 //!   shooting converges. [`Outcome::Converged`] means every patch's unshot magnitude is `<= tolerance`; the
 //!   remaining error per patch is at most `n * tolerance / ((1 - rho_max) A_min)`.
 //! - Arithmetic: `f32`, or [`Fixed`] (Q32.32 in `i64`, integer only, saturating; range about `+-2.1e9` power
-//!   units, resolution `2.3e-10`), chosen by the solver's type parameter.
+//!   units, resolution `2.3e-10`, products rounded to nearest), chosen by the solver's type parameter. See
+//!   [`scalar`] for the fixed-point convergence condition on the tolerance.
+//!
+//! Solver cost and arithmetic error, measured on a closed cube of 6 x 6 x 6 patches, 38880 entries, rho 0.8,
+//! one light, FLOAT16, tolerance `1e-6` of the emitted power (`cargo run --release -p radiosity-core --example
+//! methods`; error: relative L2 of `B` against a solve to `1e-9`):
+//!
+//! | method | path | work units | rows shot | rel. L2 error |
+//! |---|---|---|---|---|
+//! | shooting | f32 | 2760817 | 5021 | 5.68e-6 |
+//! | shooting | fixed | 2924759 | 5319 | 6.43e-5 |
+//! | shooting, overshoot 1.25 | f32 | 1405453 | 2555 | 5.21e-6 |
+//! | shooting, overshoot 1.25 | fixed | 1539983 | 2799 | 3.15e-5 |
+//! | Gauss-Seidel | f32 | 982800 | 5400 | 3.45e-6 |
+//! | Gauss-Seidel | fixed | 1022112 | 5616 | 6.47e-5 |
+//! | Jacobi | f32 | 1739232 | 9504 | 1.60e-5 |
+//! | Jacobi | fixed | 1818288 | 9936 | 1.36e-4 |
+//!
+//! In a dense closed scene with a single light, full sweeps are cheaper per unit of convergence than shooting
+//! (shooting pays the tree updates, about 3 units per entry here); shooting's advantage is that its first
+//! shots deliver the direct light of the changed lights at once, so partial budgets show the right picture
+//! early, and a local change costs work near the change. The fixed-point error here is the Q32.32 resolution
+//! against the small powers of a unit cube (patch areas 1/36).
 //!
 //! Measured on a closed cube of 6 x 8 x 8 patches, 122880 entries (`cargo run --release -p radiosity-core
 //! --example codec_error`; row errors are L1 over a row divided by its sum; the solve error is the relative L2
