@@ -7,7 +7,7 @@
 //! # Layers
 //! Like smoltcp's wire -> storage -> socket -> iface, each layer uses only the ones before it:
 //!
-//! 1. **Table format** ([`table`], [`write`], [`crc`]): the byte layout, [`Table::parse`] (the one checked
+//! 1. **Table format** ([`table`], [`write`](mod@write), [`crc`]): the byte layout, [`Table::parse`] (the one checked
 //!    constructor: after it succeeds no accessor panics) and [`write_table`] (used by the host).
 //! 2. **Codecs** ([`codec`]): form-factor, reflectance and emission codes and their error bounds.
 //! 3. **Solver state** ([`Solver`], [`Buffers`], arithmetic in [`scalar`]): power, unshot power, incident

@@ -14,22 +14,38 @@ mod common;
 
 use common::{assert_close, converge, radiosities, Scene, Store, FIXED_EPS};
 use proptest::prelude::*;
-use radiosity_core::{Config, Fixed, MemberSpec, NoProgressReason, Outcome, Scalar, Table};
+use radiosity_core::{Config, Fixed, MemberSpec, NoProgressReason, Outcome, Scalar, SolverError, Table};
 
 /// The arithmetic error term of each path (see the module docs).
 trait Arith: Scalar {
     fn arith(b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32;
+    /// Representation error of an input value (`from_f32`).
+    fn input(v: f32) -> f32;
+    /// Smallest tolerance with guaranteed convergence (see `radiosity_core::scalar`), `l` the longest row.
+    fn min_tolerance(l: u32, rho_max: f32) -> f32;
 }
 
 impl Arith for f32 {
     fn arith(b: f32, shots: u32, rho_max: f32, _area_min: f32) -> f32 {
         3.0 * f32::EPSILON / 2.0 * (shots as f32 + 1.0 / (1.0 - rho_max)) * b.abs()
     }
+    fn input(_v: f32) -> f32 {
+        0.0
+    }
+    fn min_tolerance(_l: u32, _rho_max: f32) -> f32 {
+        0.0
+    }
 }
 
 impl Arith for Fixed {
     fn arith(_b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32 {
         2.0 * FIXED_EPS * shots as f32 / ((1.0 - rho_max) * area_min)
+    }
+    fn input(_v: f32) -> f32 {
+        FIXED_EPS / 2.0
+    }
+    fn min_tolerance(l: u32, rho_max: f32) -> f32 {
+        6.0 * l as f32 * FIXED_EPS / (1.0 - rho_max)
     }
 }
 
@@ -67,6 +83,36 @@ fn two_patch<S: Arith>() {
     let q1 = b1 * p / (1.0 - p) * dp * 1.01;
     let q2 = b2 * (2f32.powi(-12) + 2f32.powi(-17) / 0.8 + q1 / b1) * 1.01;
     let rest = |bv: f32| truncation(2, TOL, 0.8, 1.0) + S::arith(bv, solver.shots(), 0.8, 1.0);
+    for (x1, x2) in b[0].iter().zip(&b[1]) {
+        assert_close("B_1", *x1, b1, q1 + rest(b1));
+        assert_close("B_2", *x2, b2, q2 + rest(b2));
+    }
+}
+
+/// The two-patch system with its light at intensity `scale` (1e-6 .. 1e6, the emission range the project
+/// must handle), cold start: the answer scales linearly. Tolerances as in `two_patch`, with the convergence tolerance scaled
+/// too (but not below the fixed-point convergence floor) and the intensity's representation error.
+fn two_patch_scaled<S: Arith>(scale: f32) {
+    let mut s = Scene::new(2);
+    s.patches[1].area = 2.0;
+    s.patches[1].material = 1;
+    s.materials = vec![[0.5; 3], [0.8; 3]];
+    s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
+    s.groups = vec![(7, [scale; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let tol = (TOL * scale).max(S::min_tolerance(1, 0.8));
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, Config { tolerance: S::from_f32(tol), overshoot: 0 });
+    converge(&mut solver, &t, 100, 1_000_000);
+    let b = radiosities(&solver, &t);
+    let p = 0.5 * 0.8 * 0.4 * 0.2;
+    let b1 = scale / (1.0 - p);
+    let b2 = 0.8 * 0.2 * b1;
+    let dp = 2.0 * 2f32.powi(-12) + 2f32.powi(-17) / 0.8;
+    let q1 = b1 * p / (1.0 - p) * dp * 1.01 + S::input(scale) / (1.0 - p);
+    let q2 = b2 * (2f32.powi(-12) + 2f32.powi(-17) / 0.8) * 1.01 + 0.16 * q1;
+    let rest = |bv: f32| truncation(2, tol, 0.8, 1.0) + S::arith(bv, solver.shots(), 0.8, 1.0);
     for (x1, x2) in b[0].iter().zip(&b[1]) {
         assert_close("B_1", *x1, b1, q1 + rest(b1));
         assert_close("B_2", *x2, b2, q2 + rest(b2));
@@ -350,6 +396,28 @@ fn budget_partition_invariance<S: Arith>() {
     }
 }
 
+/// `restart` after relighting gives exactly the state of a cold solve of a table with those settings.
+fn restart_is_cold<S: Arith>() {
+    let bytes = relight_scene([1.0; 3], [0.25; 3]).write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 50, 10_000_000);
+    solver.set_light(&t, 0, [1e-3, 0.0, 2.0]).unwrap();
+    solver.set_reflectance(&t, 1, [0.9, 0.0, 0.6]).unwrap();
+    solver.restart(&t);
+    converge(&mut solver, &t, 50, 10_000_000);
+    let edited_bytes = relight_scene([1e-3, 0.0, 2.0], [0.9, 0.0, 0.6]).write();
+    let edited = Table::parse(&edited_bytes).unwrap();
+    let mut cold_store = Store::<S>::for_table(&edited);
+    let mut cold = cold_store.solver(&edited, config());
+    converge(&mut cold, &edited, 50, 10_000_000);
+    // Same codes, same intensities, same operations: bit-identical.
+    let a: Vec<_> = (0..3).map(|i| solver.power(i)).collect();
+    let b: Vec<_> = (0..3).map(|i| cold.power(i)).collect();
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+}
+
 macro_rules! both_paths {
     ($($name:ident => $body:expr;)*) => {
         mod f32_path {
@@ -365,6 +433,8 @@ macro_rules! both_paths {
 
 both_paths! {
     two_patch_by_hand => two_patch::<S>();
+    two_patch_dim_light => two_patch_scaled::<S>(1e-6);
+    two_patch_bright_light => two_patch_scaled::<S>(1e6);
     three_patch_by_hand => three_patch::<S>();
     gauss_seidel_jacobi_overshoot => three_patch_other_methods::<S>();
     static_base => static_base_costs_nothing::<S>();
@@ -374,6 +444,7 @@ both_paths! {
     ambient => ambient_in_furnace::<S>();
     warm_start_equals_cold_solve => relighting::<S>();
     deterministic => determinism::<S>();
+    restart_after_dimming => restart_is_cold::<S>();
     budget_partition => budget_partition_invariance::<S>();
 }
 
@@ -399,7 +470,24 @@ fn small_budgets_and_wrong_tables_are_reported() {
     let other_bytes = other.write();
     let t2 = Table::parse(&other_bytes).unwrap();
     assert_eq!(solver.step(&t2, 100), Outcome::NoProgress { used: 0, reason: NoProgressReason::WrongTable });
-    assert!(solver.set_light(&t, 0, [1.0; 3]).is_err(), "no light group in this table");
+    assert_eq!(solver.set_light(&t, 0, [1.0; 3]), Err(SolverError::NoSuchGroup { group: 0 }));
+    let lit_bytes = relight_scene([1.0; 3], [0.25; 3]).write();
+    let lit = Table::parse(&lit_bytes).unwrap();
+    let mut lit_store = Store::<f32>::for_table(&lit);
+    let mut lit_solver = lit_store.solver(&lit, config());
+    assert_eq!(
+        lit_solver.set_light(&lit, 0, [1.0, f32::NAN, 1.0]),
+        Err(SolverError::BadValue { channel: 1 })
+    );
+    assert_eq!(
+        lit_solver.set_light(&lit, 0, [f32::INFINITY, 1.0, 1.0]),
+        Err(SolverError::BadValue { channel: 0 })
+    );
+    assert_eq!(
+        lit_solver.set_reflectance(&lit, 0, [0.5, 0.5, -0.1]),
+        Err(SolverError::BadValue { channel: 2 })
+    );
+    assert_eq!(lit_solver.set_light(&t, 0, [1.0; 3]), Err(SolverError::WrongTable));
     assert!(solver.set_reflectance(&t, 0, [1.0, 0.0, 0.0]).is_err(), "reflectance 1 is rejected");
     assert!(solver.set_reflectance(&t, 3, [0.1; 3]).is_err(), "no material 3");
 }
