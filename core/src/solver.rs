@@ -697,6 +697,10 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if !self.same_table(table) {
             return Outcome::NoProgress { used, reason: NoProgressReason::WrongTable };
         }
+        if self.n == 0 {
+            // Nothing to sweep (and an empty sweep would cost no units, so it must not loop).
+            return Outcome::Converged { used };
+        }
         let jacobi = scratch.is_some();
         match self.sweep {
             Some(s) if s.jacobi == jacobi => {}

@@ -492,6 +492,20 @@ fn small_budgets_and_wrong_tables_are_reported() {
     assert!(solver.set_reflectance(&t, 3, [0.1; 3]).is_err(), "no material 3");
 }
 
+/// An empty table converges at once under every method, whatever the tolerance (an empty sweep costs no
+/// units, so it must not be repeated).
+#[test]
+fn empty_table_converges() {
+    let bytes = Scene::new(0).write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<f32>::for_table(&t);
+    let mut solver = store.solver(&t, Config { tolerance: -1.0, overshoot: 0 });
+    let mut scratch: Vec<[f32; 3]> = Vec::new();
+    assert_eq!(solver.step(&t, 10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step_gauss_seidel(&t, 10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step_jacobi(&t, &mut scratch, 10), Outcome::Converged { used: 0 });
+}
+
 // ---- property test: budgets are never exceeded, and any warm-start history ends at the cold solve -------
 
 #[derive(Clone, Debug)]
