@@ -1,5 +1,6 @@
 //! Work units to converge with shooting, shooting with overshoot, Gauss-Seidel and Jacobi on the same table,
-//! on both arithmetic paths, with the error against a tight reference solve.
+//! on both arithmetic paths, with the error against a tight reference solve; then the work of warm starts
+//! after relighting against cold solves.
 //!
 //! Run: `cargo run --release -p radiosity-core --example methods`
 //!
@@ -8,14 +9,14 @@
 //! `<= 1e-6` of the emitted power per patch.
 
 use radiosity_core::{
-    write_table, Buffers, Config, FfCodec, Fixed, Outcome, PatchSpec, RowsSpec, Scalar, Solver, Table,
-    TableSpec,
+    write_table, Buffers, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, PatchSpec, RowsSpec,
+    Scalar, Solver, Table, TableSpec,
 };
 
 const K: usize = 6;
 const RHO: f32 = 0.8;
 
-fn table_bytes() -> (Vec<u8>, usize) {
+fn table_bytes(as_group: bool) -> (Vec<u8>, usize) {
     let h = 1.0 / K as f32;
     let mut centre = Vec::new();
     let mut normal = Vec::new();
@@ -61,14 +62,16 @@ fn table_bytes() -> (Vec<u8>, usize) {
         .map(|i| PatchSpec {
             area,
             material: 0,
-            base_emission: if i == light { [1.0; 3] } else { [0.0; 3] },
+            base_emission: if i == light && !as_group { [1.0; 3] } else { [0.0; 3] },
             base_irradiance: [0.0; 3],
         })
         .collect();
+    let members = [MemberSpec { patch: light as u32, emission: [1.0; 3] }];
+    let groups = [GroupSpec { id: 1, default_intensity: [1.0; 3], members: &members }];
     let spec = TableSpec {
         patches: &patches,
         materials: &[[RHO; 3]],
-        groups: &[],
+        groups: if as_group { &groups } else { &[] },
         rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &value },
         codec: FfCodec::FLOAT16,
         base_solved: false,
@@ -119,7 +122,7 @@ fn solve<S: Scalar>(t: &Table<'_>, method: Method, tolerance: f32) -> (u64, u32,
 }
 
 fn main() {
-    let (bytes, n) = table_bytes();
+    let (bytes, n) = table_bytes(false);
     let t = Table::parse(&bytes).unwrap();
     let emitted = 1.0 / (K * K) as f32;
     let (_, _, reference) = solve::<f32>(&t, Method::GaussSeidel, emitted * 1e-9);
@@ -149,4 +152,46 @@ fn main() {
             println!("| {name} | {path} | {units} | {shots} | {:.2e} |", (num / den).sqrt());
         }
     }
+    relight_cost();
+}
+
+fn run_to_convergence(s: &mut Solver<'_, f32>, t: &Table<'_>) -> u64 {
+    let mut units = 0u64;
+    loop {
+        let o = s.step(t, 10_000);
+        units += u64::from(o.used());
+        if !matches!(o, Outcome::BudgetSpent { .. }) {
+            return units;
+        }
+    }
+}
+
+/// Warm start against cold solve: the same cube with the light as a light group, relit after convergence.
+fn relight_cost() {
+    let (bytes, n) = table_bytes(true);
+    let t = Table::parse(&bytes).unwrap();
+    let (mut power, mut unshot, mut incident) =
+        (vec![[0.0f32; 3]; n], vec![[0.0f32; 3]; n], vec![[0.0f32; 3]; n]);
+    let (mut tree, mut intensity, mut reflectance) =
+        (vec![0u32; n], vec![[0.0f32; 3]; 1], vec![[0u16; 3]; 1]);
+    let buffers = Buffers {
+        power: &mut power,
+        unshot: &mut unshot,
+        incident: &mut incident,
+        tree: &mut tree,
+        intensity: &mut intensity,
+        reflectance: &mut reflectance,
+    };
+    let tolerance = 1e-6 / (K * K) as f32;
+    let mut s = Solver::new(&t, buffers, Config { tolerance, overshoot: 0 }).unwrap();
+    println!();
+    println!("| shooting, f32, light group relit after convergence | work units |");
+    println!("|---|---|");
+    println!("| cold solve, intensity 1 | {} |", run_to_convergence(&mut s, &t));
+    for rgb in [[0.9f32, 0.9, 0.9], [0.0; 3], [1.0, 0.2, 0.2]] {
+        let extra = s.set_light(&t, 0, rgb).unwrap();
+        println!("| relight to {rgb:?} (set_light: {extra} units) | {} |", run_to_convergence(&mut s, &t));
+    }
+    s.restart(&t);
+    println!("| cold solve (restart) at [1.0, 0.2, 0.2] | {} |", run_to_convergence(&mut s, &t));
 }

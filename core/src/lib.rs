@@ -124,6 +124,12 @@
 //! direct contribution. The fixed-point error here is the Q32.32 resolution against the small powers of a
 //! unit cube (patch areas 1/36).
 //!
+//! Warm starts (same example, the light as a light group, shooting, f32): cold solve 2760817 units; relit to
+//! 0.9: 2136517; to 0: 2730430; to (1, 0.2, 0.2): 2556223, against 2556427 for a cold solve of that setting.
+//! With an absolute tolerance the work to re-converge grows with `log(change / tolerance)`, so a warm start
+//! saves most when the change is small against the scene's light; its value on the device is that every
+//! frame in between shows the old solution plus the largest corrections, never a blank start.
+//!
 //! Measured on a closed cube of 6 x 8 x 8 patches, 122880 entries (`cargo run --release -p radiosity-core
 //! --example codec_error`; row errors are L1 over a row divided by its sum; the solve error is the relative L2
 //! error of `Phi` against a solve with the unquantized f32 form factors, rho 0.7, one light):
