@@ -7,7 +7,7 @@
 //! # Layers
 //! Like smoltcp's wire -> storage -> socket -> iface, each layer uses only the ones before it:
 //!
-//! 1. **Table format** ([`table`], [`write`], [`crc`]): the byte layout, [`Table::parse`] (the one checked
+//! 1. **Table format** ([`table`], [`write`](mod@write), [`crc`]): the byte layout, [`Table::parse`] (the one checked
 //!    constructor: after it succeeds no accessor panics) and [`write_table`] (used by the host).
 //! 2. **Codecs** ([`codec`]): form-factor, reflectance and emission codes and their error bounds.
 //! 3. **Solver state** ([`Solver`], [`Buffers`], arithmetic in [`scalar`]): power, unshot power, incident
@@ -100,7 +100,35 @@
 //!   shooting converges. [`Outcome::Converged`] means every patch's unshot magnitude is `<= tolerance`; the
 //!   remaining error per patch is at most `n * tolerance / ((1 - rho_max) A_min)`.
 //! - Arithmetic: `f32`, or [`Fixed`] (Q32.32 in `i64`, integer only, saturating; range about `+-2.1e9` power
-//!   units, resolution `2.3e-10`), chosen by the solver's type parameter.
+//!   units, resolution `2.3e-10`, products rounded to nearest), chosen by the solver's type parameter. See
+//!   [`scalar`] for the fixed-point convergence condition on the tolerance.
+//!
+//! Solver cost and arithmetic error, measured on a closed cube of 6 x 6 x 6 patches, 38880 entries, rho 0.8,
+//! one light, FLOAT16, tolerance `1e-6` of the emitted power (`cargo run --release -p radiosity-core --example
+//! methods`; error: relative L2 of `B` against a solve to `1e-9`):
+//!
+//! | method | path | work units | rows shot | rel. L2 error |
+//! |---|---|---|---|---|
+//! | shooting | f32 | 2760817 | 5021 | 5.68e-6 |
+//! | shooting | fixed | 2924759 | 5319 | 6.43e-5 |
+//! | shooting, overshoot 1.25 | f32 | 1405453 | 2555 | 5.21e-6 |
+//! | shooting, overshoot 1.25 | fixed | 1539983 | 2799 | 3.15e-5 |
+//! | Gauss-Seidel | f32 | 982800 | 5400 | 3.45e-6 |
+//! | Gauss-Seidel | fixed | 1022112 | 5616 | 6.47e-5 |
+//! | Jacobi | f32 | 1739232 | 9504 | 1.60e-5 |
+//! | Jacobi | fixed | 1818288 | 9936 | 1.36e-4 |
+//!
+//! In a dense closed scene with a single light, full sweeps are cheaper per unit of convergence than shooting
+//! (shooting pays the tree updates, about 3 units per entry here). Shooting's advantage is its order: the
+//! largest unshot power goes first, so after a light change the first budgets carry the changed light's
+//! direct contribution. The fixed-point error here is the Q32.32 resolution against the small powers of a
+//! unit cube (patch areas 1/36).
+//!
+//! Warm starts (same example, the light as a light group, shooting, f32): cold solve 2760817 units; relit to
+//! 0.9: 2136517; to 0: 2730430; to (1, 0.2, 0.2): 2556223, against 2556427 for a cold solve of that setting.
+//! With an absolute tolerance the work to re-converge grows with `log(change / tolerance)`, so a warm start
+//! saves most when the change is small against the scene's light; its value on the device is that every
+//! frame in between shows the old solution plus the largest corrections, never a blank start.
 //!
 //! Measured on a closed cube of 6 x 8 x 8 patches, 122880 entries (`cargo run --release -p radiosity-core
 //! --example codec_error`; row errors are L1 over a row divided by its sum; the solve error is the relative L2

@@ -7,28 +7,45 @@
 //!   is left; spread through `(I - R F)^-1` it changes a patch by at most `n * tol / ((1 - rho_max) * A_min)`;
 //! - arithmetic: f32 rounds each receipt (two products and a sum, `3 * 2^-24` relative) and each hop of a path
 //!   (mean path length `1 / (1 - rho)`), so `3 * 2^-24 * (K + 1 / (1 - rho)) * B` for `K` shots; fixed point
-//!   floors each product (`2 * 2^-32` power per receipt, sums exact) so `2 * 2^-32 * K / ((1 - rho) * A_min)`.
+//!   rounds each product to nearest (at most `2 * 2^-32` power per receipt, sums exact), so
+//!   `2 * 2^-32 * K / ((1 - rho) * A_min)`.
 
 mod common;
 
 use common::{assert_close, converge, radiosities, Scene, Store, FIXED_EPS};
 use proptest::prelude::*;
-use radiosity_core::{Config, Fixed, MemberSpec, NoProgressReason, Outcome, Scalar, Table};
+use radiosity_core::{Config, Fixed, MemberSpec, NoProgressReason, Outcome, Scalar, SolverError, Table};
 
 /// The arithmetic error term of each path (see the module docs).
 trait Arith: Scalar {
     fn arith(b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32;
+    /// Representation error of an input value (`from_f32`).
+    fn input(v: f32) -> f32;
+    /// Smallest tolerance with guaranteed convergence (see `radiosity_core::scalar`), `l` the longest row.
+    fn min_tolerance(l: u32, rho_max: f32) -> f32;
 }
 
 impl Arith for f32 {
     fn arith(b: f32, shots: u32, rho_max: f32, _area_min: f32) -> f32 {
         3.0 * f32::EPSILON / 2.0 * (shots as f32 + 1.0 / (1.0 - rho_max)) * b.abs()
     }
+    fn input(_v: f32) -> f32 {
+        0.0
+    }
+    fn min_tolerance(_l: u32, _rho_max: f32) -> f32 {
+        0.0
+    }
 }
 
 impl Arith for Fixed {
     fn arith(_b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32 {
         2.0 * FIXED_EPS * shots as f32 / ((1.0 - rho_max) * area_min)
+    }
+    fn input(_v: f32) -> f32 {
+        FIXED_EPS / 2.0
+    }
+    fn min_tolerance(l: u32, rho_max: f32) -> f32 {
+        6.0 * l as f32 * FIXED_EPS / (1.0 - rho_max)
     }
 }
 
@@ -66,6 +83,36 @@ fn two_patch<S: Arith>() {
     let q1 = b1 * p / (1.0 - p) * dp * 1.01;
     let q2 = b2 * (2f32.powi(-12) + 2f32.powi(-17) / 0.8 + q1 / b1) * 1.01;
     let rest = |bv: f32| truncation(2, TOL, 0.8, 1.0) + S::arith(bv, solver.shots(), 0.8, 1.0);
+    for (x1, x2) in b[0].iter().zip(&b[1]) {
+        assert_close("B_1", *x1, b1, q1 + rest(b1));
+        assert_close("B_2", *x2, b2, q2 + rest(b2));
+    }
+}
+
+/// The two-patch system with its light at intensity `scale` (1e-6 .. 1e6, the emission range the project
+/// must handle), cold start: the answer scales linearly. Tolerances as in `two_patch`, with the convergence tolerance scaled
+/// too (but not below the fixed-point convergence floor) and the intensity's representation error.
+fn two_patch_scaled<S: Arith>(scale: f32) {
+    let mut s = Scene::new(2);
+    s.patches[1].area = 2.0;
+    s.patches[1].material = 1;
+    s.materials = vec![[0.5; 3], [0.8; 3]];
+    s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
+    s.groups = vec![(7, [scale; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let tol = (TOL * scale).max(S::min_tolerance(1, 0.8));
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, Config { tolerance: S::from_f32(tol), overshoot: 0 });
+    converge(&mut solver, &t, 100, 1_000_000);
+    let b = radiosities(&solver, &t);
+    let p = 0.5 * 0.8 * 0.4 * 0.2;
+    let b1 = scale / (1.0 - p);
+    let b2 = 0.8 * 0.2 * b1;
+    let dp = 2.0 * 2f32.powi(-12) + 2f32.powi(-17) / 0.8;
+    let q1 = b1 * p / (1.0 - p) * dp * 1.01 + S::input(scale) / (1.0 - p);
+    let q2 = b2 * (2f32.powi(-12) + 2f32.powi(-17) / 0.8) * 1.01 + 0.16 * q1;
+    let rest = |bv: f32| truncation(2, tol, 0.8, 1.0) + S::arith(bv, solver.shots(), 0.8, 1.0);
     for (x1, x2) in b[0].iter().zip(&b[1]) {
         assert_close("B_1", *x1, b1, q1 + rest(b1));
         assert_close("B_2", *x2, b2, q2 + rest(b2));
@@ -318,6 +365,59 @@ fn determinism<S: Arith>() {
     assert_eq!(run(), run());
 }
 
+/// Splitting work across steps does not change the result: shots resume mid-row and the tournament tree
+/// picks the same shooter whether rebuilt or updated, so any budget partition gives bit-identical states.
+fn budget_partition_invariance<S: Arith>() {
+    let bytes = relight_scene([1.0; 3], [0.25; 3]).write();
+    let t = Table::parse(&bytes).unwrap();
+    let run = |budget: u32, gauss_seidel: bool| {
+        let mut store = Store::<S>::for_table(&t);
+        let mut solver = store.solver(&t, config());
+        let mut steps = 0;
+        loop {
+            let o = if gauss_seidel { solver.step_gauss_seidel(&t, budget) } else { solver.step(&t, budget) };
+            assert!(o.used() <= budget, "{o:?}");
+            steps += 1;
+            if matches!(o, Outcome::Converged { .. }) {
+                break;
+            }
+            assert!(steps < 10_000_000, "{o:?}");
+        }
+        let state: Vec<_> = (0..3).map(|i| (solver.power(i), solver.unshot(i))).collect();
+        (format!("{state:?}"), steps)
+    };
+    for gs in [false, true] {
+        let (whole, one_step) = run(1_000_000, gs);
+        assert_eq!(one_step, 1);
+        // 3 units is the smallest shooting budget here (1 entry + a 2-node tree path), so rows get split.
+        let (split, many) = run(3, gs);
+        assert!(many > 10);
+        assert_eq!(split, whole, "gauss-seidel: {gs}");
+    }
+}
+
+/// `restart` after relighting gives exactly the state of a cold solve of a table with those settings.
+fn restart_is_cold<S: Arith>() {
+    let bytes = relight_scene([1.0; 3], [0.25; 3]).write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = store.solver(&t, config());
+    converge(&mut solver, &t, 50, 10_000_000);
+    solver.set_light(&t, 0, [1e-3, 0.0, 2.0]).unwrap();
+    solver.set_reflectance(&t, 1, [0.9, 0.0, 0.6]).unwrap();
+    solver.restart(&t);
+    converge(&mut solver, &t, 50, 10_000_000);
+    let edited_bytes = relight_scene([1e-3, 0.0, 2.0], [0.9, 0.0, 0.6]).write();
+    let edited = Table::parse(&edited_bytes).unwrap();
+    let mut cold_store = Store::<S>::for_table(&edited);
+    let mut cold = cold_store.solver(&edited, config());
+    converge(&mut cold, &edited, 50, 10_000_000);
+    // Same codes, same intensities, same operations: bit-identical.
+    let a: Vec<_> = (0..3).map(|i| solver.power(i)).collect();
+    let b: Vec<_> = (0..3).map(|i| cold.power(i)).collect();
+    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+}
+
 macro_rules! both_paths {
     ($($name:ident => $body:expr;)*) => {
         mod f32_path {
@@ -333,6 +433,8 @@ macro_rules! both_paths {
 
 both_paths! {
     two_patch_by_hand => two_patch::<S>();
+    two_patch_dim_light => two_patch_scaled::<S>(1e-6);
+    two_patch_bright_light => two_patch_scaled::<S>(1e6);
     three_patch_by_hand => three_patch::<S>();
     gauss_seidel_jacobi_overshoot => three_patch_other_methods::<S>();
     static_base => static_base_costs_nothing::<S>();
@@ -342,6 +444,8 @@ both_paths! {
     ambient => ambient_in_furnace::<S>();
     warm_start_equals_cold_solve => relighting::<S>();
     deterministic => determinism::<S>();
+    restart_after_dimming => restart_is_cold::<S>();
+    budget_partition => budget_partition_invariance::<S>();
 }
 
 #[test]
@@ -366,9 +470,40 @@ fn small_budgets_and_wrong_tables_are_reported() {
     let other_bytes = other.write();
     let t2 = Table::parse(&other_bytes).unwrap();
     assert_eq!(solver.step(&t2, 100), Outcome::NoProgress { used: 0, reason: NoProgressReason::WrongTable });
-    assert!(solver.set_light(&t, 0, [1.0; 3]).is_err(), "no light group in this table");
+    assert_eq!(solver.set_light(&t, 0, [1.0; 3]), Err(SolverError::NoSuchGroup { group: 0 }));
+    let lit_bytes = relight_scene([1.0; 3], [0.25; 3]).write();
+    let lit = Table::parse(&lit_bytes).unwrap();
+    let mut lit_store = Store::<f32>::for_table(&lit);
+    let mut lit_solver = lit_store.solver(&lit, config());
+    assert_eq!(
+        lit_solver.set_light(&lit, 0, [1.0, f32::NAN, 1.0]),
+        Err(SolverError::BadValue { channel: 1 })
+    );
+    assert_eq!(
+        lit_solver.set_light(&lit, 0, [f32::INFINITY, 1.0, 1.0]),
+        Err(SolverError::BadValue { channel: 0 })
+    );
+    assert_eq!(
+        lit_solver.set_reflectance(&lit, 0, [0.5, 0.5, -0.1]),
+        Err(SolverError::BadValue { channel: 2 })
+    );
+    assert_eq!(lit_solver.set_light(&t, 0, [1.0; 3]), Err(SolverError::WrongTable));
     assert!(solver.set_reflectance(&t, 0, [1.0, 0.0, 0.0]).is_err(), "reflectance 1 is rejected");
     assert!(solver.set_reflectance(&t, 3, [0.1; 3]).is_err(), "no material 3");
+}
+
+/// An empty table converges at once under every method, whatever the tolerance (an empty sweep costs no
+/// units, so it must not be repeated).
+#[test]
+fn empty_table_converges() {
+    let bytes = Scene::new(0).write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<f32>::for_table(&t);
+    let mut solver = store.solver(&t, Config { tolerance: -1.0, overshoot: 0 });
+    let mut scratch: Vec<[f32; 3]> = Vec::new();
+    assert_eq!(solver.step(&t, 10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step_gauss_seidel(&t, 10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step_jacobi(&t, &mut scratch, 10), Outcome::Converged { used: 0 });
 }
 
 // ---- property test: budgets are never exceeded, and any warm-start history ends at the cold solve -------
