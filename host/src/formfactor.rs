@@ -43,9 +43,9 @@
 //! up to f64 rounding: a convex closed scene (the white-furnace cube) has row sums of 1 to about 1e-12. Where
 //! occlusion occurs, visible fractions are estimated independently per pair, so a row sum deviates from 1 by the
 //! visibility estimation error, which the reported row-sum range shows (cube 4 × 4 per face with a box inside:
-//! row sums in [0.9932, 1.0108] with 16 rays per pair, [0.9988, 1.0020] with 256). In an open scene the missing part of the
-//! hemisphere is simply missing: nothing pushes a row towards 1, so row sums below 1 are physics, and closure
-//! error is not hidden by any normalization.
+//! row sums in [0.9932, 1.0108] with 16 rays per pair, [0.9988, 1.0020] with 256). In an open scene the missing
+//! part of the hemisphere is simply missing: nothing pushes a row towards 1, so row sums below 1 are physics, and
+//! closure error is not hidden by any normalization.
 //!
 //! # Near field and shared edges
 //! The point kernel `F_{x → j}` stays bounded (at most 1/2 for a point on an edge `j` shares with `i`, the
@@ -59,9 +59,9 @@
 //! # Cost
 //! The work runs in two parallel passes over rows: unoccluded form factors (each ordered pair costs
 //! `samples_per_patch` kernel evaluations, a clip and a contour sum), then visible fractions (each unordered pair
-//! with a nonzero kernel either way casts `rays_per_pair` rays, in 16-wide packets). No test for "nothing can occlude this pair" is made (an exact one costs
-//! O(patches) per pair, more than the rays it saves at the default ray count), so rays are cast even in convex
-//! scenes. Pairs facing away from each other cost only a plane test.
+//! with a nonzero kernel either way casts `rays_per_pair` rays, in 16-wide packets). No test for "nothing can
+//! occlude this pair" is made (an exact one costs O(patches) per pair, more than the rays it saves at the default
+//! ray count), so rays are cast even in convex scenes. Pairs facing away from each other cost only a plane test.
 //!
 //! # Determinism
 //! Quadrature points are deterministic; the rays of pair `(i, j)` come from a generator seeded by `(seed, i, j)`,
