@@ -227,6 +227,15 @@ fn half_blocking_plate_halves_the_form_factor() {
     // Four standard deviations of U v, U = F_FACING:
     let tolerance = 4.0 * F_FACING * (1.0 / (4.0 * rays as f64 * std::f64::consts::PI * F_FACING)).sqrt();
     assert!((f - exact).abs() < tolerance, "F = {f}, exact {exact}, allowed {tolerance}");
+    // One visible fraction serves both directions: F_10 / U_10 = F_01 / U_01 to rounding, where U is the same
+    // quadrature without the plate (same points, same kernel).
+    let (unoccluded, _) = compute_form_factors(&facing_squares(), &options).unwrap();
+    let (u01, u10) = (entry(&unoccluded, 0, 1), entry(&unoccluded, 1, 0));
+    assert!(
+        (f * u10 - entry(&m, 1, 0) * u01).abs() <= 4.0 * f64::EPSILON * f * u10,
+        "{f} {}",
+        entry(&m, 1, 0)
+    );
     // The ceiling sees only the plate's back: nothing; the floor sees its front.
     assert_eq!(entry(&m, 1, 2), 0.0);
     assert!(entry(&m, 0, 2) > 0.0);
@@ -316,4 +325,58 @@ fn area_sampling(samples: usize, seed: u64) -> f64 {
         sum += 1.0 / (std::f64::consts::PI * r2 * r2);
     }
     sum / samples as f64
+}
+
+#[test]
+fn closure_error_of_an_occluded_closed_scene_is_visibility_noise() {
+    // The furnace cube (4 x 4 per face) with a box floating inside (outward faces): closed, but pairs are partly
+    // occluded, so rows sum to 1 only up to the visibility estimate. That error must shrink as rays grow (16 -> 256
+    // is 16x the rays, 1/sqrt(R) predicts 4x; we require 2x), while reciprocity, which shares one visibility
+    // estimate per pair, stays at the quadrature level of the unoccluded factors whatever the rays.
+    let mut patches = furnace_cube(4);
+    let (lo, e) = (0.3, 0.3);
+    let corner = DVec3::splat(lo);
+    let box_faces = [
+        (corner + DVec3::Z * e, DVec3::X * e, DVec3::Y * e),
+        (corner, DVec3::Y * e, DVec3::X * e),
+        (corner, DVec3::Z * e, DVec3::Y * e),
+        (corner + DVec3::X * e, DVec3::Y * e, DVec3::Z * e),
+        (corner, DVec3::X * e, DVec3::Z * e),
+        (corner + DVec3::Y * e, DVec3::Z * e, DVec3::X * e),
+    ];
+    for (f, (o, a, b)) in box_faces.into_iter().enumerate() {
+        patches.push(quad(6 + f, o, a, b));
+    }
+    let closure =
+        |stats: &FormFactorStats| (stats.row_sum_min - 1.0).abs().max((stats.row_sum_max - 1.0).abs());
+    let (coarse_matrix, coarse) = compute_form_factors(&patches, &quiet(16, 16, 3)).unwrap();
+    let (_, fine) = compute_form_factors(&patches, &quiet(16, 256, 3)).unwrap();
+    println!("16 rays per pair: {coarse:?}");
+    println!("256 rays per pair: {fine:?}");
+    assert!(
+        closure(&coarse) > 2.0 * closure(&fine),
+        "closure error {} -> {}",
+        closure(&coarse),
+        closure(&fine)
+    );
+    assert!(closure(&fine) > 0.0, "occlusion makes closure inexact");
+    // Same quadrature, so the same reciprocity error with either ray count (to rounding).
+    assert!((coarse.reciprocity_error_max - fine.reciprocity_error_max).abs() < 1e-9, "{coarse:?} {fine:?}");
+    // And that error is the quadrature error: the rays do not depend on samples_per_patch, so rerunning with the
+    // 8 x 8 rule changes each entry by (about) its 4 x 4 quadrature error; reciprocity, a difference of two entries'
+    // errors, must stay within the sum of the two largest relative changes.
+    let (finer_quadrature, _) = compute_form_factors(&patches, &quiet(64, 16, 3)).unwrap();
+    let mut worst_change = 0.0f64;
+    for i in 0..coarse_matrix.n {
+        for (j, f) in coarse_matrix.row(i) {
+            if f >= radiosity_host::formfactor::RECIPROCITY_MIN_FACTOR {
+                worst_change = worst_change.max((f - entry(&finer_quadrature, i, j)).abs() / f);
+            }
+        }
+    }
+    println!("largest relative change 4x4 -> 8x8 points: {worst_change:e}");
+    assert!(
+        coarse.reciprocity_error_max <= 2.0 * worst_change + 1e-12,
+        "{coarse:?} vs change {worst_change}"
+    );
 }
