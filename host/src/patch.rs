@@ -60,4 +60,34 @@ impl FormFactorMatrix {
     pub fn nonzeros(&self) -> usize {
         self.col.len()
     }
+
+    /// Scales down every row whose sum exceeds 1 so that it sums to exactly 1, and says what it did.
+    ///
+    /// A row sum above 1 is impossible physically (a patch cannot send more than all its power) and comes only
+    /// from estimation noise in the visibility of partly occluded pairs. The solvers need row sums `<= 1` to
+    /// converge, so such rows are scaled, and the caller reports the returned [`RowClamp`]: nothing is changed
+    /// silently. Rows at or below 1 are never touched (open scenes keep their escaping energy).
+    pub fn clamp_rows_to_one(&mut self) -> RowClamp {
+        let mut clamp = RowClamp::default();
+        for i in 0..self.n {
+            let sum = self.row_sum(i);
+            if sum > 1.0 {
+                clamp.rows += 1;
+                clamp.max_excess = clamp.max_excess.max(sum - 1.0);
+                for v in &mut self.value[self.row_start[i]..self.row_start[i + 1]] {
+                    *v /= sum;
+                }
+            }
+        }
+        clamp
+    }
+}
+
+/// What [`FormFactorMatrix::clamp_rows_to_one`] changed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RowClamp {
+    /// Rows that summed to more than 1 and were scaled to 1.
+    pub rows: usize,
+    /// Largest row sum minus 1 before scaling (0 if no row was scaled).
+    pub max_excess: f64,
 }

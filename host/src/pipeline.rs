@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::formfactor::{compute_form_factors, FormFactorOptions, FormFactorStats};
 use crate::lighting::PatchLighting;
 use crate::mesh::{mesh, MeshOptions};
-use crate::patch::{FormFactorMatrix, Patch};
+use crate::patch::{FormFactorMatrix, Patch, RowClamp};
 use crate::scene::Scene;
 
 /// How to turn a scene into patches and form factors.
@@ -35,8 +35,10 @@ pub struct Prepared {
     pub lighting: PatchLighting,
     /// Form factors between the patches.
     pub form_factors: FormFactorMatrix,
-    /// Statistics of the form-factor computation.
+    /// Statistics of the form-factor computation (before rows above 1 were scaled).
     pub stats: FormFactorStats,
+    /// Rows that summed to more than 1 and were scaled to 1.
+    pub clamp: RowClamp,
 }
 
 /// Why the pipeline stopped; the message names the stage and the input.
@@ -94,8 +96,9 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             meshed.max_patch_edge
         );
     }
-    let (form_factors, stats) = compute_form_factors(&meshed.patches, &options.form_factors)
+    let (mut form_factors, stats) = compute_form_factors(&meshed.patches, &options.form_factors)
         .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
+    let clamp = form_factors.clamp_rows_to_one();
     if options.verbose {
         eprintln!(
             "form factors: {} nonzeros, row sums {:.6}..{:.6}, reciprocity error {:.2e}, {} rays in {:.2} s \
@@ -108,7 +111,14 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             stats.elapsed.as_secs_f64(),
             stats.rays_per_second / 1e6
         );
+        if clamp.rows > 0 {
+            eprintln!(
+                "form factors: {} rows summed to more than 1 (visibility noise; largest excess {:.2e}) and were \
+                 scaled to 1",
+                clamp.rows, clamp.max_excess
+            );
+        }
     }
     let lighting = PatchLighting::new(&scene, &meshed.patches);
-    Ok(Prepared { scene, patches: meshed.patches, lighting, form_factors, stats })
+    Ok(Prepared { scene, patches: meshed.patches, lighting, form_factors, stats, clamp })
 }
