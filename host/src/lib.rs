@@ -5,4 +5,5 @@
 
 pub mod metrics;
 pub mod patch;
+pub mod picture;
 pub mod reference;
