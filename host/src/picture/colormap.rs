@@ -20,7 +20,7 @@ use super::{PictureError, RgbImage};
 
 /// Control points `(L*, a*, b*)` at `t = 0, 0.25, 0.5, 0.75, 1`.
 const CONTROL_LAB: [[f64; 3]; 5] =
-    [[22.0, 30.0, -38.0], [39.5, 8.0, -42.0], [57.0, -30.0, -8.0], [74.5, -48.0, 38.0], [92.0, -8.0, 78.0]];
+    [[22.0, 30.0, -38.0], [39.5, 8.0, -42.0], [57.0, -30.0, -8.0], [74.5, -48.0, 38.0], [92.0, -12.0, 72.0]];
 
 /// The ramp at `t` in `[0, 1]` (clamped; NaN gives 0) as CIELAB `(L*, a*, b*)`.
 #[must_use]
@@ -173,7 +173,8 @@ impl ErrorScale {
             root.fill(&WHITE).map_err(e)?;
             let (w, h) = (width as i32, height as i32);
             let font_px = (h / 6).clamp(10, 18);
-            let margin = 4 * font_px / 2;
+            // Room for half a tick label beyond each end of the bar.
+            let margin = 3 * font_px;
             let (x0, x1) = (margin, w - margin);
             let (y0, y1) = (font_px + 8, h - font_px - 14);
             let text = TextStyle::from((FONT_FAMILY, font_px)).color(&BLACK);

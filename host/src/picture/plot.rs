@@ -14,6 +14,7 @@ use std::sync::OnceLock;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use super::colormap::format_tick;
 use super::{write_file, write_png, PictureError, RgbImage};
 
 /// Where Debian's `fonts-dejavu-core` installs DejaVu Sans.
@@ -256,7 +257,8 @@ impl Plot {
                     .margin(16)
                     .x_label_area_size(48)
                     .y_label_area_size(80)
-                    .build_cartesian_2d((0..n).into_segmented(), 0.0..top)
+                    // Plotters' integer ranges include their end: 0..n - 1 gives exactly n segments.
+                    .build_cartesian_2d((0..n - 1).into_segmented(), 0.0..top)
                     .map_err(&e)?;
                 chart
                     .configure_mesh()
@@ -267,7 +269,7 @@ impl Plot {
                         SegmentValue::CenterOf(i) => categories.get(*i).cloned().unwrap_or_default(),
                         _ => String::new(),
                     })
-                    .y_label_formatter(&|v| format!("{v:.2e}"))
+                    .y_label_formatter(&|v| format_tick(*v))
                     .label_style((FONT_FAMILY, 14))
                     .axis_desc_style((FONT_FAMILY, 16))
                     .draw()
