@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 use radiosity_host::patch::Patch;
-use radiosity_host::picture::colormap::{lab_to_linear_srgb, ramp, ramp_lab, ErrorScale};
+use radiosity_host::picture::colormap::{lab_to_linear_srgb, patch_colour, ramp, ramp_lab, ErrorScale};
 use radiosity_host::picture::hdr::{
     decode_hdr, decode_pfm, encode_hdr, encode_pfm, memory_path, rgbe_decode, rgbe_encode, LinearImage,
 };
@@ -625,6 +625,19 @@ fn false_colour_ramp_is_in_gamut_and_lightness_increases() {
         // Lab -> RGB -> Y round trip holds to ~1e-4 relative in Y, i.e. (116 / 3) * 1e-4 ~ 4e-3 in L*.
         assert!((l - ramp_lab(t)[0]).abs() < 1e-2, "t = {t}: L* {l} vs designed {}", ramp_lab(t)[0]);
         previous = l;
+    }
+}
+
+#[test]
+fn patch_colours_are_in_gamut_and_distinct_for_neighbours() {
+    for i in 0..2000 {
+        let h = (i as f64 * 2.399_963_229_728_653) % std::f64::consts::TAU;
+        let l = [55.0, 65.0, 75.0][i % 3];
+        let raw = lab_to_linear_srgb([l, 30.0 * h.cos(), 30.0 * h.sin()]);
+        assert!(raw.iter().all(|c| (0.0..=1.0).contains(c)), "patch {i}: out of gamut {raw:?}");
+        let (a, b) = (patch_colour(i), patch_colour(i + 1));
+        let distance: i32 = (0..3).map(|k| (i32::from(a[k]) - i32::from(b[k])).abs()).sum();
+        assert!(distance > 30, "patches {i} and {} look alike: {a:?} {b:?}", i + 1);
     }
 }
 

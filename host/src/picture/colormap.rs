@@ -206,10 +206,30 @@ pub fn format_tick(v: f64) -> String {
     let a = v.abs();
     if v == 0.0 {
         "0".into()
-    } else if (1e-2..1e4).contains(&a) {
-        let s = format!("{v:.3}");
-        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else if (1e-3..1e5).contains(&a) {
+        // Four significant digits, trailing zeros after the decimal point dropped.
+        let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let s = format!("{v:.decimals$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
     } else {
         format!("{v:.0e}")
     }
+}
+
+/// A distinct 8-bit sRGB colour per patch index, for pictures that show the mesh ("colour by patch").
+///
+/// Hues step by the golden angle (so neighbouring indices differ strongly and colours repeat only after many
+/// patches) at CIELAB lightness cycling through 55, 65, 75 and chroma 30, which stays inside the sRGB gamut for
+/// every hue at those lightness levels (the largest in-gamut chroma over all hues is about 31 at L* 55).
+#[must_use]
+pub fn patch_colour(index: usize) -> [u8; 3] {
+    const GOLDEN_ANGLE: f64 = 2.399_963_229_728_653; // pi * (3 - sqrt(5)) radians
+    let hue = (index as f64 * GOLDEN_ANGLE) % std::f64::consts::TAU;
+    let l = [55.0, 65.0, 75.0][index % 3];
+    let lab = [l, 30.0 * hue.cos(), 30.0 * hue.sin()];
+    lab_to_linear_srgb(lab).map(|v| srgb_encode_u8(v.clamp(0.0, 1.0)))
 }

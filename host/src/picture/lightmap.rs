@@ -230,12 +230,17 @@ pub fn bake_light_map(
     for (k, l) in layouts.iter().enumerate() {
         let (w, h) = sizes[k];
         let (px, py) = place[k];
+        let mut hint = l.members[0];
         for j in 0..h + 2 * pad {
             for i in 0..w + 2 * pad {
                 let (fi, fj) = (f64::from(i) - f64::from(pad) + 0.5, f64::from(j) - f64::from(pad) + 0.5);
                 let point = l.origin + l.u * (fi * texel_size) + l.v * (fj * texel_size);
-                let mut best = (f64::INFINITY, l.members[0]);
+                // Neighbouring texels mostly fall in the same patch: try the previous texel's patch first.
+                let mut best = (shader.distance_in_plane(hint, point), hint);
                 for &m in &l.members {
+                    if best.0 == 0.0 {
+                        break;
+                    }
                     let d = shader.distance_in_plane(m, point);
                     if d < best.0 {
                         best = (d, m);
@@ -244,6 +249,7 @@ pub fn bake_light_map(
                         }
                     }
                 }
+                hint = best.1;
                 let value = shader.shade(radiosity, best.1, point)?;
                 let index = (py + j) as usize * atlas_width as usize + (px + i) as usize;
                 atlas.pixels[index] = value.map(|c| c as f32);

@@ -251,14 +251,14 @@ impl Plot {
                 let n = categories.len();
                 let top =
                     (0..n).map(|i| components.iter().map(|(_, v)| v[i]).sum::<f64>()).fold(0.0, f64::max);
-                let top = if top > 0.0 { top * 1.15 } else { 1.0 };
+                // Headroom for the legend box in the upper right (about one text line per component).
+                let top = if top > 0.0 { top * (1.2 + 0.08 * components.len() as f64) } else { 1.0 };
                 let mut chart = ChartBuilder::on(root)
                     .caption(title, caption)
                     .margin(16)
                     .x_label_area_size(48)
                     .y_label_area_size(80)
-                    // Plotters' integer ranges include their end: 0..n - 1 gives exactly n segments.
-                    .build_cartesian_2d((0..n - 1).into_segmented(), 0.0..top)
+                    .build_cartesian_2d(categories.as_slice().into_segmented(), 0.0..top)
                     .map_err(&e)?;
                 chart
                     .configure_mesh()
@@ -266,7 +266,7 @@ impl Plot {
                     .y_desc(y_label.as_str())
                     .x_labels(n)
                     .x_label_formatter(&|v| match v {
-                        SegmentValue::CenterOf(i) => categories.get(*i).cloned().unwrap_or_default(),
+                        SegmentValue::CenterOf(name) => (*name).clone(),
                         _ => String::new(),
                     })
                     .y_label_formatter(&|v| format_tick(*v))
@@ -274,14 +274,16 @@ impl Plot {
                     .axis_desc_style((FONT_FAMILY, 16))
                     .draw()
                     .map_err(&e)?;
+                // A segment's right edge: the next category's left edge, or the axis end after the last one.
+                let right = |i: usize| categories.get(i + 1).map_or(SegmentValue::Last, SegmentValue::Exact);
                 let mut base = vec![0.0; n];
                 for (k, (name, values)) in components.iter().enumerate() {
                     let colour = Palette99::pick(k).to_rgba();
-                    let bars: Vec<Rectangle<(SegmentValue<usize>, f64)>> = (0..n)
+                    let bars: Vec<Rectangle<(SegmentValue<&String>, f64)>> = (0..n)
                         .map(|i| {
                             let (b, t) = (base[i], base[i] + values[i]);
                             let mut r = Rectangle::new(
-                                [(SegmentValue::Exact(i), b), (SegmentValue::Exact(i + 1), t)],
+                                [(SegmentValue::Exact(&categories[i]), b), (right(i), t)],
                                 colour.filled(),
                             );
                             r.set_margin(0, 0, 12, 12);
