@@ -1,6 +1,8 @@
 //! Pictures: turning radiosity into things people look at.
 //!
 //! Layers, each usable on its own:
+//! - [`camera`] and [`render`]: views through a pinhole camera (shaded, flat, by patch, by error), given a
+//!   closest-hit function (the Embree module, or any other intersector).
 //! - [`tonemap`]: linear radiosity (W/m^2) -> display values: an exposure, the extended Reinhard operator, and the
 //!   sRGB transfer function (IEC 61966-2-1); 8-bit RGB images and PNG files ([`RgbImage`], [`write_png`]).
 //! - [`hdr`]: linear (HDR) image files, Radiance `.hdr` (RGBE) and PFM, written and read back.
@@ -13,11 +15,13 @@
 //! (installed by `scripts/deps.sh`), loaded at run time from [`plot::DEFAULT_FONT_PATH`] or the path in the
 //! `RADIOSITY_FONT` environment variable; a missing font is a clear [`PictureError::Font`].
 
+pub mod camera;
 pub mod colormap;
 pub mod hdr;
 pub mod lightmap;
 
 pub mod plot;
+pub mod render;
 pub mod shading;
 pub mod tonemap;
 

@@ -17,7 +17,11 @@
 //!    the fit takes in the compatible patches touching the neighbours' corners (a second ring); if that still does
 //!    not span the plane, the vertex gets the area-weighted mean of its neighbours.
 //!    The value is a fixed linear combination of patch values, so the weights are computed once by
-//!    [`SmoothShader::new`] and each [`SmoothShader::shade`] call is a few multiply-adds per corner.
+//!    [`SmoothShader::new`] and each [`SmoothShader::shade`] call is a few multiply-adds per corner. Where the
+//!    field changes abruptly (a shadow edge one patch away from a surface's border) the linear extrapolation can
+//!    overshoot, even below zero, so each channel of a vertex value is bounded to `[min / 2, 2 max]` of the
+//!    neighbour values it was fitted to; a smooth field (neighbours differing by well under a factor of two, as
+//!    in a mesh fine enough for its lighting) never reaches the bounds.
 //! 3. **Inside a patch.** Barycentric coordinates in triangles, bilinear interpolation in quadrilaterals (the
 //!    inverse bilinear map solved by Newton's method), and mean value coordinates (M. S. Floater, "Mean value
 //!    coordinates", Computer Aided Geometric Design 20(1), 2003) in convex polygons with more corners (and as the
@@ -312,6 +316,8 @@ impl SmoothShader {
         corner: usize,
     ) -> Result<[f64; 3], PictureError> {
         let mut sum = [0.0; 3];
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
         for &(q, w) in self.corner_weights(patch, corner) {
             let b = radiosity[q as usize];
             for (ch, &v) in b.iter().enumerate() {
@@ -323,12 +329,24 @@ impl SmoothShader {
                     });
                 }
                 sum[ch] += w * v;
+                lo[ch] = lo[ch].min(v);
+                hi[ch] = hi[ch].max(v);
             }
         }
-        Ok(sum)
+        // Bound the extrapolation (see the module docs): never below half the smallest or above twice the largest
+        // neighbour value. Only steep changes (shadow edges) reach the bounds; smooth fields never do.
+        Ok([0, 1, 2].map(|ch| {
+            let (a, b) = if lo[ch] >= 0.0 {
+                (0.5 * lo[ch], 2.0 * hi[ch])
+            } else {
+                (2.0 * lo[ch], 2.0 * hi[ch].max(0.0))
+            };
+            sum[ch].clamp(a, b.max(a))
+        }))
     }
 
-    /// The smoothed value at corner `corner` of patch `patch` (before clamping to zero).
+    /// The smoothed value at corner `corner` of patch `patch` (the fitted value within its bounds, see the module
+    /// docs).
     ///
     /// # Errors
     /// [`PictureError::Invalid`] if `radiosity` does not have one value per patch or `patch` / `corner` is out of

@@ -2,8 +2,10 @@
 //!
 //! The pipeline for one pixel with linear RGB radiosity `c` (W/m^2):
 //! 1. **Exposure**: `c' = scale * c`. The scale is given, or chosen by [`ToneMap::from_percentile`] so that a
-//!    percentile of the visible luminances lands on the white point (the brightest few percent, typically the
-//!    lights, burn out to white; everything else keeps its contrast).
+//!    high percentile of the visible luminances (95th by default: a bright surface, not the few pixels of a light)
+//!    lands on exposed luminance 1, which displays as `(1 + 1 / L_white^2) / 2` (0.53 linear, sRGB 194 with the
+//!    default `L_white = 4`). Luminances from `L_white` times that percentile up (the lights) burn out to white;
+//!    everything below keeps its contrast.
 //! 2. **Operator**: the extended Reinhard operator on luminance (Reinhard, Stark, Shirley, Ferwerda, "Photographic
 //!    Tone Reproduction for Digital Images", SIGGRAPH 2002, eq. 4): `L_d = L (1 + L / L_white^2) / (1 + L)`, with
 //!    `L = Y(c')` the Rec. 709 luminance `0.2126 R + 0.7152 G + 0.0722 B` (ITU-R BT.709, the sRGB primaries).
@@ -108,7 +110,7 @@ pub struct ToneMap {
 impl ToneMap {
     /// Default percentile used by [`ToneMap::from_percentile`] callers that have no preference.
     pub const DEFAULT_PERCENTILE: f64 = 0.95;
-    /// Default white point: luminances up to 4x the exposed percentile keep some contrast.
+    /// Default white point: luminances up to 4x the exposure percentile keep some contrast.
     pub const DEFAULT_WHITE: f64 = 4.0;
 
     /// A tone map with a given exposure scale and white point.
@@ -131,7 +133,8 @@ impl ToneMap {
         Ok(ToneMap { scale, white })
     }
 
-    /// Chooses the exposure so that the `percentile` (in `(0, 1]`) of `luminances` maps to the white point `white`.
+    /// Chooses the exposure so that the `percentile` (in `(0, 1]`) of `luminances` maps to exposed luminance 1;
+    /// `white` (at least 1) is the white point in multiples of that percentile.
     ///
     /// Pass the luminances of what is visible (pixels of a view, texels of a light map, or patch values) so that
     /// hidden bright surfaces do not darken the picture. If the percentile luminance is zero (an unlit scene), the
@@ -164,7 +167,7 @@ impl ToneMap {
         if reference <= 0.0 {
             reference = sorted[sorted.len() - 1];
         }
-        let scale = if reference > 0.0 { white / reference } else { 1.0 };
+        let scale = if reference > 0.0 { 1.0 / reference } else { 1.0 };
         ToneMap::new(scale, white)
     }
 
