@@ -1038,3 +1038,35 @@ fn cornell_box_view_looks_right() {
     )
     .unwrap();
 }
+
+#[test]
+fn frame_sequence_shares_one_exposure() {
+    use radiosity_host::picture::camera::Camera;
+    use radiosity_host::picture::render::{colour_view, trace_view, write_frame_sequence, Colouring, Frame};
+    let (patches, rho) = cornell_box(2);
+    let converged = proxy_radiosity(&patches, &rho);
+    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let frame = Frame { camera: Camera::cornell_box(), width: 40, height: 30 };
+    let hits = trace_view(&frame, &|o, d| closest_hit(&patches, o, d)).unwrap();
+    // A device converging: frame k has (k + 1) / 4 of the converged radiosity.
+    let frames: Vec<Vec<[f64; 3]>> =
+        (0..4).map(|k| converged.iter().map(|b| b.map(|c| c * f64::from(k + 1) / 4.0)).collect()).collect();
+    let dir = scratch_dir("frames");
+    let (paths, tone) = write_frame_sequence(&hits, &shader, &frames, None, &dir, "relight").unwrap();
+    assert_eq!(paths.len(), 4);
+    assert!(paths[3].ends_with("relight-0003.png"), "{:?}", paths[3]);
+    let last = colour_view(&hits, &shader, &converged, Colouring::Shaded, None).unwrap();
+    assert_eq!(Some(tone), last.tone, "the sequence uses the last frame's exposure");
+    let mut previous = -1.0;
+    for (k, path) in paths.iter().enumerate() {
+        let (w, h, pixels) = decode_png(&std::fs::read(path).unwrap());
+        assert_eq!((w, h), (40, 30));
+        let mean = pixels.iter().map(|&b| f64::from(b)).sum::<f64>() / pixels.len() as f64;
+        assert!(mean > previous, "frame {k} (mean {mean}) is not brighter than the one before ({previous})");
+        previous = mean;
+        if k == 3 {
+            assert_eq!(pixels, last.image.pixels, "the last frame is the converged view");
+        }
+    }
+    assert!(write_frame_sequence(&hits, &shader, &[], None, &dir, "x").is_err());
+}

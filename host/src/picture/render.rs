@@ -118,15 +118,44 @@ pub fn default_error_scale(errors: &[f64]) -> Result<ErrorScale, PictureError> {
     }
 }
 
-/// Renders the view of `frame`.
-///
-/// `trace(origin, direction)` returns the closest hit. `shader` must be built from the patches `trace` reports
-/// and `radiosity` has one value per patch. For shaded and flat views, `tone` gives the tone map, or when `None`
-/// it is chosen by [`ToneMap::from_percentile`] over the visible pixels.
+/// The primary-ray hits of a view, cast once and reused for every colouring and every frame of a sequence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewHits {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// The closest hit per pixel, rows from the top.
+    pub hits: Vec<Option<Hit>>,
+}
+
+/// Casts the primary rays of `frame` with `trace(origin, direction)` (the closest hit), in parallel.
 ///
 /// # Errors
-/// [`PictureError::Invalid`] for a zero-sized image, mismatched lengths, or a hit naming a patch that does not
-/// exist (with the pixel); [`PictureError::NonFinite`] from shading or tone mapping (naming the patch or pixel).
+/// [`PictureError::Invalid`] for a zero-sized image.
+pub fn trace_view(
+    frame: &Frame,
+    trace: &(dyn Fn(DVec3, DVec3) -> Option<Hit> + Sync),
+) -> Result<ViewHits, PictureError> {
+    let Frame { camera, width, height } = *frame;
+    if width == 0 || height == 0 {
+        return Err(PictureError::invalid("view size", format!("{width}x{height} has no pixels")));
+    }
+    let w = width as usize;
+    let hits = (0..w * height as usize)
+        .into_par_iter()
+        .map(|k| {
+            let (origin, dir) = camera.ray((k % w) as u32, (k / w) as u32, width, height);
+            trace(origin, dir)
+        })
+        .collect();
+    Ok(ViewHits { width, height, hits })
+}
+
+/// Renders the view of `frame`: [`trace_view`] then [`colour_view`].
+///
+/// # Errors
+/// As [`trace_view`] and [`colour_view`].
 pub fn render(
     frame: &Frame,
     trace: &(dyn Fn(DVec3, DVec3) -> Option<Hit> + Sync),
@@ -135,9 +164,29 @@ pub fn render(
     colouring: Colouring<'_>,
     tone: Option<ToneMap>,
 ) -> Result<View, PictureError> {
-    let Frame { camera, width, height } = *frame;
-    if width == 0 || height == 0 {
-        return Err(PictureError::invalid("view size", format!("{width}x{height} has no pixels")));
+    colour_view(&trace_view(frame, trace)?, shader, radiosity, colouring, tone)
+}
+
+/// Colours traced hits.
+///
+/// `shader` must be built from the patches the hits name and `radiosity` has one value per patch. For shaded and
+/// flat views, `tone` gives the tone map, or when `None` it is chosen by [`ToneMap::from_percentile`] over the
+/// visible pixels.
+///
+/// # Errors
+/// [`PictureError::Invalid`] for mismatched lengths or a hit naming a patch that does not exist (with the pixel);
+/// [`PictureError::NonFinite`] from shading or tone mapping (naming the patch or pixel).
+pub fn colour_view(
+    view: &ViewHits,
+    shader: &SmoothShader,
+    radiosity: &[[f64; 3]],
+    colouring: Colouring<'_>,
+    tone: Option<ToneMap>,
+) -> Result<View, PictureError> {
+    let ViewHits { width, height, ref hits } = *view;
+    let w = width as usize;
+    if hits.len() != w * height as usize {
+        return Err(PictureError::invalid("view hits", format!("{} hits for {width}x{height}", hits.len())));
     }
     if radiosity.len() != shader.patch_count() {
         return Err(PictureError::invalid(
@@ -145,14 +194,6 @@ pub fn render(
             format!("{} values for {} patches", radiosity.len(), shader.patch_count()),
         ));
     }
-    let w = width as usize;
-    let hits: Vec<Option<Hit>> = (0..w * height as usize)
-        .into_par_iter()
-        .map(|k| {
-            let (origin, dir) = camera.ray((k % w) as u32, (k / w) as u32, width, height);
-            trace(origin, dir)
-        })
-        .collect();
     if let Some((k, h)) =
         hits.iter().enumerate().find_map(|(k, h)| h.filter(|h| h.patch >= radiosity.len()).map(|h| (k, h)))
     {
@@ -220,4 +261,41 @@ pub fn render(
         }
     }
     Ok(View { image, linear, patch, tone: used_tone, error_scale: used_scale })
+}
+
+/// Writes one shaded PNG per frame of a sequence (e.g. a relight script's per-frame device output) as
+/// `<dir>/<prefix>-0000.png`, `-0001.png`, ... and returns the paths and the tone map used.
+///
+/// Every frame uses the same tone map, `tone` or, when `None`, the one [`colour_view`] would choose for the
+/// **last** frame (the converged answer), so brightness is comparable across frames and an unconverged frame
+/// looks as dark as it is.
+///
+/// # Errors
+/// [`PictureError::Invalid`] if there are no frames; otherwise as [`colour_view`] (naming the frame) and
+/// [`PictureError::Io`] / [`PictureError::Png`] for files.
+pub fn write_frame_sequence(
+    view: &ViewHits,
+    shader: &SmoothShader,
+    frames: &[Vec<[f64; 3]>],
+    tone: Option<ToneMap>,
+    dir: &std::path::Path,
+    prefix: &str,
+) -> Result<(Vec<std::path::PathBuf>, ToneMap), PictureError> {
+    let last = frames.last().ok_or_else(|| PictureError::invalid("frame sequence", "no frames"))?;
+    let tone = match tone {
+        Some(t) => t,
+        None => colour_view(view, shader, last, Colouring::Shaded, None)?
+            .tone
+            .ok_or_else(|| PictureError::invalid("frame sequence", "no tone map for the last frame"))?,
+    };
+    let mut paths = Vec::with_capacity(frames.len());
+    for (k, radiosity) in frames.iter().enumerate() {
+        let image = colour_view(view, shader, radiosity, Colouring::Shaded, Some(tone)).map_err(|e| {
+            PictureError::Invalid { what: "frame sequence", reason: format!("frame {k}: {e}") }
+        })?;
+        let path = dir.join(format!("{prefix}-{k:04}.png"));
+        super::write_png(&path, &image.image)?;
+        paths.push(path);
+    }
+    Ok((paths, tone))
 }
