@@ -1070,3 +1070,47 @@ fn frame_sequence_shares_one_exposure() {
     }
     assert!(write_frame_sequence(&hits, &shader, &[], None, &dir, "x").is_err());
 }
+
+#[test]
+fn light_map_of_a_triangle_fills_the_uncovered_texels_from_the_nearest_patch() {
+    // One triangular face split at its edge midpoints into four triangles; a linear field.
+    let plane = Plane::tilted();
+    let (a, b, c) = (plane.at(0.0, 0.0), plane.at(4.0, 0.0), plane.at(1.0, 3.0));
+    let (ab, bc, ca) = ((a + b) / 2.0, (b + c) / 2.0, (c + a) / 2.0);
+    let tris = [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]];
+    let patches: Vec<Patch> = tris.iter().map(|t| polygon(0, 0, t.to_vec())).collect();
+    let radiosity: Vec<[f64; 3]> = patches.iter().map(|p| linear_field(p.centroid)).collect();
+    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let options = LightMapOptions { texel_size: Some(0.125), padding: 3, ..Default::default() };
+    let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
+    assert_eq!(map.rects.len(), 1);
+    let r = &map.rects[0];
+    let corners = [a, b, c].map(linear_field);
+    let (mut inside, mut outside) = (0, 0);
+    for j in 0..r.height + 2 * map.padding {
+        for i in 0..r.width + 2 * map.padding {
+            let (x, y) = (r.x + i - map.padding, r.y + j - map.padding);
+            let texel = map.atlas.pixels[(y * map.atlas.width + x) as usize].map(f64::from);
+            let (fi, fj) =
+                (f64::from(i) - f64::from(map.padding) + 0.5, f64::from(j) - f64::from(map.padding) + 0.5);
+            let centre = DVec3::from_array(r.origin)
+                + DVec3::from_array(r.u_axis) * (fi * r.texel_size)
+                + DVec3::from_array(r.v_axis) * (fj * r.texel_size);
+            if (0..4).any(|k| shader.distance_in_plane(k, centre) == 0.0) {
+                // Covered texels: the field itself (f32 atlas: values ~10, rounding 6e-7).
+                assert_close(texel, linear_field(centre), 1e-6, &format!("texel ({i}, {j})"));
+                inside += 1;
+            } else {
+                // Uncovered texels: a point of the triangle, so within the field's range over its corners.
+                for ch in 0..3 {
+                    let lo = corners.iter().map(|f| f[ch]).fold(f64::INFINITY, f64::min);
+                    let hi = corners.iter().map(|f| f[ch]).fold(f64::NEG_INFINITY, f64::max);
+                    assert!(texel[ch] >= lo - 1e-6 && texel[ch] <= hi + 1e-6, "texel ({i}, {j}) = {texel:?}");
+                }
+                outside += 1;
+            }
+        }
+    }
+    // The triangle covers about half its bounding rectangle (area 6 of 12 units^2 = 384 of 768 texels).
+    assert!(inside > 300 && outside > 300, "{inside} covered, {outside} uncovered texels");
+}

@@ -6,8 +6,9 @@
 //! from the front with `u` to the right, `v` points down, like image rows), and an origin at the lower corner of
 //! the face's bounding rectangle in that frame. Texel `(i, j)` of the face (column `i`, row `j`) has its centre at
 //! `origin + (i + 0.5) * texel_size * u + (j + 0.5) * texel_size * v` and holds the smooth shader's value there
-//! ([`SmoothShader::shade`] on the face's patch containing the point, or the nearest one for texels in the
-//! padding border or between patches). Each rectangle is surrounded by `padding` texels filled the same way, so
+//! ([`SmoothShader::shade`] on the face's patch containing the point; texels in the padding border, between
+//! patches or outside a non-rectangular face take the patch of the nearest covered texel, found by a flood fill
+//! over the texel grid, and the shader moves the point onto that patch's boundary). Each rectangle is surrounded by `padding` texels filled the same way, so
 //! bilinear filtering near a face's edge never reads another face's texels.
 //!
 //! Packing is a shelf packer (rectangles sorted by decreasing height, placed left to right on shelves as wide as
@@ -230,27 +231,71 @@ pub fn bake_light_map(
     for (k, l) in layouts.iter().enumerate() {
         let (w, h) = sizes[k];
         let (px, py) = place[k];
-        let mut hint = l.members[0];
-        for j in 0..h + 2 * pad {
-            for i in 0..w + 2 * pad {
-                let (fi, fj) = (f64::from(i) - f64::from(pad) + 0.5, f64::from(j) - f64::from(pad) + 0.5);
-                let point = l.origin + l.u * (fi * texel_size) + l.v * (fj * texel_size);
-                // Neighbouring texels mostly fall in the same patch: try the previous texel's patch first.
-                let mut best = (shader.distance_in_plane(hint, point), hint);
-                for &m in &l.members {
-                    if best.0 == 0.0 {
-                        break;
-                    }
-                    let d = shader.distance_in_plane(m, point);
-                    if d < best.0 {
-                        best = (d, m);
-                        if d == 0.0 {
-                            break;
-                        }
+        let (pw, ph) = (w + 2 * pad, h + 2 * pad);
+        let centre = |i: u32, j: u32| {
+            let (fi, fj) = (f64::from(i) - f64::from(pad) + 0.5, f64::from(j) - f64::from(pad) + 0.5);
+            l.origin + l.u * (fi * texel_size) + l.v * (fj * texel_size)
+        };
+        // Owner of each texel centre: the patch containing it, found by visiting only the texels within each
+        // patch's bounding box (so the cost is about the texel count, not texels x patches).
+        let mut owner: Vec<Option<usize>> = vec![None; pw as usize * ph as usize];
+        for &m in &l.members {
+            let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+            for &p in &patches[m].vertices {
+                let d = p - l.origin;
+                let (a, b) =
+                    (d.dot(l.u) / texel_size + f64::from(pad), d.dot(l.v) / texel_size + f64::from(pad));
+                lo = (lo.0.min(a), lo.1.min(b));
+                hi = (hi.0.max(a), hi.1.max(b));
+            }
+            let range = |a: f64, b: f64, n: u32| {
+                let first = (a - 0.5).floor().max(0.0) as u32;
+                let last = ((b - 0.5).ceil().max(0.0) as u32).min(n - 1);
+                first..=last
+            };
+            for j in range(lo.1, hi.1, ph) {
+                for i in range(lo.0, hi.0, pw) {
+                    let slot = &mut owner[j as usize * pw as usize + i as usize];
+                    if slot.is_none() && shader.distance_in_plane(m, centre(i, j)) == 0.0 {
+                        *slot = Some(m);
                     }
                 }
-                hint = best.1;
-                let value = shader.shade(radiosity, best.1, point)?;
+            }
+        }
+        // Texels outside every patch (the padding border, gaps, the uncovered part of a non-rectangular face) take
+        // the patch of the nearest owned texel, by a breadth-first flood over the texel grid from the owned ones
+        // (dilation); `shade` then moves their centre onto that patch's boundary.
+        let mut queue: std::collections::VecDeque<usize> =
+            (0..owner.len()).filter(|&t| owner[t].is_some()).collect();
+        if queue.is_empty() {
+            // No texel centre falls inside any patch (a face thinner than a texel): nearest patch per texel.
+            for (t, slot) in owner.iter_mut().enumerate() {
+                let point = centre(t as u32 % pw, t as u32 / pw);
+                *slot = l
+                    .members
+                    .iter()
+                    .map(|&m| (shader.distance_in_plane(m, point), m))
+                    .min_by(|a, b| a.0.total_cmp(&b.0))
+                    .map(|(_, m)| m);
+            }
+        }
+        while let Some(t) = queue.pop_front() {
+            let (i, j) = (t as u32 % pw, t as u32 / pw);
+            let neighbours = [(i.wrapping_sub(1), j), (i + 1, j), (i, j.wrapping_sub(1)), (i, j + 1)];
+            for (ni, nj) in neighbours {
+                if ni < pw && nj < ph {
+                    let n = nj as usize * pw as usize + ni as usize;
+                    if owner[n].is_none() {
+                        owner[n] = owner[t];
+                        queue.push_back(n);
+                    }
+                }
+            }
+        }
+        for j in 0..ph {
+            for i in 0..pw {
+                let patch = owner[j as usize * pw as usize + i as usize].unwrap_or(l.members[0]);
+                let value = shader.shade(radiosity, patch, centre(i, j))?;
                 let index = (py + j) as usize * atlas_width as usize + (px + i) as usize;
                 atlas.pixels[index] = value.map(|c| c as f32);
             }
