@@ -1114,3 +1114,26 @@ fn light_map_of_a_triangle_fills_the_uncovered_texels_from_the_nearest_patch() {
     // The triangle covers about half its bounding rectangle (area 6 of 12 units^2 = 384 of 768 texels).
     assert!(inside > 300 && outside > 300, "{inside} covered, {outside} uncovered texels");
 }
+
+#[test]
+fn smooth_shading_joins_slightly_warped_quadrilaterals_at_shared_corners() {
+    // Two quads sharing an edge; the far corner of each is lifted 1e-3 off the plane (scene size ~4: far above the
+    // 4e-6 weld tolerance), like the sub-quads of the Cornell box's warped red wall. They still share vertices.
+    let v = DVec3::new;
+    let patches = vec![
+        polygon(0, 0, vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(0.0, 1.0, 1e-3)]),
+        polygon(1, 0, vec![v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), v(2.0, 1.0, 1e-3), v(1.0, 1.0, 0.0)]),
+    ];
+    let radiosity = [[1.0; 3], [3.0; 3]];
+    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    // Equal areas: the shared corners take the mean, 2.
+    for p in [v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0)] {
+        assert_close(shader.shade(&radiosity, 0, p).unwrap(), [2.0; 3], 1e-9, "left quad at a shared corner");
+        assert_close(
+            shader.shade(&radiosity, 1, p).unwrap(),
+            [2.0; 3],
+            1e-9,
+            "right quad at a shared corner",
+        );
+    }
+}

@@ -215,6 +215,11 @@ impl SmoothShader {
 
         let touches = |q: usize, v: DVec3| -> bool {
             let p = &patches[q];
+            // A shared corner (welded within the tolerance), also of a slightly warped quadrilateral whose corners
+            // are off its plane by more than the tolerance; otherwise `v` on the polygon (a T-junction).
+            if p.vertices.iter().any(|&c| (c - v).length() <= tolerance) {
+                return true;
+            }
             if (v - p.vertices[0]).dot(p.normal).abs() > tolerance {
                 return false;
             }
