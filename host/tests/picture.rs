@@ -740,9 +740,9 @@ fn sample_plots() -> Vec<(Plot, Vec<&'static str>)> {
                 title: "Cornell box: error against work".into(),
                 x_label: "work units".into(),
                 y_label: "relative L2 error".into(),
-                series: vec![series("gathering", 0.5, 1.0), series("shooting f32", 0.3, 1.7)],
+                series: vec![series("gathering", 0.5, 1.0), series("shooting <f32> & q8", 0.3, 1.7)],
             },
-            vec!["gathering", "shooting f32", "work units", "relative L2 error", "error against work"],
+            vec!["gathering", "shooting <f32> & q8", "work units", "relative L2 error", "error against work"],
         ),
         (
             Plot::StackedBars {

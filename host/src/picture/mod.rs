@@ -64,7 +64,7 @@ pub enum PictureError {
     /// A file could be read but its contents are not in the expected format.
     #[error("{path}: {reason}")]
     Format {
-        /// The file (or "<memory>" for in-memory data).
+        /// The file (or `<memory>` for in-memory data).
         path: PathBuf,
         /// What is wrong, and where in the file.
         reason: String,
