@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 EMBREE_WHEEL_VERSION="4.4.0.post1"
 EMBREE_WHEEL_SHA256="2cd0f7d5c6342e6247e31f700761689cae7829454d8c6de0c41e62124a023e1f"
 EMBREE_DIR="third_party/embree/lib"
-APT_PACKAGES=(libclang1-14 libclang-common-14-dev qemu-system-arm binutils-arm-none-eabi unzip)
+APT_PACKAGES=(libclang1-14 libclang-common-14-dev qemu-system-arm binutils-arm-none-eabi unzip fonts-dejavu-core)
 TARGETS=(thumbv7em-none-eabihf thumbv6m-none-eabi)
 
 step() { printf '\n==> deps: %s\n' "$1"; }

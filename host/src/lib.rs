@@ -10,6 +10,7 @@ pub mod mesh;
 pub mod metrics;
 pub mod output;
 pub mod patch;
+pub mod picture;
 pub mod pipeline;
 pub mod reference;
 pub mod scene;

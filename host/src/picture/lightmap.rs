@@ -1,0 +1,379 @@
+//! Light maps: per-face textures of the smoothed radiosity, packed into one atlas, the way game engines consume
+//! baked lighting.
+//!
+//! Every OBJ face (every distinct [`Patch::face`]) gets one rectangle of texels. The face's frame: its normal `n`
+//! (area-weighted over its patches), a `u` axis along the first edge of its first patch, `v = u x n` (so that, seen
+//! from the front with `u` to the right, `v` points down, like image rows), and an origin at the lower corner of
+//! the face's bounding rectangle in that frame. Texel `(i, j)` of the face (column `i`, row `j`) has its centre at
+//! `origin + (i + 0.5) * texel_size * u + (j + 0.5) * texel_size * v` and holds the smooth shader's value there
+//! ([`SmoothShader::shade`] on the face's patch containing the point; texels in the padding border, between
+//! patches or outside a non-rectangular face take the patch of the nearest covered texel, found by a flood fill
+//! over the texel grid, and the shader moves the point onto that patch's boundary). Each rectangle is surrounded by `padding` texels filled the same way, so
+//! bilinear filtering near a face's edge never reads another face's texels.
+//!
+//! Packing is a shelf packer (rectangles sorted by decreasing height, placed left to right on shelves as wide as
+//! the square root of the total padded area). The atlas is written as linear Radiance `.hdr` (radiosity in W/m^2),
+//! a tone-mapped PNG (see [`super::tonemap`]) and a JSON map (see [`LightMap::to_json`]).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+use serde::Serialize;
+
+use super::hdr::{write_hdr, LinearImage};
+use super::shading::SmoothShader;
+use super::tonemap::luminance;
+use super::{write_file, write_png, PictureError, ToneMap};
+use crate::patch::Patch;
+
+/// Options for [`bake_light_map`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightMapOptions {
+    /// Texel edge length in scene units; `None` chooses it so the largest face is `max_face_texels` texels across.
+    pub texel_size: Option<f64>,
+    /// Texels across the largest face when `texel_size` is `None`.
+    pub max_face_texels: u32,
+    /// Border texels around each face rectangle.
+    pub padding: u32,
+}
+
+impl Default for LightMapOptions {
+    fn default() -> Self {
+        LightMapOptions { texel_size: None, max_face_texels: 64, padding: 2 }
+    }
+}
+
+/// Largest rectangle side, in texels, a face may get (keeps a tiny `texel_size` from asking for gigabytes).
+pub const MAX_FACE_SIDE: u32 = 4096;
+
+/// Where one face lives in the atlas, and how to get from a point on the face to its texel.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FaceRect {
+    /// OBJ face index.
+    pub face: usize,
+    /// Left column of the face's texels in the atlas (padding excluded).
+    pub x: u32,
+    /// Top row of the face's texels in the atlas (padding excluded).
+    pub y: u32,
+    /// Width in texels (padding excluded).
+    pub width: u32,
+    /// Height in texels (padding excluded).
+    pub height: u32,
+    /// Scene-space point at the outer corner of texel `(x, y)`.
+    pub origin: [f64; 3],
+    /// Unit vector along increasing atlas columns.
+    pub u_axis: [f64; 3],
+    /// Unit vector along increasing atlas rows.
+    pub v_axis: [f64; 3],
+    /// Face normal.
+    pub normal: [f64; 3],
+    /// Texel edge length in scene units.
+    pub texel_size: f64,
+    /// Number of patches the face was meshed into.
+    pub patches: usize,
+}
+
+impl FaceRect {
+    /// Atlas texel coordinates (continuous: texel `(i, j)` spans `[i, i + 1) x [j, j + 1)`) of a point on the face.
+    #[must_use]
+    pub fn atlas_coords(&self, point: DVec3) -> (f64, f64) {
+        let d = point - DVec3::from_array(self.origin);
+        (
+            f64::from(self.x) + d.dot(DVec3::from_array(self.u_axis)) / self.texel_size,
+            f64::from(self.y) + d.dot(DVec3::from_array(self.v_axis)) / self.texel_size,
+        )
+    }
+}
+
+/// A baked light-map atlas.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightMap {
+    /// The atlas, linear radiosity (W/m^2) per texel; unused texels are black.
+    pub atlas: LinearImage,
+    /// One rectangle per face, in face order.
+    pub rects: Vec<FaceRect>,
+    /// Border texels around each rectangle.
+    pub padding: u32,
+    /// Texel edge length in scene units.
+    pub texel_size: f64,
+}
+
+/// Bakes the light map of `patches` with per-patch `radiosity`, shaded by `shader` (built from the same patches).
+///
+/// # Errors
+/// [`PictureError::Invalid`] if the shader was built for a different number of patches, `radiosity` has the wrong
+/// length, some face index below the largest has no patch (every face must be mapped), the texel size is not
+/// positive, or a face would need more than [`MAX_FACE_SIDE`] texels across; [`PictureError::NonFinite`] for a
+/// NaN or infinite radiosity (naming the patch).
+pub fn bake_light_map(
+    patches: &[Patch],
+    shader: &SmoothShader,
+    radiosity: &[[f64; 3]],
+    options: &LightMapOptions,
+) -> Result<LightMap, PictureError> {
+    if shader.patch_count() != patches.len() || radiosity.len() != patches.len() {
+        return Err(PictureError::invalid(
+            "light map input",
+            format!(
+                "{} patches, shader built for {}, {} radiosity values",
+                patches.len(),
+                shader.patch_count(),
+                radiosity.len()
+            ),
+        ));
+    }
+    if patches.is_empty() {
+        return Err(PictureError::invalid("light map input", "no patches"));
+    }
+    let mut by_face: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for (i, p) in patches.iter().enumerate() {
+        by_face.entry(p.face).or_default().push(i);
+    }
+    for (expected, &face) in by_face.keys().enumerate() {
+        if face != expected {
+            return Err(PictureError::invalid(
+                "light map input",
+                format!("face {expected} has no patch, so it cannot be mapped (faces present: up to {face})"),
+            ));
+        }
+    }
+
+    // Face frames and extents.
+    struct Layout {
+        face: usize,
+        members: Vec<usize>,
+        origin: DVec3,
+        u: DVec3,
+        v: DVec3,
+        normal: DVec3,
+        extent: (f64, f64),
+    }
+    let mut layouts = Vec::with_capacity(by_face.len());
+    for (&face, members) in &by_face {
+        let normal =
+            members.iter().map(|&i| patches[i].normal * patches[i].area).sum::<DVec3>().normalize_or_zero();
+        let first = &patches[members[0]];
+        let normal = if normal == DVec3::ZERO { first.normal } else { normal };
+        let edge = first.vertices[1] - first.vertices[0];
+        let u = (edge - normal * edge.dot(normal)).normalize_or(normal.any_orthonormal_vector());
+        let v = u.cross(normal);
+        let base = first.vertices[0];
+        let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+        for &i in members {
+            for &p in &patches[i].vertices {
+                let d = p - base;
+                let (a, b) = (d.dot(u), d.dot(v));
+                lo = (lo.0.min(a), lo.1.min(b));
+                hi = (hi.0.max(a), hi.1.max(b));
+            }
+        }
+        layouts.push(Layout {
+            face,
+            members: members.clone(),
+            origin: base + u * lo.0 + v * lo.1,
+            u,
+            v,
+            normal,
+            extent: (hi.0 - lo.0, hi.1 - lo.1),
+        });
+    }
+    let texel_size = match options.texel_size {
+        Some(t) => t,
+        None => {
+            let largest = layouts.iter().map(|l| l.extent.0.max(l.extent.1)).fold(0.0, f64::max);
+            largest / f64::from(options.max_face_texels.max(1))
+        }
+    };
+    if !(texel_size.is_finite() && texel_size > 0.0) {
+        return Err(PictureError::invalid("light map texel size", format!("{texel_size} is not positive")));
+    }
+    let pad = options.padding;
+    let mut sizes = Vec::with_capacity(layouts.len());
+    for l in &layouts {
+        let side = |e: f64| (e / texel_size).ceil().max(1.0);
+        let (w, h) = (side(l.extent.0), side(l.extent.1));
+        if w > f64::from(MAX_FACE_SIDE) || h > f64::from(MAX_FACE_SIDE) {
+            return Err(PictureError::invalid(
+                "light map texel size",
+                format!(
+                    "face {} would be {w}x{h} texels (limit {MAX_FACE_SIDE}); use a larger texel",
+                    l.face
+                ),
+            ));
+        }
+        sizes.push((w as u32, h as u32));
+    }
+
+    // Shelf packing of the padded rectangles.
+    let padded: Vec<(u32, u32)> = sizes.iter().map(|&(w, h)| (w + 2 * pad, h + 2 * pad)).collect();
+    let area: f64 = padded.iter().map(|&(w, h)| f64::from(w) * f64::from(h)).sum();
+    let atlas_width = padded.iter().map(|r| r.0).max().unwrap_or(1).max(area.sqrt().ceil() as u32);
+    let mut order: Vec<usize> = (0..padded.len()).collect();
+    order.sort_by(|&a, &b| padded[b].1.cmp(&padded[a].1).then(padded[b].0.cmp(&padded[a].0)).then(a.cmp(&b)));
+    let mut place = vec![(0u32, 0u32); padded.len()];
+    let (mut x, mut y, mut shelf) = (0u32, 0u32, 0u32);
+    for &k in &order {
+        let (w, h) = padded[k];
+        if x + w > atlas_width {
+            y += shelf;
+            x = 0;
+            shelf = 0;
+        }
+        place[k] = (x, y);
+        x += w;
+        shelf = shelf.max(h);
+    }
+    let atlas_height = y + shelf;
+
+    let mut atlas = LinearImage::new(atlas_width, atlas_height);
+    let mut rects = Vec::with_capacity(layouts.len());
+    for (k, l) in layouts.iter().enumerate() {
+        let (w, h) = sizes[k];
+        let (px, py) = place[k];
+        let (pw, ph) = (w + 2 * pad, h + 2 * pad);
+        let centre = |i: u32, j: u32| {
+            let (fi, fj) = (f64::from(i) - f64::from(pad) + 0.5, f64::from(j) - f64::from(pad) + 0.5);
+            l.origin + l.u * (fi * texel_size) + l.v * (fj * texel_size)
+        };
+        // Owner of each texel centre: the patch containing it, found by visiting only the texels within each
+        // patch's bounding box (so the cost is about the texel count, not texels x patches).
+        let mut owner: Vec<Option<usize>> = vec![None; pw as usize * ph as usize];
+        for &m in &l.members {
+            let (mut lo, mut hi) = ((f64::INFINITY, f64::INFINITY), (f64::NEG_INFINITY, f64::NEG_INFINITY));
+            for &p in &patches[m].vertices {
+                let d = p - l.origin;
+                let (a, b) =
+                    (d.dot(l.u) / texel_size + f64::from(pad), d.dot(l.v) / texel_size + f64::from(pad));
+                lo = (lo.0.min(a), lo.1.min(b));
+                hi = (hi.0.max(a), hi.1.max(b));
+            }
+            let range = |a: f64, b: f64, n: u32| {
+                let first = (a - 0.5).floor().max(0.0) as u32;
+                let last = ((b - 0.5).ceil().max(0.0) as u32).min(n - 1);
+                first..=last
+            };
+            for j in range(lo.1, hi.1, ph) {
+                for i in range(lo.0, hi.0, pw) {
+                    let slot = &mut owner[j as usize * pw as usize + i as usize];
+                    if slot.is_none() && shader.distance_in_plane(m, centre(i, j)) == 0.0 {
+                        *slot = Some(m);
+                    }
+                }
+            }
+        }
+        // Texels outside every patch (the padding border, gaps, the uncovered part of a non-rectangular face) take
+        // the patch of the nearest owned texel, by a breadth-first flood over the texel grid from the owned ones
+        // (dilation); `shade` then moves their centre onto that patch's boundary.
+        let mut queue: std::collections::VecDeque<usize> =
+            (0..owner.len()).filter(|&t| owner[t].is_some()).collect();
+        if queue.is_empty() {
+            // No texel centre falls inside any patch (a face thinner than a texel): nearest patch per texel.
+            for (t, slot) in owner.iter_mut().enumerate() {
+                let point = centre(t as u32 % pw, t as u32 / pw);
+                *slot = l
+                    .members
+                    .iter()
+                    .map(|&m| (shader.distance_in_plane(m, point), m))
+                    .min_by(|a, b| a.0.total_cmp(&b.0))
+                    .map(|(_, m)| m);
+            }
+        }
+        while let Some(t) = queue.pop_front() {
+            let (i, j) = (t as u32 % pw, t as u32 / pw);
+            let neighbours = [(i.wrapping_sub(1), j), (i + 1, j), (i, j.wrapping_sub(1)), (i, j + 1)];
+            for (ni, nj) in neighbours {
+                if ni < pw && nj < ph {
+                    let n = nj as usize * pw as usize + ni as usize;
+                    if owner[n].is_none() {
+                        owner[n] = owner[t];
+                        queue.push_back(n);
+                    }
+                }
+            }
+        }
+        for j in 0..ph {
+            for i in 0..pw {
+                let patch = owner[j as usize * pw as usize + i as usize].unwrap_or(l.members[0]);
+                let value = shader.shade(radiosity, patch, centre(i, j))?;
+                let index = (py + j) as usize * atlas_width as usize + (px + i) as usize;
+                atlas.pixels[index] = value.map(|c| c as f32);
+            }
+        }
+        rects.push(FaceRect {
+            face: l.face,
+            x: px + pad,
+            y: py + pad,
+            width: w,
+            height: h,
+            origin: l.origin.to_array(),
+            u_axis: l.u.to_array(),
+            v_axis: l.v.to_array(),
+            normal: l.normal.to_array(),
+            texel_size,
+            patches: l.members.len(),
+        });
+    }
+    Ok(LightMap { atlas, rects, padding: pad, texel_size })
+}
+
+impl LightMap {
+    /// The JSON map: atlas size and files, conventions, and one entry per face (see [`FaceRect`]).
+    #[must_use]
+    pub fn to_json(&self, hdr_file: &str, png_file: &str) -> serde_json::Value {
+        serde_json::json!({
+            "format": "radiosity-lightmap/1",
+            "atlas": {"width": self.atlas.width, "height": self.atlas.height, "hdr": hdr_file, "png": png_file},
+            "units": "the .hdr holds linear radiosity in W/m^2 (scene units); the .png is tone mapped and sRGB encoded",
+            "texel_size": self.texel_size,
+            "padding": self.padding,
+            "convention": "texel (x + i, y + j) of a face has its centre at origin + (i + 0.5) * texel_size * u_axis \
+                + (j + 0.5) * texel_size * v_axis; rows count downward from the top of the atlas; the normalized UV \
+                of a face point p is ((x + dot(p - origin, u_axis) / texel_size) / atlas.width, \
+                (y + dot(p - origin, v_axis) / texel_size) / atlas.height)",
+            "faces": self.rects,
+        })
+    }
+
+    /// Luminances of the texels inside face rectangles (padding excluded), for choosing an exposure.
+    #[must_use]
+    pub fn face_luminances(&self) -> Vec<f64> {
+        let w = self.atlas.width as usize;
+        let mut out = Vec::new();
+        for r in &self.rects {
+            for y in r.y..r.y + r.height {
+                for x in r.x..r.x + r.width {
+                    out.push(luminance(self.atlas.pixels[y as usize * w + x as usize].map(f64::from)));
+                }
+            }
+        }
+        out
+    }
+
+    /// Writes `<stem>.hdr`, `<stem>.png` and `<stem>.json` and returns their paths. The PNG uses `tone`, or when
+    /// `None` a [`ToneMap::from_percentile`] exposure over the face texels with the default percentile and white.
+    ///
+    /// # Errors
+    /// [`PictureError::Io`] / [`PictureError::Png`] if a file cannot be written.
+    pub fn write(&self, stem: &Path, tone: Option<ToneMap>) -> Result<[PathBuf; 3], PictureError> {
+        let hdr = stem.with_extension("hdr");
+        let png = stem.with_extension("png");
+        let json = stem.with_extension("json");
+        let tone = match tone {
+            Some(t) => t,
+            None => ToneMap::from_percentile(
+                &self.face_luminances(),
+                ToneMap::DEFAULT_PERCENTILE,
+                ToneMap::DEFAULT_WHITE,
+            )?,
+        };
+        let linear: Vec<[f64; 3]> = self.atlas.pixels.iter().map(|p| p.map(f64::from)).collect();
+        write_hdr(&hdr, &self.atlas)?;
+        write_png(&png, &tone.map_image(&linear, self.atlas.width, self.atlas.height)?)?;
+        let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let text = serde_json::to_string_pretty(&self.to_json(&name(&hdr), &name(&png)))
+            .map_err(|e| PictureError::invalid("light map JSON", e.to_string()))?;
+        write_file(&json, text.as_bytes())?;
+        Ok([hdr, png, json])
+    }
+}
