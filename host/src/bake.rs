@@ -3,14 +3,18 @@
 //! Steps, in order ([`bake`]):
 //!
 //! 1. **Sparsify** ([`sparsify`]). Entry `F_ij` of shooter row `i` carries the fraction `F_ij` of the power
-//!    leaving patch `i` to receiver `j`; that is the *energy* of an entry. With threshold `t`, each row drops its
-//!    smallest entries (ascending `F_ij`, ties to the higher receiver index) for as long as the dropped sum stays
-//!    `<= t * s_i`, where `s_i` is the row's sum. So a row never loses more than the fraction `t` of the energy it
-//!    transports, and `t = 0` drops nothing (except entries that are exactly zero, which carry nothing). The
-//!    energy is measured by `F` alone, not `rho_j F_ij`: a black receiver's entries are kept because a run-time
-//!    reflectance edit may make it reflect. Rows are never renormalized: the dropped energy is reported per row
-//!    (max, mean), in total (the sum of all dropped `F_ij`) and area-weighted
-//!    (`sum_i A_i d_i / sum_i A_i s_i`, the fraction of all transported power under uniform radiosity).
+//!    leaving patch `i` to receiver `j`; that is the *energy* of an entry, measured by `F` alone, not
+//!    `rho_j F_ij` (a black receiver's entries are kept because a run-time reflectance edit may make it
+//!    reflect). With threshold `t`, an entry is dropped only if two budgets allow it: its row may lose at most
+//!    the fraction `t` of the energy it transports (`d_i <= t s_i`, `s_i` the row sum), and its receiver at most
+//!    the fraction `t` of the power it receives under uniform radiosity (`sum_i A_i dF_ij <= t sum_i A_i F_ij`).
+//!    The row budget alone is not enough: dropping the same small receiver from many rows (a patch lit only
+//!    through weak links, or ties in a uniform row) would leave it dark on the device although no row lost
+//!    much. Entries are visited from the least power `A_i F_ij` up. `t = 0` drops nothing (except entries that
+//!    are exactly zero, which carry nothing). Rows are never renormalized: the dropped energy is reported per
+//!    row (max, mean, largest fraction of a row and of a receiver), in total (the sum of all dropped `F_ij`)
+//!    and area-weighted (`sum_i A_i d_i / sum_i A_i s_i`, the fraction of all transported power under uniform
+//!    radiosity).
 //! 2. **Static base.** Static lights are solved in f64 by the reference solver on the sparsified matrix and
 //!    stored as static emission `E_s` and static irradiance `G_s`, with `base_solved = true` (core's crate
 //!    docs, "Static base"), so static light costs the device no work.
@@ -193,55 +197,75 @@ pub fn group_id(name: &str) -> u32 {
     h
 }
 
-/// A sparsified matrix and the energy each row lost.
+/// A sparsified matrix and the energy each row and each receiver lost.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sparsified {
     /// The kept entries (values unchanged, never renormalized).
     pub matrix: FormFactorMatrix,
-    /// Per row, the sum of the dropped `F_ij`.
+    /// Per row `i`, the sum of the dropped `F_ij`.
     pub dropped: Vec<f64>,
+    /// Per receiver `j`, the sum of the dropped `A_i F_ij` (power lost under uniform unit radiosity).
+    pub dropped_incoming: Vec<f64>,
+    /// Per receiver `j`, `sum_i A_i F_ij` over the original entries (power received under uniform unit
+    /// radiosity).
+    pub incoming: Vec<f64>,
 }
 
-/// Drops the smallest entries of each row while their sum stays `<= threshold * row sum` (see the module docs).
+/// Drops entries while both the shooter's and the receiver's budgets allow (see the module docs).
+///
+/// Entries are visited in ascending order of the power they carry under uniform unit radiosity, `A_i F_ij`
+/// (ties by shooter, then receiver); entry `(i, j)` is dropped if afterwards row `i` has lost at most
+/// `threshold * s_i` and receiver `j` at most `threshold * sum_k A_k F_kj`. Budgets only fill up, so every kept
+/// entry would overflow one of them.
 ///
 /// # Errors
-/// [`BakeError::BadThreshold`] if `threshold` is not in `[0, 1)`.
-pub fn sparsify(ff: &FormFactorMatrix, threshold: f64) -> Result<Sparsified, BakeError> {
+/// [`BakeError::BadThreshold`] if `threshold` is not in `[0, 1)`, [`BakeError::Input`] if `area` does not have
+/// one entry per patch.
+pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<Sparsified, BakeError> {
     if !(0.0..1.0).contains(&threshold) {
         return Err(BakeError::BadThreshold(threshold));
     }
-    let mut matrix = FormFactorMatrix { n: ff.n, row_start: vec![0], col: Vec::new(), value: Vec::new() };
-    let mut dropped = Vec::with_capacity(ff.n);
-    let mut order: Vec<usize> = Vec::new();
-    let mut keep: Vec<bool> = Vec::new();
-    for i in 0..ff.n {
-        let (s, e) = (ff.row_start[i], ff.row_start[i + 1]);
-        let values = &ff.value[s..e];
-        let budget = threshold * values.iter().sum::<f64>();
-        order.clear();
-        order.extend(0..values.len());
-        // Ascending value; among equal values drop the higher receiver first (deterministic).
-        order.sort_by(|&a, &b| values[a].total_cmp(&values[b]).then(b.cmp(&a)));
-        keep.clear();
-        keep.resize(values.len(), true);
-        let mut lost = 0.0;
-        for &k in &order {
-            if lost + values[k] > budget {
-                break;
-            }
-            lost += values[k];
+    let n = ff.n;
+    if area.len() != n {
+        return Err(input_error(format!("{} areas for {n} patches", area.len())));
+    }
+    let mut row_of = vec![0usize; ff.nonzeros()];
+    let mut incoming = vec![0.0; n];
+    for (i, &a) in area.iter().enumerate() {
+        for k in ff.row_start[i]..ff.row_start[i + 1] {
+            row_of[k] = i;
+            incoming[ff.col[k] as usize] += a * ff.value[k];
+        }
+    }
+    let power = |k: usize| area[row_of[k]] * ff.value[k];
+    let mut order: Vec<usize> = (0..ff.nonzeros()).collect();
+    order.sort_by(|&a, &b| power(a).total_cmp(&power(b)).then(a.cmp(&b)));
+    let row_budget: Vec<f64> = (0..n).map(|i| threshold * ff.row_sum(i)).collect();
+    let mut dropped = vec![0.0; n];
+    let mut dropped_incoming = vec![0.0; n];
+    let mut keep = vec![true; ff.nonzeros()];
+    for k in order {
+        let (i, j, f) = (row_of[k], ff.col[k] as usize, ff.value[k]);
+        let p = area[i] * f;
+        if dropped[i] + f <= row_budget[i] && dropped_incoming[j] + p <= threshold * incoming[j] {
+            dropped[i] += f;
+            dropped_incoming[j] += p;
             keep[k] = false;
         }
-        for k in 0..values.len() {
-            if keep[k] {
-                matrix.col.push(ff.col[s + k]);
-                matrix.value.push(values[k]);
+    }
+    let mut matrix = FormFactorMatrix { n, row_start: vec![0], col: Vec::new(), value: Vec::new() };
+    for i in 0..n {
+        let range = ff.row_start[i]..ff.row_start[i + 1];
+        for ((&kept, &j), &f) in keep[range.clone()].iter().zip(&ff.col[range.clone()]).zip(&ff.value[range])
+        {
+            if kept {
+                matrix.col.push(j);
+                matrix.value.push(f);
             }
         }
         matrix.row_start.push(matrix.col.len());
-        dropped.push(lost);
     }
-    Ok(Sparsified { matrix, dropped })
+    Ok(Sparsified { matrix, dropped, dropped_incoming, incoming })
 }
 
 /// The shooting form `F~_ij = A_j F_ji / A_i` of shooter rows `ff` with patch areas `area`: the matrix whose
@@ -284,6 +308,8 @@ pub struct EnergyDropped {
     pub mean_row: f64,
     /// Largest `d_i / s_i` (dropped fraction of a row's energy; `<=` the threshold).
     pub max_row_fraction: f64,
+    /// Largest fraction of a receiver's incoming power (under uniform radiosity) dropped (`<=` the threshold).
+    pub max_receiver_fraction: f64,
     /// `sum_i d_i`.
     pub total: f64,
     /// `sum_i A_i d_i / sum_i A_i s_i`: fraction of all transported power under uniform radiosity.
@@ -384,8 +410,9 @@ impl fmt::Display for BakeReport {
         )?;
         writeln!(
             f,
-            "energy dropped     per row max {:.3e} mean {:.3e} (max fraction {:.3e}); total {:.3e}, area-weighted {:.3e}",
-            e.max_row, e.mean_row, e.max_row_fraction, e.total, e.area_weighted
+            "energy dropped     per row max {:.3e} mean {:.3e}; max fraction of a row {:.3e}, of a receiver {:.3e}; \
+             total {:.3e}, area-weighted {:.3e}",
+            e.max_row, e.mean_row, e.max_row_fraction, e.max_receiver_fraction, e.total, e.area_weighted
         )?;
         writeln!(f, "codec              {} ({} bits)", self.codec, self.ff_bits)?;
         writeln!(
@@ -671,7 +698,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     let area: Vec<f64> = input.patches.iter().map(|p| p.area).collect();
 
     // 1. Sparsify.
-    let sparse = sparsify(ff, options.threshold)?;
+    let sparse = sparsify(ff, &area, options.threshold)?;
     let row_sums: Vec<f64> = (0..n).map(|i| ff.row_sum(i)).collect();
     let total_transport: f64 = row_sums.iter().zip(&area).map(|(s, a)| s * a).sum();
     let energy_dropped = EnergyDropped {
@@ -681,6 +708,12 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
             .dropped
             .iter()
             .zip(&row_sums)
+            .map(|(&d, &s)| if s > 0.0 { d / s } else { 0.0 })
+            .fold(0.0, f64::max),
+        max_receiver_fraction: sparse
+            .dropped_incoming
+            .iter()
+            .zip(&sparse.incoming)
             .map(|(&d, &s)| if s > 0.0 { d / s } else { 0.0 })
             .fold(0.0, f64::max),
         total: sparse.dropped.iter().sum(),
