@@ -701,3 +701,91 @@ fn static_base_is_a_fixed_point_of_shooting_without_reciprocity() {
         }
     }
 }
+
+/// Form factor between parallel, directly opposed unit squares at distance 1 (Howell's catalog, C-11, with
+/// `X = Y = 1`): `F = 2 / (pi X Y) [ln sqrt((1 + X^2)(1 + Y^2) / (1 + X^2 + Y^2)) + X sqrt(1 + Y^2)
+/// atan(X / sqrt(1 + Y^2)) + Y sqrt(1 + X^2) atan(Y / sqrt(1 + X^2)) - X atan X - Y atan Y]` = 0.199825.
+fn opposed_unit_squares() -> f64 {
+    let (x, y) = (1.0f64, 1.0f64);
+    let (x2, y2) = (x * x, y * y);
+    2.0 / (std::f64::consts::PI * x * y)
+        * (((1.0 + x2) * (1.0 + y2) / (1.0 + x2 + y2)).sqrt().ln()
+            + x * (1.0 + y2).sqrt() * (x / (1.0 + y2).sqrt()).atan()
+            + y * (1.0 + x2).sqrt() * (y / (1.0 + x2).sqrt()).atan()
+            - x * x.atan()
+            - y * y.atan())
+}
+
+/// The shipped furnace scene (`scenes/furnace.obj`, a unit cube, rho 0.9, Ke 1) through scene loading,
+/// `PatchLighting::new` and `BakeInput::from_scene`, with its analytic form factors (opposite faces from
+/// Howell C-11, adjacent faces `(1 - F_opp) / 4` by closure and symmetry): the device reaches `B = 10`.
+#[test]
+fn shipped_furnace_scene_bakes_and_relights_to_closed_form() {
+    use radiosity_host::mesh::{mesh, MeshOptions};
+    use radiosity_host::scene::Scene;
+    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/furnace.obj");
+    let scene = Scene::load(&path).expect("load furnace");
+    let patches = mesh(&scene, &MeshOptions::no_subdivide(&scene)).expect("mesh").patches;
+    assert_eq!(patches.len(), 6);
+    let f_opp = opposed_unit_squares();
+    assert!((f_opp - 0.199825).abs() < 1e-6, "C-11 gives {f_opp}");
+    let f_adj = (1.0 - f_opp) / 4.0;
+    let rows: Vec<Vec<f64>> = patches
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            patches
+                .iter()
+                .enumerate()
+                .map(|(j, q)| match p.normal.dot(q.normal) {
+                    _ if i == j => 0.0,
+                    d if d < -0.5 => f_opp,
+                    _ => f_adj,
+                })
+                .collect()
+        })
+        .collect();
+    let ff = dense_to_csr(&rows);
+    let lighting = PatchLighting::new(&scene, &patches);
+    let input = BakeInput::from_scene(&scene, &patches, &lighting, &ff);
+    assert_eq!(
+        input.group_names,
+        lighting.dynamic_groups.iter().map(|&g| scene.light_groups[g].name.clone()).collect::<Vec<_>>()
+    );
+    let baked = bake(&input, &BakeOptions::default()).expect("bake");
+    assert_eq!(
+        baked.report.nonzeros_after, 30,
+        "threshold 1e-3 must keep all entries of a 5-entry row of ~0.2"
+    );
+    let table = Table::parse(&baked.table).unwrap();
+    let tau = 1e-6f32;
+    let mut owned = owned_for(&table);
+    let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: tau, overshoot: 0 }).unwrap();
+    let mut converged = false;
+    for _ in 0..10_000 {
+        match solver.step(&table, 64) {
+            Outcome::Converged { .. } => {
+                converged = true;
+                break;
+            }
+            Outcome::BudgetSpent { .. } => {}
+            other => panic!("no progress: {other:?}"),
+        }
+    }
+    assert!(converged);
+    let (rho, exact) = (0.9, 10.0);
+    // As in the synthetic furnace test, plus 2^-11 for a static base's irradiance code (if the scene's group is
+    // static) and 1e-9 relative for the f64 closure of the analytic rows.
+    let bound = rho * 2f64.powi(-12) / (1.0 - rho)
+        + 2f64.powi(-17) / (1.0 - rho)
+        + 2.0 * 2f64.powi(-11)
+        + 6.0 * f64::from(tau) / (1.0 - rho) / exact
+        + f64::from(solver.shots()) * EPS32 / 2.0
+        + 1e-9 / (1.0 - rho);
+    for i in 0..6 {
+        for c in solver.radiosity(&table, i).unwrap() {
+            let rel = (f64::from(c) - exact).abs() / exact;
+            assert!(rel <= bound, "face {i}: B = {c}, rel error {rel:.3e} > {bound:.3e}");
+        }
+    }
+}
