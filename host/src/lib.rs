@@ -3,8 +3,10 @@
 //! Scene loading, meshing into patches, form factors with Embree occlusion rays, the f64 reference solve, table
 //! writing, checks and reports. The physics conventions are those of `radiosity-core`.
 
+pub mod bake;
 pub mod embree;
 pub mod formfactor;
+pub mod inspect;
 pub mod lighting;
 pub mod mesh;
 pub mod metrics;

@@ -1,0 +1,894 @@
+//! Baking: turns patches, their lighting and an f64 form-factor matrix into a table the device runs.
+//!
+//! Steps, in order ([`bake`]):
+//!
+//! 1. **Sparsify** ([`sparsify`]). Entry `F_ij` of shooter row `i` carries the fraction `F_ij` of the power
+//!    leaving patch `i` to receiver `j`; that is the *energy* of an entry, measured by `F` alone, not
+//!    `rho_j F_ij` (a black receiver's entries are kept because a run-time reflectance edit may make it
+//!    reflect). With threshold `t`, an entry is dropped only if two budgets allow it: its row may lose at most
+//!    the fraction `t` of the energy it transports (`d_i <= t s_i`, `s_i` the row sum), and its receiver at most
+//!    the fraction `t` of the power it receives under uniform radiosity (`sum_i A_i dF_ij <= t sum_i A_i F_ij`).
+//!    The row budget alone is not enough: dropping the same small receiver from many rows (a patch lit only
+//!    through weak links, or ties in a uniform row) would leave it dark on the device although no row lost
+//!    much. Entries are visited from the least power `A_i F_ij` up. `t = 0` drops nothing (except entries that
+//!    are exactly zero, which carry nothing). Rows are never renormalized: the dropped energy is reported per
+//!    row (max, mean, largest fraction of a row and of a receiver), in total (the sum of all dropped `F_ij`)
+//!    and area-weighted (`sum_i A_i d_i / sum_i A_i s_i`, the fraction of all transported power under uniform
+//!    radiosity). Both budgets are independent of the lighting (lights change at run time), so a dim patch lit
+//!    mostly through weak links from a bright light can lose more than `t` of its actual irradiance: on a
+//!    random 60-patch scene at `t = 1e-3` the area-weighted relative L2 error is 1e-4 but the worst patch is
+//!    off by 11% (`error_grows_with_threshold_and_fewer_bits` in `host/tests/bake.rs` prints the numbers). The
+//!    report's per-patch maximum shows it.
+//! 2. **Static base.** Static lights are solved in f64 by the reference solver on the sparsified matrix and
+//!    stored as static emission `E_s` and static irradiance `G_s`, with `base_solved = true` (core's crate
+//!    docs, "Static base"), so static light costs the device no work.
+//!    The device shoots (`H_i += F_ji Phi_j`), so what it converges to solves `B = E + R F~ B` with the
+//!    *shooting form* `F~_ij = A_j F_ji / A_i` of the stored rows ([`shooting_form`]). With exact reciprocity
+//!    `F~ = F`; after sparsification (or with estimated form factors) they differ slightly, so the base is
+//!    solved on `F~` and `G_s_i = sum_j F~_ij B_s_j = (1 / A_i) sum_j F_ji A_j B_s_j`: this is exactly a fixed
+//!    point of the device's shooting, so the base stays converged.
+//! 3. **Dynamic light groups** become core's light groups: members are the patches of the group with their
+//!    emission at unit intensity, the group's default intensity, and an id [`group_id`] (FNV-1a of the name).
+//! 4. **Quantize and write** with core's codec ([`codec_for_bits`]: 16 -> `FLOAT16`, 8 -> `FLOAT8`),
+//!    [`required_len`] and [`write_table`].
+//! 5. **Reachability.** A patch needs run-time state if it is a member of a dynamic light group, or if its
+//!    reflectance is nonzero in some channel and it receives a stored entry from a patch that needs state (a
+//!    black receiver's radiosity never changes). Core's solver keeps state for every patch (its buffers and the
+//!    selection tree are indexed by patch), so the count is reported ([`RuntimeState`]) but the table still
+//!    carries every patch; excluding the rest needs a core change.
+//! 6. **Error of the bake** on the scene's own lights (every dynamic group at its default intensity), each a
+//!    [`metrics::compare`] against the f64 solve of the original matrix (`B = E + R F B`):
+//!    `reciprocity` (the shooting form of the original matrix: nonzero only if `F` is not exactly reciprocal),
+//!    `sparsify` (the shooting form of the sparsified matrix, f64) and `sparsify_quantize` (everything decoded
+//!    back from the written table with [`Table::parse`]: form factors, reflectances, areas, emissions).
+//!
+//! [`Capacities`] are the sizes a firmware build needs for exactly this table.
+
+use std::collections::VecDeque;
+use std::fmt;
+
+use radiosity_core::{
+    required_len, write_table, FfCodec, GroupSpec, MemberSpec, PatchSpec, RowsSpec, Table, TableSpec,
+};
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::inspect::{SectionBytes, TableCounts};
+use crate::lighting::PatchLighting;
+use crate::metrics::{self, ErrorReport, MetricsError};
+use crate::patch::{FormFactorMatrix, Patch};
+use crate::reference::{solve_many, GaussSeidelOptions, Method, RadiositySystem, ReferenceError};
+use crate::scene::Scene;
+
+/// Default sparsification threshold: each row may lose at most 0.1% of the energy it transports.
+pub const DEFAULT_THRESHOLD: f64 = 1e-3;
+
+/// Default slack on row sums of the shooting form `F~` above 1 (see [`BakeOptions::row_sum_tolerance`]).
+pub const DEFAULT_ROW_SUM_TOLERANCE: f64 = 1e-4;
+
+/// Settings of a bake.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BakeOptions {
+    /// Sparsification threshold `t` in `[0, 1)`: largest fraction of a row's energy that may be dropped.
+    pub threshold: f64,
+    /// Form-factor codec (see [`codec_for_bits`]).
+    pub codec: FfCodec,
+    /// Slack on row sums above 1 allowed in the f64 solves. The shooting form `F~_ij = A_j F_ji / A_i` of an
+    /// estimated matrix has row sums above 1 by the reciprocity error; the issue's closed-scene target is
+    /// `1e-4`, hence the default.
+    pub row_sum_tolerance: f64,
+    /// Reference solver; `None` picks [`default_method`].
+    pub method: Option<Method>,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        BakeOptions {
+            threshold: DEFAULT_THRESHOLD,
+            codec: FfCodec::FLOAT16,
+            row_sum_tolerance: DEFAULT_ROW_SUM_TOLERANCE,
+            method: None,
+        }
+    }
+}
+
+/// What a bake needs: patches, their lighting, material reflectances, dynamic group names and form factors.
+#[derive(Clone, Debug)]
+pub struct BakeInput<'a> {
+    /// Patches (area and material are used).
+    pub patches: &'a [Patch],
+    /// Reflectance per material (RGB, each in `[0, 1)`); `Patch::material` indexes it.
+    pub materials: Vec<[f64; 3]>,
+    /// Reflectance and emission per patch, with the dynamic light groups.
+    pub lighting: &'a PatchLighting,
+    /// Name of each dynamic light group, in the order of `lighting.dynamic_groups`.
+    pub group_names: Vec<String>,
+    /// Form factors `F_ij` (row `i` = shooter), f64.
+    pub form_factors: &'a FormFactorMatrix,
+}
+
+impl<'a> BakeInput<'a> {
+    /// Collects the input from a scene, its patches, their lighting and the form factors.
+    #[must_use]
+    pub fn from_scene(
+        scene: &Scene,
+        patches: &'a [Patch],
+        lighting: &'a PatchLighting,
+        form_factors: &'a FormFactorMatrix,
+    ) -> BakeInput<'a> {
+        BakeInput {
+            patches,
+            materials: scene.materials.iter().map(|m| m.reflectance).collect(),
+            lighting,
+            group_names: lighting
+                .dynamic_groups
+                .iter()
+                .map(|&g| scene.light_groups[g].name.clone())
+                .collect(),
+            form_factors,
+        }
+    }
+}
+
+/// Why a bake failed.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum BakeError {
+    /// The threshold is not in `[0, 1)`.
+    #[error("sparsification threshold {0} not in [0, 1)")]
+    BadThreshold(f64),
+    /// `--bits` other than 8 or 16.
+    #[error("unsupported form-factor width {0} bits (use 16 or 8)")]
+    BadBits(u32),
+    /// Inputs disagree in length or content.
+    #[error("bake input: {0}")]
+    Input(String),
+    /// Two dynamic light groups hash to the same id.
+    #[error("light groups `{0}` and `{1}` have the same id {2:#010x}; rename one")]
+    GroupIdCollision(String, String, u32),
+    /// The f64 reference solve failed.
+    #[error("f64 reference solve ({what}): {source}")]
+    Reference {
+        /// Which solve.
+        what: &'static str,
+        /// The solver's error.
+        source: ReferenceError,
+    },
+    /// Core's writer rejected the table.
+    #[error("writing the table: {0}")]
+    Write(radiosity_core::WriteError),
+    /// The written table does not parse (a writer bug; never expected).
+    #[error("the written table does not parse: {0}")]
+    Parse(radiosity_core::TableError),
+    /// Error metrics could not be computed.
+    #[error("error metrics: {0}")]
+    Metrics(#[from] MetricsError),
+}
+
+/// The form-factor codec for a code width: 16 -> [`FfCodec::FLOAT16`], 8 -> [`FfCodec::FLOAT8`].
+///
+/// # Errors
+/// [`BakeError::BadBits`] for any other width.
+pub fn codec_for_bits(bits: u32) -> Result<FfCodec, BakeError> {
+    match bits {
+        16 => Ok(FfCodec::FLOAT16),
+        8 => Ok(FfCodec::FLOAT8),
+        _ => Err(BakeError::BadBits(bits)),
+    }
+}
+
+/// Name of a codec for reports (`FLOAT16`, `FLOAT8`, `LINEAR16`, `LINEAR8`, or `E{x}M{y}`).
+#[must_use]
+pub fn codec_name(codec: FfCodec) -> String {
+    match codec {
+        FfCodec::FLOAT16 => "FLOAT16".into(),
+        FfCodec::FLOAT8 => "FLOAT8".into(),
+        FfCodec::LINEAR16 => "LINEAR16".into(),
+        FfCodec::LINEAR8 => "LINEAR8".into(),
+        c => format!("E{}M{}", c.exponent_bits, c.bits.saturating_sub(c.exponent_bits)),
+    }
+}
+
+/// The table id of a light group: 32-bit FNV-1a of its name (Fowler, Noll, Vo; IETF draft
+/// draft-eastlake-fnv), so firmware can refer to a group by a constant derived from its name.
+#[must_use]
+pub fn group_id(name: &str) -> u32 {
+    let mut h: u32 = 0x811c_9dc5;
+    for &b in name.as_bytes() {
+        h ^= u32::from(b);
+        h = h.wrapping_mul(0x0100_0193);
+    }
+    h
+}
+
+/// A sparsified matrix and the energy each row and each receiver lost.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sparsified {
+    /// The kept entries (values unchanged, never renormalized).
+    pub matrix: FormFactorMatrix,
+    /// Per row `i`, the sum of the dropped `F_ij`.
+    pub dropped: Vec<f64>,
+    /// Per receiver `j`, the sum of the dropped `A_i F_ij` (power lost under uniform unit radiosity).
+    pub dropped_incoming: Vec<f64>,
+    /// Per receiver `j`, `sum_i A_i F_ij` over the original entries (power received under uniform unit
+    /// radiosity).
+    pub incoming: Vec<f64>,
+}
+
+/// Drops entries while both the shooter's and the receiver's budgets allow (see the module docs).
+///
+/// Entries are visited in ascending order of the power they carry under uniform unit radiosity, `A_i F_ij`
+/// (ties by shooter, then receiver); entry `(i, j)` is dropped if afterwards row `i` has lost at most
+/// `threshold * s_i` and receiver `j` at most `threshold * sum_k A_k F_kj`. Budgets only fill up, so every kept
+/// entry would overflow one of them.
+///
+/// # Errors
+/// [`BakeError::BadThreshold`] if `threshold` is not in `[0, 1)`, [`BakeError::Input`] if `area` does not have
+/// one entry per patch.
+pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<Sparsified, BakeError> {
+    if !(0.0..1.0).contains(&threshold) {
+        return Err(BakeError::BadThreshold(threshold));
+    }
+    let n = ff.n;
+    if area.len() != n {
+        return Err(input_error(format!("{} areas for {n} patches", area.len())));
+    }
+    let mut row_of = vec![0usize; ff.nonzeros()];
+    let mut incoming = vec![0.0; n];
+    for (i, &a) in area.iter().enumerate() {
+        for k in ff.row_start[i]..ff.row_start[i + 1] {
+            row_of[k] = i;
+            incoming[ff.col[k] as usize] += a * ff.value[k];
+        }
+    }
+    let power = |k: usize| area[row_of[k]] * ff.value[k];
+    let mut order: Vec<usize> = (0..ff.nonzeros()).collect();
+    order.sort_by(|&a, &b| power(a).total_cmp(&power(b)).then(a.cmp(&b)));
+    let row_budget: Vec<f64> = (0..n).map(|i| threshold * ff.row_sum(i)).collect();
+    let mut dropped = vec![0.0; n];
+    let mut dropped_incoming = vec![0.0; n];
+    let mut keep = vec![true; ff.nonzeros()];
+    for k in order {
+        let (i, j, f) = (row_of[k], ff.col[k] as usize, ff.value[k]);
+        let p = area[i] * f;
+        if dropped[i] + f <= row_budget[i] && dropped_incoming[j] + p <= threshold * incoming[j] {
+            dropped[i] += f;
+            dropped_incoming[j] += p;
+            keep[k] = false;
+        }
+    }
+    let mut matrix = FormFactorMatrix { n, row_start: vec![0], col: Vec::new(), value: Vec::new() };
+    for i in 0..n {
+        let range = ff.row_start[i]..ff.row_start[i + 1];
+        for ((&kept, &j), &f) in keep[range.clone()].iter().zip(&ff.col[range.clone()]).zip(&ff.value[range])
+        {
+            if kept {
+                matrix.col.push(j);
+                matrix.value.push(f);
+            }
+        }
+        matrix.row_start.push(matrix.col.len());
+    }
+    Ok(Sparsified { matrix, dropped, dropped_incoming, incoming })
+}
+
+/// The shooting form `F~_ij = A_j F_ji / A_i` of shooter rows `ff` with patch areas `area`: the matrix whose
+/// gathering solve `B = E + R F~ B` is what shooting with `ff` converges to. Equal to `ff` when `ff` is
+/// reciprocal.
+///
+/// # Panics
+/// If `area` is shorter than `ff.n` or a column is out of range.
+#[must_use]
+pub fn shooting_form(ff: &FormFactorMatrix, area: &[f64]) -> FormFactorMatrix {
+    let n = ff.n;
+    let mut count = vec![0usize; n + 1];
+    for &j in &ff.col {
+        count[j as usize + 1] += 1;
+    }
+    for k in 0..n {
+        count[k + 1] += count[k];
+    }
+    let row_start = count.clone();
+    let mut col = vec![0u32; ff.col.len()];
+    let mut value = vec![0.0; ff.col.len()];
+    // Rows of `ff` in increasing order fill each transposed row with increasing columns.
+    for i in 0..n {
+        for (j, f) in ff.row(i) {
+            let at = count[j];
+            col[at] = i as u32;
+            value[at] = area[i] * f / area[j];
+            count[j] += 1;
+        }
+    }
+    FormFactorMatrix { n, row_start, col, value }
+}
+
+/// Energy dropped by sparsification (fractions of power; see the module docs).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EnergyDropped {
+    /// Largest per-row dropped sum `d_i`.
+    pub max_row: f64,
+    /// Mean of `d_i` over rows.
+    pub mean_row: f64,
+    /// Largest `d_i / s_i` (dropped fraction of a row's energy; `<=` the threshold).
+    pub max_row_fraction: f64,
+    /// Largest fraction of a receiver's incoming power (under uniform radiosity) dropped (`<=` the threshold).
+    pub max_receiver_fraction: f64,
+    /// `sum_i d_i`.
+    pub total: f64,
+    /// `sum_i A_i d_i / sum_i A_i s_i`: fraction of all transported power under uniform radiosity.
+    pub area_weighted: f64,
+}
+
+/// A dynamic light group as written to the table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupReport {
+    /// Group name.
+    pub name: String,
+    /// Table id ([`group_id`]).
+    pub id: u32,
+    /// Member patches.
+    pub members: usize,
+    /// Default intensity (RGB).
+    pub default_intensity: [f64; 3],
+}
+
+/// How many patches need run-time state (see the module docs, step 5).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RuntimeState {
+    /// Patches a dynamic light can reach (including the members).
+    pub reachable: usize,
+    /// Patches in the table.
+    pub patches: usize,
+    /// Whether the table and core's solver can leave the unreachable patches out (currently no).
+    pub excluded_by_core: bool,
+}
+
+/// Error of the bake on the scene's own lights (see the module docs, step 6).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BakeErrors {
+    /// Shooting form of the original matrix vs the original (reciprocity of the input).
+    pub reciprocity: ErrorReport,
+    /// Sparsified matrix (f64) vs the original.
+    pub sparsify: ErrorReport,
+    /// Everything decoded from the written table vs the original.
+    pub sparsify_quantize: ErrorReport,
+}
+
+/// The bake summary.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BakeReport {
+    /// Patches.
+    pub patches: usize,
+    /// Materials.
+    pub materials: usize,
+    /// Dynamic light groups.
+    pub groups: Vec<GroupReport>,
+    /// Light-group members in total.
+    pub members: usize,
+    /// Sparsification threshold.
+    pub threshold: f64,
+    /// Nonzero form factors before sparsification.
+    pub nonzeros_before: usize,
+    /// Nonzero form factors after sparsification (table entries).
+    pub nonzeros_after: usize,
+    /// Energy dropped by sparsification.
+    pub energy_dropped: EnergyDropped,
+    /// Codec name ([`codec_name`]).
+    pub codec: String,
+    /// Bits per form-factor code.
+    pub ff_bits: u8,
+    /// Table bytes per section.
+    pub table_bytes: SectionBytes,
+    /// Total table bytes per stored entry.
+    pub bytes_per_entry: f64,
+    /// Whether the static base is solved (always true for a bake).
+    pub base_solved: bool,
+    /// Patches with static emission.
+    pub static_emitters: usize,
+    /// Patches needing run-time state.
+    pub runtime_state: RuntimeState,
+    /// Error introduced by the bake.
+    pub error: BakeErrors,
+    /// Largest relative residual of the f64 solves.
+    pub reference_residual: f64,
+}
+
+impl fmt::Display for BakeReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = &self.energy_dropped;
+        writeln!(f, "patches            {} ({} materials)", self.patches, self.materials)?;
+        writeln!(f, "light groups       {} dynamic, {} members", self.groups.len(), self.members)?;
+        for g in &self.groups {
+            writeln!(
+                f,
+                "  {:<16} id {:#010x}  {} members  default {:?}",
+                g.name, g.id, g.members, g.default_intensity
+            )?;
+        }
+        writeln!(f, "static emitters    {} patches (folded into the solved base)", self.static_emitters)?;
+        writeln!(
+            f,
+            "form factors       {} -> {} nonzeros (threshold {})",
+            self.nonzeros_before, self.nonzeros_after, self.threshold
+        )?;
+        writeln!(
+            f,
+            "energy dropped     per row max {:.3e} mean {:.3e}; max fraction of a row {:.3e}, of a receiver {:.3e}; \
+             total {:.3e}, area-weighted {:.3e}",
+            e.max_row, e.mean_row, e.max_row_fraction, e.max_receiver_fraction, e.total, e.area_weighted
+        )?;
+        writeln!(f, "codec              {} ({} bits)", self.codec, self.ff_bits)?;
+        writeln!(
+            f,
+            "table bytes        {} ({:.2} bytes per entry)",
+            self.table_bytes.total, self.bytes_per_entry
+        )?;
+        writeln!(f, "{}", self.table_bytes)?;
+        writeln!(
+            f,
+            "runtime state      {} of {} patches reachable by a dynamic light (core keeps state for all {})",
+            self.runtime_state.reachable, self.runtime_state.patches, self.runtime_state.patches
+        )?;
+        let line = |name: &str, r: &ErrorReport| {
+            format!(
+                "  {name:<18} rel L2 {:.3e}  max rel {:.3e} (patch {})",
+                r.rel_l2, r.max_rel, r.max_rel_patch
+            )
+        };
+        writeln!(f, "error vs f64 (scene lights at default intensity)")?;
+        writeln!(f, "{}", line("reciprocity", &self.error.reciprocity))?;
+        writeln!(f, "{}", line("sparsify", &self.error.sparsify))?;
+        writeln!(f, "{}", line("sparsify+quantize", &self.error.sparsify_quantize))?;
+        write!(f, "reference residual {:.3e}", self.reference_residual)
+    }
+}
+
+/// Sizes a firmware build needs for one table: every buffer of core's [`radiosity_core::Buffers`] exactly.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Capacities {
+    /// Patches.
+    pub patches: usize,
+    /// Materials.
+    pub materials: usize,
+    /// Light groups.
+    pub groups: usize,
+    /// Light-group members.
+    pub members: usize,
+    /// Stored form-factor entries.
+    pub entries: usize,
+    /// Longest row (entries).
+    pub max_row_len: usize,
+    /// `Buffers::power` elements (`[S; 3]`).
+    pub power: usize,
+    /// `Buffers::unshot` elements (`[S; 3]`).
+    pub unshot: usize,
+    /// `Buffers::incident` elements (`[S; 3]`).
+    pub incident: usize,
+    /// `Buffers::tree` elements (`u32`).
+    pub tree: usize,
+    /// `Buffers::intensity` elements (`[S; 3]`).
+    pub intensity: usize,
+    /// `Buffers::reflectance` elements (`[u16; 3]`).
+    pub reflectance: usize,
+    /// Jacobi scratch elements (`[S; 3]`), only for [`radiosity_core::Solver::step_jacobi`].
+    pub jacobi_scratch: usize,
+    /// Table size in bytes.
+    pub table_bytes: usize,
+}
+
+impl Capacities {
+    /// The capacities of a parsed table (core's `Solver::new` requirements, read from its buffer checks).
+    #[must_use]
+    pub fn of_table(table: &Table<'_>, table_bytes: usize) -> Capacities {
+        let n = table.patch_count() as usize;
+        let max_row_len = (0..table.patch_count())
+            .filter_map(|i| table.row(i))
+            .map(|r| (r.end - r.start) as usize)
+            .max()
+            .unwrap_or(0);
+        let members = (0..table.group_count())
+            .filter_map(|g| table.group_members(g))
+            .map(|r| (r.end - r.start) as usize)
+            .sum();
+        Capacities {
+            patches: n,
+            materials: table.material_count() as usize,
+            groups: table.group_count() as usize,
+            members,
+            entries: table.entry_count() as usize,
+            max_row_len,
+            power: n,
+            unshot: n,
+            incident: n,
+            tree: n,
+            intensity: table.group_count() as usize,
+            reflectance: table.material_count() as usize,
+            jacobi_scratch: n,
+            table_bytes,
+        }
+    }
+
+    /// The capacities as a Rust source file of `pub const NAME: usize = value;` items.
+    #[must_use]
+    pub fn to_rust(&self) -> String {
+        let items: [(&str, &str, usize); 14] = [
+            ("PATCHES", "Patches in the table.", self.patches),
+            ("MATERIALS", "Materials.", self.materials),
+            ("GROUPS", "Light groups.", self.groups),
+            ("MEMBERS", "Light-group members.", self.members),
+            ("ENTRIES", "Stored form-factor entries.", self.entries),
+            ("MAX_ROW_LEN", "Longest form-factor row.", self.max_row_len),
+            ("POWER_LEN", "`Buffers::power` length.", self.power),
+            ("UNSHOT_LEN", "`Buffers::unshot` length.", self.unshot),
+            ("INCIDENT_LEN", "`Buffers::incident` length.", self.incident),
+            ("TREE_LEN", "`Buffers::tree` length.", self.tree),
+            ("INTENSITY_LEN", "`Buffers::intensity` length.", self.intensity),
+            ("REFLECTANCE_LEN", "`Buffers::reflectance` length.", self.reflectance),
+            ("JACOBI_SCRATCH_LEN", "Scratch length for `Solver::step_jacobi`.", self.jacobi_scratch),
+            ("TABLE_BYTES", "Table size in bytes.", self.table_bytes),
+        ];
+        let mut s = String::from(
+            "//! Capacities of one baked table (generated by `radiosity bake`; do not edit).\n\n",
+        );
+        for (name, doc, v) in items {
+            s.push_str(&format!("/// {doc}\npub const {name}: usize = {v};\n"));
+        }
+        s
+    }
+}
+
+/// The result of a bake.
+#[derive(Clone, Debug)]
+pub struct Baked {
+    /// The table bytes.
+    pub table: Vec<u8>,
+    /// The summary.
+    pub report: BakeReport,
+    /// Buffer sizes for firmware.
+    pub capacities: Capacities,
+    /// The sparsified f64 matrix (shooter rows) the table was quantized from.
+    pub sparse: Sparsified,
+    /// Per patch, whether it needs run-time state.
+    pub reachable: Vec<bool>,
+    /// The f64 static solution `B_s` (W/m^2) on the sparsified matrix.
+    pub static_radiosity: Vec<[f64; 3]>,
+}
+
+fn input_error(msg: String) -> BakeError {
+    BakeError::Input(msg)
+}
+
+fn check_input(input: &BakeInput<'_>) -> Result<(), BakeError> {
+    let n = input.patches.len();
+    let l = input.lighting;
+    let lens = [
+        ("form-factor matrix", input.form_factors.n),
+        ("lighting.rho", l.rho.len()),
+        ("lighting.static_emission", l.static_emission.len()),
+        ("lighting.unit_emission", l.unit_emission.len()),
+        ("lighting.group", l.group.len()),
+    ];
+    for (what, len) in lens {
+        if len != n {
+            return Err(input_error(format!("{what} has {len} entries, expected {n} (one per patch)")));
+        }
+    }
+    let g = l.dynamic_groups.len();
+    if l.default_intensity.len() != g || input.group_names.len() != g {
+        return Err(input_error(format!(
+            "{g} dynamic light groups but {} default intensities and {} names",
+            l.default_intensity.len(),
+            input.group_names.len()
+        )));
+    }
+    for (k, p) in input.patches.iter().enumerate() {
+        let Some(rho) = input.materials.get(p.material) else {
+            return Err(input_error(format!("patch {k}: material {} not in the material list", p.material)));
+        };
+        if *rho != l.rho[k] {
+            return Err(input_error(format!(
+                "patch {k}: lighting reflectance {:?} differs from its material's {:?}",
+                l.rho[k], rho
+            )));
+        }
+        if let Some(grp) = l.group[k] {
+            if grp >= g {
+                return Err(input_error(format!("patch {k}: dynamic light group {grp} out of range")));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn to_f32x3(v: [f64; 3]) -> [f32; 3] {
+    v.map(|x| x as f32)
+}
+
+/// Patches needing run-time state (see the module docs, step 5), breadth-first over the stored rows.
+#[must_use]
+pub fn reachable_patches(sparse: &FormFactorMatrix, group: &[Option<usize>], rho: &[[f64; 3]]) -> Vec<bool> {
+    let mut reached = vec![false; sparse.n];
+    let mut queue = VecDeque::new();
+    for (i, g) in group.iter().enumerate() {
+        if g.is_some() {
+            reached[i] = true;
+            queue.push_back(i);
+        }
+    }
+    while let Some(i) = queue.pop_front() {
+        for (j, f) in sparse.row(i) {
+            if f > 0.0 && !reached[j] && rho[j].iter().any(|&r| r > 0.0) {
+                reached[j] = true;
+                queue.push_back(j);
+            }
+        }
+    }
+    reached
+}
+
+/// Radiosity per patch (W/m^2, RGB).
+type Radiosity = Vec<[f64; 3]>;
+
+/// Solves `B = E + R F B` for each right-hand side (one factorization for all with the dense method); returns
+/// each solution and the largest relative residual.
+fn solve_set(
+    what: &'static str,
+    rho: &[[f64; 3]],
+    ff: &FormFactorMatrix,
+    rhs: &[&[[f64; 3]]],
+    options: &BakeOptions,
+) -> Result<(Vec<Radiosity>, f64), BakeError> {
+    let wrap = |source| BakeError::Reference { what, source };
+    let system = RadiositySystem::with_row_sum_tolerance(rho, ff, options.row_sum_tolerance).map_err(wrap)?;
+    let method = options.method.unwrap_or_else(|| default_method(ff.n));
+    let solutions = solve_many(system, rhs, &method).map_err(wrap)?;
+    let residual = solutions.iter().flat_map(|s| s.residual).fold(0.0, f64::max);
+    Ok((solutions.into_iter().map(|s| s.b).collect(), residual))
+}
+
+fn solve_one(
+    what: &'static str,
+    rho: &[[f64; 3]],
+    ff: &FormFactorMatrix,
+    e: &[[f64; 3]],
+    options: &BakeOptions,
+) -> Result<(Radiosity, f64), BakeError> {
+    let (mut b, residual) = solve_set(what, rho, ff, &[e], options)?;
+    Ok((b.pop().unwrap_or_default(), residual))
+}
+
+/// Largest patch count for which a bake solves with dense LU by default.
+pub const DENSE_BAKE_LIMIT: usize = 1024;
+
+/// The bake's default reference solver: dense LU up to [`DENSE_BAKE_LIMIT`] patches, Gauss-Seidel above. A
+/// bake solves four different matrices (original, its shooting form, sparsified, decoded) with up to three
+/// distinct reflectance channels each; at `n` in the thousands that is a dozen `O(n^3)` factorizations, while
+/// a sparse Gauss-Seidel sweep costs `O(nonzeros)`.
+#[must_use]
+pub fn default_method(n: usize) -> Method {
+    if n <= DENSE_BAKE_LIMIT {
+        Method::Dense { limit: DENSE_BAKE_LIMIT }
+    } else {
+        Method::GaussSeidel(GaussSeidelOptions::default())
+    }
+}
+
+/// Everything the device sees, decoded back from a parsed table into f64: reflectance per patch, emission per
+/// patch with every group at its default intensity, areas and the shooter rows.
+struct Decoded {
+    rho: Vec<[f64; 3]>,
+    emission: Vec<[f64; 3]>,
+    area: Vec<f64>,
+    rows: FormFactorMatrix,
+}
+
+fn decode_table(table: &Table<'_>) -> Decoded {
+    use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
+    let n = table.patch_count();
+    let emission_of = |codes: [u16; 3]| codes.map(|c| f64::from(decode_emission_f32(c)));
+    let mut d = Decoded {
+        rho: Vec::with_capacity(n as usize),
+        emission: Vec::with_capacity(n as usize),
+        area: Vec::with_capacity(n as usize),
+        rows: FormFactorMatrix { n: n as usize, row_start: vec![0], col: Vec::new(), value: Vec::new() },
+    };
+    for i in 0..n {
+        let m = table.material(i).unwrap_or(0);
+        let r = table.reflectance(m).unwrap_or([0; 3]);
+        d.rho.push(r.map(|c| f64::from(decode_reflectance(c).to_f32())));
+        d.emission.push(emission_of(table.base_emission(i).unwrap_or([0; 3])));
+        d.area.push(f64::from(table.area(i).unwrap_or(0.0)));
+        for k in table.row(i).unwrap_or(0..0) {
+            if let Some((j, f)) = table.entry(i, k) {
+                d.rows.col.push(j);
+                d.rows.value.push(f64::from(f.to_f32()));
+            }
+        }
+        d.rows.row_start.push(d.rows.col.len());
+    }
+    for g in 0..table.group_count() {
+        let intensity = table.default_intensity(g).unwrap_or([0.0; 3]);
+        for k in table.group_members(g).unwrap_or(0..0) {
+            if let Some(m) = table.member(k) {
+                let e = emission_of(m.emission);
+                for c in 0..3 {
+                    d.emission[m.patch as usize][c] += f64::from(intensity[c]) * e[c];
+                }
+            }
+        }
+    }
+    d
+}
+
+/// Bakes a table (see the module docs for the steps).
+///
+/// # Errors
+/// A bad threshold, inconsistent input, a group id collision, a failing f64 solve, or a table core's writer
+/// rejects (e.g. emission beyond the emission code's range, a row sum above 1).
+pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeError> {
+    check_input(input)?;
+    let n = input.patches.len();
+    let lighting = input.lighting;
+    let ff = input.form_factors;
+    let area: Vec<f64> = input.patches.iter().map(|p| p.area).collect();
+
+    // 1. Sparsify.
+    let sparse = sparsify(ff, &area, options.threshold)?;
+    let row_sums: Vec<f64> = (0..n).map(|i| ff.row_sum(i)).collect();
+    let total_transport: f64 = row_sums.iter().zip(&area).map(|(s, a)| s * a).sum();
+    let energy_dropped = EnergyDropped {
+        max_row: sparse.dropped.iter().copied().fold(0.0, f64::max),
+        mean_row: if n == 0 { 0.0 } else { sparse.dropped.iter().sum::<f64>() / n as f64 },
+        max_row_fraction: sparse
+            .dropped
+            .iter()
+            .zip(&row_sums)
+            .map(|(&d, &s)| if s > 0.0 { d / s } else { 0.0 })
+            .fold(0.0, f64::max),
+        max_receiver_fraction: sparse
+            .dropped_incoming
+            .iter()
+            .zip(&sparse.incoming)
+            .map(|(&d, &s)| if s > 0.0 { d / s } else { 0.0 })
+            .fold(0.0, f64::max),
+        total: sparse.dropped.iter().sum(),
+        area_weighted: if total_transport > 0.0 {
+            sparse.dropped.iter().zip(&area).map(|(d, a)| d * a).sum::<f64>() / total_transport
+        } else {
+            0.0
+        },
+    };
+
+    // 2. Static base on the shooting form of the sparsified matrix.
+    let sparse_shoot = shooting_form(&sparse.matrix, &area);
+    let e = lighting.default_emission();
+    let (sparse_solutions, res_sparse) =
+        solve_set("sparsified", &lighting.rho, &sparse_shoot, &[&lighting.static_emission, &e], options)?;
+    let (b_static, b_sparse) = match <[Radiosity; 2]>::try_from(sparse_solutions) {
+        Ok([s, d]) => (s, d),
+        Err(_) => {
+            return Err(BakeError::Input("reference solver returned the wrong number of solutions".into()))
+        }
+    };
+    let irradiance: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            let mut g = [0.0; 3];
+            for (j, f) in sparse_shoot.row(i) {
+                for c in 0..3 {
+                    g[c] += f * b_static[j][c];
+                }
+            }
+            g
+        })
+        .collect();
+    let patch_specs: Vec<PatchSpec> = input
+        .patches
+        .iter()
+        .enumerate()
+        .map(|(i, p)| PatchSpec {
+            area: p.area as f32,
+            material: u32::try_from(p.material).unwrap_or(u32::MAX),
+            base_emission: to_f32x3(lighting.static_emission[i]),
+            base_irradiance: to_f32x3(irradiance[i]),
+        })
+        .collect();
+
+    // 3. Dynamic light groups.
+    let ids: Vec<u32> = input.group_names.iter().map(|s| group_id(s)).collect();
+    for a in 0..ids.len() {
+        for b in a + 1..ids.len() {
+            if ids[a] == ids[b] {
+                let names = (input.group_names[a].clone(), input.group_names[b].clone());
+                return Err(BakeError::GroupIdCollision(names.0, names.1, ids[a]));
+            }
+        }
+    }
+    let mut members: Vec<Vec<MemberSpec>> = vec![Vec::new(); ids.len()];
+    for (i, g) in lighting.group.iter().enumerate() {
+        if let Some(g) = *g {
+            members[g].push(MemberSpec { patch: i as u32, emission: to_f32x3(lighting.unit_emission[i]) });
+        }
+    }
+    let groups: Vec<GroupSpec<'_>> = ids
+        .iter()
+        .zip(&members)
+        .zip(&lighting.default_intensity)
+        .map(|((&id, m), &d)| GroupSpec { id, default_intensity: to_f32x3(d), members: m })
+        .collect();
+
+    // 4. Quantize and write.
+    let materials: Vec<[f32; 3]> = input.materials.iter().map(|&r| to_f32x3(r)).collect();
+    let row_start: Vec<u32> = sparse.matrix.row_start.iter().map(|&s| s as u32).collect();
+    let form_factor: Vec<f32> = sparse.matrix.value.iter().map(|&f| f as f32).collect();
+    let spec = TableSpec {
+        patches: &patch_specs,
+        materials: &materials,
+        groups: &groups,
+        rows: RowsSpec { row_start: &row_start, receiver: &sparse.matrix.col, form_factor: &form_factor },
+        codec: options.codec,
+        base_solved: true,
+    };
+    let len = required_len(&spec).map_err(BakeError::Write)?;
+    let mut blob = vec![0u8; len];
+    let written = write_table(&spec, &mut blob).map_err(BakeError::Write)?;
+    blob.truncate(written);
+    let table = Table::parse(&blob).map_err(BakeError::Parse)?;
+
+    // 5. Reachability.
+    let reachable = reachable_patches(&sparse.matrix, &lighting.group, &lighting.rho);
+
+    // 6. Errors on the scene's own lights.
+    let (b_ref, r0) = solve_one("original matrix", &lighting.rho, ff, &e, options)?;
+    let (b_recip, r1) =
+        solve_one("original, shooting form", &lighting.rho, &shooting_form(ff, &area), &e, options)?;
+    let dec = decode_table(&table);
+    let (b_dec, r3) =
+        solve_one("decoded table", &dec.rho, &shooting_form(&dec.rows, &dec.area), &dec.emission, options)?;
+    let error = BakeErrors {
+        reciprocity: metrics::compare(&b_recip, &b_ref, &area)?,
+        sparsify: metrics::compare(&b_sparse, &b_ref, &area)?,
+        sparsify_quantize: metrics::compare(&b_dec, &b_ref, &area)?,
+    };
+
+    let counts = TableCounts::of(&table);
+    let table_bytes = SectionBytes::new(&counts, blob.len());
+    let nnz = sparse.matrix.nonzeros();
+    let report = BakeReport {
+        patches: n,
+        materials: input.materials.len(),
+        groups: input
+            .group_names
+            .iter()
+            .zip(&ids)
+            .zip(&members)
+            .zip(&lighting.default_intensity)
+            .map(|(((name, &id), m), &d)| GroupReport {
+                name: name.clone(),
+                id,
+                members: m.len(),
+                default_intensity: d,
+            })
+            .collect(),
+        members: members.iter().map(Vec::len).sum(),
+        threshold: options.threshold,
+        nonzeros_before: ff.nonzeros(),
+        nonzeros_after: nnz,
+        energy_dropped,
+        codec: codec_name(options.codec),
+        ff_bits: options.codec.bits,
+        bytes_per_entry: if nnz == 0 { 0.0 } else { blob.len() as f64 / nnz as f64 },
+        table_bytes,
+        base_solved: true,
+        static_emitters: lighting.static_emission.iter().filter(|e| e.iter().any(|&v| v > 0.0)).count(),
+        runtime_state: RuntimeState {
+            reachable: reachable.iter().filter(|&&r| r).count(),
+            patches: n,
+            excluded_by_core: false,
+        },
+        error,
+        reference_residual: [res_sparse, r0, r1, r3].into_iter().fold(0.0, f64::max),
+    };
+    let capacities = Capacities::of_table(&table, blob.len());
+    Ok(Baked { table: blob, report, capacities, sparse, reachable, static_radiosity: b_static })
+}

@@ -1,0 +1,318 @@
+//! Inspecting a table: validates it with core's [`Table::parse`] and reports its header, counts, section sizes
+//! and statistics, for a terminal ([`fmt::Display`]) or as JSON (serde).
+//!
+//! Section sizes follow core's documented layout (crate docs, "Table layout"); the header's size is what is
+//! left of the blob after the payload and the 4-byte CRC.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use radiosity_core::codec::decode_emission_f32;
+use radiosity_core::{Table, TableError, FORMAT_VERSION};
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::bake::codec_name;
+
+/// The counts of a table that fix its section sizes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct TableCounts {
+    /// Patches `n`.
+    pub patches: usize,
+    /// Materials `m`.
+    pub materials: usize,
+    /// Light groups `g`.
+    pub groups: usize,
+    /// Light-group members `M`.
+    pub members: usize,
+    /// Form-factor entries `nnz`.
+    pub entries: usize,
+    /// Bytes per patch index (2 if `n <= 65536`, else 4).
+    pub index_bytes: usize,
+    /// Bytes per form-factor code.
+    pub code_bytes: usize,
+}
+
+impl TableCounts {
+    /// The counts of a parsed table.
+    #[must_use]
+    pub fn of(table: &Table<'_>) -> TableCounts {
+        let n = table.patch_count() as usize;
+        let members = (0..table.group_count())
+            .filter_map(|g| table.group_members(g))
+            .map(|r| (r.end - r.start) as usize)
+            .sum();
+        TableCounts {
+            patches: n,
+            materials: table.material_count() as usize,
+            groups: table.group_count() as usize,
+            members,
+            entries: table.entry_count() as usize,
+            index_bytes: if n <= 0x1_0000 { 2 } else { 4 },
+            code_bytes: table.codec().code_bytes(),
+        }
+    }
+}
+
+/// Bytes of each part of a table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct SectionBytes {
+    /// Postcard header.
+    pub header: usize,
+    /// Patch areas, materials, static emission and static irradiance.
+    pub patches: usize,
+    /// Material reflectances.
+    pub materials: usize,
+    /// Light-group ids, default intensities and member starts.
+    pub groups: usize,
+    /// Member patches and their unit emission.
+    pub members: usize,
+    /// Row starts and row exponents.
+    pub rows: usize,
+    /// Entry receivers.
+    pub entry_receivers: usize,
+    /// Entry form-factor codes.
+    pub entry_codes: usize,
+    /// Everything between header and CRC.
+    pub payload: usize,
+    /// The CRC-32.
+    pub crc: usize,
+    /// The whole table.
+    pub total: usize,
+}
+
+impl SectionBytes {
+    /// Section sizes of a table of `total` bytes with `counts`.
+    #[must_use]
+    pub fn new(c: &TableCounts, total: usize) -> SectionBytes {
+        let patches = c.patches * (4 + 2 + 6 + 6);
+        let materials = c.materials * 6;
+        let groups = c.groups * (4 + 12) + (c.groups + 1) * 4;
+        let members = c.members * (c.index_bytes + 6);
+        let rows = (c.patches + 1) * 4 + c.patches;
+        let entry_receivers = c.entries * c.index_bytes;
+        let entry_codes = c.entries * c.code_bytes;
+        let payload = patches + materials + groups + members + rows + entry_receivers + entry_codes;
+        SectionBytes {
+            header: total.saturating_sub(payload + 4),
+            patches,
+            materials,
+            groups,
+            members,
+            rows,
+            entry_receivers,
+            entry_codes,
+            payload,
+            crc: 4,
+            total,
+        }
+    }
+}
+
+impl fmt::Display for SectionBytes {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "  header {} | patches {} | materials {} | groups {} | members {} | rows {} | receivers {} | codes {} | crc {}",
+            self.header,
+            self.patches,
+            self.materials,
+            self.groups,
+            self.members,
+            self.rows,
+            self.entry_receivers,
+            self.entry_codes,
+            self.crc
+        )
+    }
+}
+
+/// Minimum, mean and maximum of a per-row statistic.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Stats {
+    /// Minimum.
+    pub min: f64,
+    /// Mean.
+    pub mean: f64,
+    /// Maximum.
+    pub max: f64,
+}
+
+impl Stats {
+    fn of(values: impl Iterator<Item = f64>) -> Stats {
+        let (mut min, mut max, mut sum, mut count) = (f64::INFINITY, f64::NEG_INFINITY, 0.0, 0usize);
+        for v in values {
+            min = min.min(v);
+            max = max.max(v);
+            sum += v;
+            count += 1;
+        }
+        if count == 0 {
+            return Stats { min: 0.0, mean: 0.0, max: 0.0 };
+        }
+        Stats { min, mean: sum / count as f64, max }
+    }
+}
+
+/// One light group of a table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupInfo {
+    /// Position in the table.
+    pub index: u32,
+    /// Identifier (a bake uses FNV-1a of the group name, [`crate::bake::group_id`]).
+    pub id: u32,
+    /// Member patches.
+    pub members: u32,
+    /// Default intensity (RGB).
+    pub default_intensity: [f32; 3],
+}
+
+/// What [`inspect`] found in a valid table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct InspectReport {
+    /// Format version (always [`FORMAT_VERSION`] for a table that parses).
+    pub version: u16,
+    /// CRC-32 of the table.
+    pub crc: u32,
+    /// Counts.
+    pub counts: TableCounts,
+    /// Codec name.
+    pub codec: String,
+    /// Form-factor code width in bits.
+    pub ff_bits: u8,
+    /// Form-factor exponent bits.
+    pub ff_exponent_bits: u8,
+    /// Whether the static base is solved.
+    pub base_solved: bool,
+    /// Bytes per section.
+    pub bytes: SectionBytes,
+    /// Entries per row.
+    pub row_len: Stats,
+    /// Decoded row sums.
+    pub row_sum: Stats,
+    /// Rows with no entries.
+    pub empty_rows: usize,
+    /// Total patch area (scene units squared).
+    pub total_area: f64,
+    /// Patches with nonzero static emission.
+    pub static_emitters: usize,
+    /// Light groups.
+    pub groups: Vec<GroupInfo>,
+}
+
+impl fmt::Display for InspectReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let c = &self.counts;
+        writeln!(f, "table format v{}  crc {:#010x}  valid", self.version, self.crc)?;
+        writeln!(f, "patches      {} (total area {:.6e})", c.patches, self.total_area)?;
+        writeln!(f, "materials    {}", c.materials)?;
+        writeln!(f, "light groups {} ({} members)", c.groups, c.members)?;
+        for g in &self.groups {
+            writeln!(
+                f,
+                "  group {:<3} id {:#010x}  {} members  default {:?}",
+                g.index, g.id, g.members, g.default_intensity
+            )?;
+        }
+        writeln!(
+            f,
+            "static base  {} ({} emitting patches)",
+            if self.base_solved { "solved" } else { "unsolved" },
+            self.static_emitters
+        )?;
+        writeln!(
+            f,
+            "entries      {} ({}, {} bits, {} exponent bits, {}-byte indices)",
+            c.entries, self.codec, self.ff_bits, self.ff_exponent_bits, c.index_bytes
+        )?;
+        writeln!(
+            f,
+            "row length   min {} mean {:.2} max {} ({} empty rows)",
+            self.row_len.min, self.row_len.mean, self.row_len.max, self.empty_rows
+        )?;
+        writeln!(
+            f,
+            "row sum      min {:.6} mean {:.6} max {:.6}",
+            self.row_sum.min, self.row_sum.mean, self.row_sum.max
+        )?;
+        writeln!(f, "bytes        {}", self.bytes.total)?;
+        write!(f, "{}", self.bytes)
+    }
+}
+
+/// Why a table could not be inspected.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum InspectError {
+    /// The file could not be read.
+    #[error("{path}: cannot read: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Core rejected the table.
+    #[error("{source_name}: invalid table: {error}")]
+    Table {
+        /// Where the bytes came from (a path, or `<bytes>`).
+        source_name: String,
+        /// Core's error.
+        error: TableError,
+    },
+}
+
+/// Validates `bytes` with [`Table::parse`] and reports on the table.
+///
+/// # Errors
+/// [`InspectError::Table`] with core's error (source named `<bytes>`).
+pub fn inspect(bytes: &[u8]) -> Result<InspectReport, InspectError> {
+    inspect_named(bytes, "<bytes>")
+}
+
+/// Reads the table file at `path` and inspects it; errors name the file.
+///
+/// # Errors
+/// [`InspectError::Io`] if the file cannot be read, [`InspectError::Table`] if core rejects it.
+pub fn inspect_file(path: &Path) -> Result<InspectReport, InspectError> {
+    let bytes =
+        std::fs::read(path).map_err(|source| InspectError::Io { path: path.to_path_buf(), source })?;
+    inspect_named(&bytes, &path.display().to_string())
+}
+
+fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError> {
+    let table =
+        Table::parse(bytes).map_err(|error| InspectError::Table { source_name: name.to_string(), error })?;
+    let counts = TableCounts::of(&table);
+    let n = table.patch_count();
+    let row_lens: Vec<f64> =
+        (0..n).filter_map(|i| table.row(i)).map(|r| f64::from(r.end - r.start)).collect();
+    let groups = (0..table.group_count())
+        .map(|g| GroupInfo {
+            index: g,
+            id: table.group_id(g).unwrap_or(0),
+            members: table.group_members(g).map_or(0, |r| r.end - r.start),
+            default_intensity: table.default_intensity(g).unwrap_or([0.0; 3]),
+        })
+        .collect();
+    let codec = table.codec();
+    Ok(InspectReport {
+        version: FORMAT_VERSION,
+        crc: table.crc(),
+        counts,
+        codec: codec_name(codec),
+        ff_bits: codec.bits,
+        ff_exponent_bits: codec.exponent_bits,
+        base_solved: table.base_solved(),
+        bytes: SectionBytes::new(&counts, bytes.len()),
+        row_len: Stats::of(row_lens.iter().copied()),
+        row_sum: Stats::of((0..n).filter_map(|i| table.row_sum(i)).map(f64::from)),
+        empty_rows: row_lens.iter().filter(|&&l| l == 0.0).count(),
+        total_area: (0..n).filter_map(|i| table.area(i)).map(f64::from).sum(),
+        static_emitters: (0..n)
+            .filter_map(|i| table.base_emission(i))
+            .filter(|e| e.iter().any(|&c| decode_emission_f32(c) > 0.0))
+            .count(),
+        groups,
+    })
+}
