@@ -48,12 +48,14 @@ fn check_mesh(s: &Scene, patches: &[Patch], edge: f64) {
                 (b - a).cross(d - b).dot(p.normal) > -tol * edge,
                 "patch {k} is not convex at vertex {i}"
             );
-            // Inside the face polygon: on the inner side of each of its (convex) edges.
+            // Inside the face polygon: on the inner side of each of its (convex) edges. The cross product is the
+            // signed distance from the edge's line times the edge's length; a vertex position carries a rounding
+            // error of a few ulps of the coordinates (`tol`), so the distance may be `-tol` at worst.
             let m = poly.vertices.len();
             for j in 0..m {
                 let (q0, q1) = (poly.vertices[j], poly.vertices[(j + 1) % m]);
                 assert!(
-                    (q1 - q0).cross(a - q0).dot(poly.normal) >= -tol * edge,
+                    (q1 - q0).cross(a - q0).dot(poly.normal) >= -tol * (q1 - q0).length(),
                     "patch {k} leaves face {}",
                     p.face
                 );
