@@ -5,8 +5,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
+use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
 use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{write_patch_csv, Format};
+use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem};
 
@@ -30,6 +33,42 @@ enum Command {
         /// Output format.
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
+    },
+    /// Bake a scene into a table for the device: form factors, sparsify, fold static lights, quantize, write.
+    ///
+    /// Prints a summary (sizes, energy dropped, error of sparsify + quantize against the f64 solve) and writes
+    /// TABLE plus, beside it, TABLE.capacities.json and TABLE.capacities.rs (the buffer sizes a firmware build
+    /// needs).
+    Bake {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output table file (.rft).
+        #[arg(short, long, value_name = "TABLE")]
+        output: PathBuf,
+        /// Bits per form-factor code: 16 (small float, relative error < 2^-12) or 8 (< 2^-5).
+        #[arg(long, default_value_t = 16)]
+        bits: u32,
+        /// Sparsification threshold: the largest fraction of a row's (and a receiver's) energy that may be
+        /// dropped.
+        #[arg(long, default_value_t = radiosity_host::bake::DEFAULT_THRESHOLD)]
+        threshold: f64,
+        /// Output format of the summary.
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Validate a table with the device's own parser and print its header and statistics.
+    Inspect {
+        /// The table file (.rft).
+        table: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Run the main job on the bundled Cornell box: bake it, validate the table, and print what it costs.
+    Demo {
+        /// Folder for the outputs.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
     },
     /// Solve the scene exactly in f64 (dense LU up to 4096 patches, Gauss-Seidel above) and print the patch
     /// table: `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`.
@@ -155,6 +194,21 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
         }
+        Command::Bake { scene, output, bits, threshold, format } => {
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            bake_to_files(&p, &output, bits, threshold, format, &mut out)?;
+        }
+        Command::Inspect { table, format } => {
+            let report = inspect_file(&table)?;
+            match format {
+                Format::Json => {
+                    serde_json::to_writer_pretty(&mut out, &report)?;
+                    writeln!(out)?;
+                }
+                Format::Text | Format::Csv => writeln!(out, "{report}")?,
+            }
+        }
+        Command::Demo { out: dir } => demo(&dir, &mut out)?,
         Command::Solve { scene, format } => {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let l = &p.lighting;
@@ -213,5 +267,80 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         }
     }
     out.flush()?;
+    Ok(())
+}
+
+/// Bakes `p` into `output` (plus the capacities files beside it) and prints the summary.
+fn bake_to_files(
+    p: &Prepared,
+    output: &std::path::Path,
+    bits: u32,
+    threshold: f64,
+    format: Format,
+    out: &mut impl Write,
+) -> Result<(), BoxError> {
+    let options = BakeOptions { threshold, codec: codec_for_bits(bits)?, ..BakeOptions::default() };
+    let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
+    let baked = bake(&input, &options)?;
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    }
+    let write = |path: PathBuf, bytes: &[u8]| -> Result<PathBuf, BoxError> {
+        std::fs::write(&path, bytes).map_err(|e| format!("writing {}: {e}", path.display()))?;
+        Ok(path)
+    };
+    let table = write(output.to_path_buf(), &baked.table)?;
+    let json = write(
+        with_suffix(output, ".capacities.json"),
+        serde_json::to_string_pretty(&baked.capacities)?.as_bytes(),
+    )?;
+    let rust = write(with_suffix(output, ".capacities.rs"), baked.capacities.to_rust().as_bytes())?;
+    match format {
+        Format::Json => {
+            serde_json::to_writer_pretty(&mut *out, &baked.report)?;
+            writeln!(out)?;
+        }
+        Format::Text | Format::Csv => {
+            writeln!(out, "{}", baked.report)?;
+            writeln!(out, "wrote {}, {}, {}", table.display(), json.display(), rust.display())?;
+        }
+    }
+    Ok(())
+}
+
+/// `path` with `suffix` appended to its file name.
+fn with_suffix(path: &std::path::Path, suffix: &str) -> PathBuf {
+    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    name.push(suffix);
+    path.with_file_name(name)
+}
+
+/// The bundled Cornell box, from the repository root or from beside the binary's crate.
+fn cornell_box_path() -> PathBuf {
+    let local = PathBuf::from("scenes/cornell-box.obj");
+    if local.exists() {
+        local
+    } else {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj")
+    }
+}
+
+/// The main job on the Cornell box: prepare, bake, validate the table with the device's parser.
+fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
+    let scene = cornell_box_path();
+    writeln!(out, "== Cornell box: {}", scene.display())?;
+    let options = PrepareOptions {
+        no_subdivide: false,
+        max_patch_edge: None,
+        max_patches: None,
+        form_factors: FormFactorOptions::default(),
+        verbose: true,
+    };
+    let p = prepare(&scene, &options)?;
+    writeln!(out, "\n== bake (16-bit codes)")?;
+    let table = dir.join("cornell-box.rft");
+    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, Format::Text, out)?;
+    writeln!(out, "\n== inspect {} (validated by the device's own parser)", table.display())?;
+    writeln!(out, "{}", inspect_file(&table)?)?;
     Ok(())
 }

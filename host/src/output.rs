@@ -21,7 +21,8 @@ pub enum Format {
 }
 
 /// Header of the patch table CSV.
-pub const PATCH_CSV_HEADER: &str = "patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b";
+pub const PATCH_CSV_HEADER: &str =
+    "patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b";
 
 /// Writes the patch table CSV: one row per patch with its geometry, reflectance `rho`, emission `e` and
 /// radiosity `b`.

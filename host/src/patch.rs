@@ -61,21 +61,83 @@ impl FormFactorMatrix {
         self.col.len()
     }
 
-    /// Scales down every row whose sum exceeds 1 so that it sums to exactly 1, and says what it did.
+    /// Makes the matrix reciprocal, `A_i F_ij = A_j F_ji` exactly, by replacing both sides of every pair with
+    /// their mean, and returns the largest relative change `|A_i F_ij - A_j F_ji| / (A_i F_ij + A_j F_ji)`.
+    ///
+    /// Estimated form factors break reciprocity where the quadrature over the sending patch is poor (a patch
+    /// cut by another patch's plane, e.g. a floor patch that runs under a block); averaging the two estimates of
+    /// the same energy exchange is the standard repair, and keeps what the device shoots (`A_j F_ji / A_i`) equal
+    /// to what the reference gathers (`F_ij`). Entries present on one side only get their mirror entry.
+    ///
+    /// # Panics
+    /// If `area.len() != self.n`.
+    pub fn enforce_reciprocity(&mut self, area: &[f64]) -> f64 {
+        assert_eq!(area.len(), self.n, "one area per patch");
+        // Every energy exchange A_i F_ij, once as (i, j) and once as its mirror (j, i), halved.
+        let mut exchange: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * self.nonzeros());
+        for i in 0..self.n {
+            for (j, f) in self.row(i) {
+                let g = 0.5 * area[i] * f;
+                exchange.push((i as u32, j as u32, g));
+                exchange.push((j as u32, i as u32, g));
+            }
+        }
+        exchange.sort_unstable_by_key(|&(i, j, _)| (i, j));
+        let mut max_change: f64 = 0.0;
+        let (mut row_start, mut col, mut value) = (vec![0], Vec::new(), Vec::new());
+        let mut k = 0;
+        for i in 0..self.n {
+            while k < exchange.len() && exchange[k].0 as usize == i {
+                let (_, j, g0) = exchange[k];
+                let mut g = g0;
+                let mut parts = 1;
+                k += 1;
+                if k < exchange.len() && exchange[k].0 as usize == i && exchange[k].1 == j {
+                    g += exchange[k].2;
+                    parts += 1;
+                    k += 1;
+                }
+                // With both sides present, g0 and the second part are the halves of the two estimates.
+                let change = if parts == 2 { (g0 - (g - g0)).abs() / g } else { 1.0 };
+                max_change = max_change.max(change);
+                col.push(j);
+                value.push(g / area[i]);
+            }
+            row_start.push(col.len());
+        }
+        self.row_start = row_start;
+        self.col = col;
+        self.value = value;
+        max_change
+    }
+
+    /// Scales down every row whose sum exceeds 1 so that no row sum exceeds 1, and says what it did.
     ///
     /// A row sum above 1 is impossible physically (a patch cannot send more than all its power) and comes only
     /// from estimation noise in the visibility of partly occluded pairs. The solvers need row sums `<= 1` to
     /// converge, so such rows are scaled, and the caller reports the returned [`RowClamp`]: nothing is changed
-    /// silently. Rows at or below 1 are never touched (open scenes keep their escaping energy).
+    /// silently. Each entry `(i, j)` is scaled by `min(s_i, s_j)` with `s_i = min(1, 1 / rowsum_i)`, so a
+    /// reciprocal matrix stays reciprocal (the shooting form `A_j F_ji / A_i` that the device uses then obeys the
+    /// same bound). Rows of a scene whose entries all have `s = 1` are never touched: open scenes keep their
+    /// escaping energy.
     pub fn clamp_rows_to_one(&mut self) -> RowClamp {
         let mut clamp = RowClamp::default();
-        for i in 0..self.n {
-            let sum = self.row_sum(i);
-            if sum > 1.0 {
-                clamp.rows += 1;
-                clamp.max_excess = clamp.max_excess.max(sum - 1.0);
-                for v in &mut self.value[self.row_start[i]..self.row_start[i + 1]] {
-                    *v /= sum;
+        let scale: Vec<f64> = (0..self.n)
+            .map(|i| {
+                let sum = self.row_sum(i);
+                if sum > 1.0 {
+                    clamp.rows += 1;
+                    clamp.max_excess = clamp.max_excess.max(sum - 1.0);
+                    1.0 / sum
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        if clamp.rows > 0 {
+            for i in 0..self.n {
+                for k in self.row_start[i]..self.row_start[i + 1] {
+                    self.value[k] *= scale[i].min(scale[self.col[k] as usize]);
                 }
             }
         }

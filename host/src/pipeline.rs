@@ -37,8 +37,10 @@ pub struct Prepared {
     pub form_factors: FormFactorMatrix,
     /// Statistics of the form-factor computation (before rows above 1 were scaled).
     pub stats: FormFactorStats,
-    /// Rows that summed to more than 1 and were scaled to 1.
+    /// Rows that summed to more than 1 (after reciprocity was enforced) and were scaled to 1.
     pub clamp: RowClamp,
+    /// Largest relative difference between the two estimates of a pair's energy exchange, before averaging.
+    pub reciprocity_change: f64,
 }
 
 /// Why the pipeline stopped; the message names the stage and the input.
@@ -84,7 +86,8 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
     if let Some(budget) = options.max_patches {
         mesh_options.patch_budget = budget;
     }
-    let meshed = mesh(&scene, &mesh_options).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
+    let meshed =
+        mesh(&scene, &mesh_options).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
     if options.verbose {
         eprintln!(
             "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {:.4})",
@@ -98,6 +101,8 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
     }
     let (mut form_factors, stats) = compute_form_factors(&meshed.patches, &options.form_factors)
         .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
+    let areas: Vec<f64> = meshed.patches.iter().map(|q| q.area).collect();
+    let reciprocity_change = form_factors.enforce_reciprocity(&areas);
     let clamp = form_factors.clamp_rows_to_one();
     if options.verbose {
         eprintln!(
@@ -111,6 +116,10 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             stats.elapsed.as_secs_f64(),
             stats.rays_per_second / 1e6
         );
+        eprintln!(
+            "form factors: reciprocity enforced (each pair's two estimates averaged; largest relative \
+             difference {reciprocity_change:.2e})"
+        );
         if clamp.rows > 0 {
             eprintln!(
                 "form factors: {} rows summed to more than 1 (visibility noise; largest excess {:.2e}) and were \
@@ -120,5 +129,5 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         }
     }
     let lighting = PatchLighting::new(&scene, &meshed.patches);
-    Ok(Prepared { scene, patches: meshed.patches, lighting, form_factors, stats, clamp })
+    Ok(Prepared { scene, patches: meshed.patches, lighting, form_factors, stats, clamp, reciprocity_change })
 }
