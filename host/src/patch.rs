@@ -75,9 +75,9 @@ impl FormFactorMatrix {
         assert_eq!(area.len(), self.n, "one area per patch");
         // Every energy exchange A_i F_ij, once as (i, j) and once as its mirror (j, i), halved.
         let mut exchange: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * self.nonzeros());
-        for i in 0..self.n {
+        for (i, &a) in area.iter().enumerate() {
             for (j, f) in self.row(i) {
-                let g = 0.5 * area[i] * f;
+                let g = 0.5 * a * f;
                 exchange.push((i as u32, j as u32, g));
                 exchange.push((j as u32, i as u32, g));
             }
@@ -86,7 +86,7 @@ impl FormFactorMatrix {
         let mut max_change: f64 = 0.0;
         let (mut row_start, mut col, mut value) = (vec![0], Vec::new(), Vec::new());
         let mut k = 0;
-        for i in 0..self.n {
+        for (i, &a) in area.iter().enumerate() {
             while k < exchange.len() && exchange[k].0 as usize == i {
                 let (_, j, g0) = exchange[k];
                 let mut g = g0;
@@ -101,7 +101,7 @@ impl FormFactorMatrix {
                 let change = if parts == 2 { (g0 - (g - g0)).abs() / g } else { 1.0 };
                 max_change = max_change.max(change);
                 col.push(j);
-                value.push(g / area[i]);
+                value.push(g / a);
             }
             row_start.push(col.len());
         }
