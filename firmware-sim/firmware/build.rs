@@ -55,10 +55,16 @@ fn run() -> Result<(), String> {
         table_path.display().to_string()
     ));
     code.push_str(&scripts.to_rust());
-    std::fs::write(out.join("generated.rs"), code).map_err(|e| e.to_string())?;
-
+    // SysTick's clock under QEMU: mps2-an386 25 MHz, microbit (nRF51) 16 MHz. With `-icount shift=0` an
+    // instruction takes 1 ns, so a tick is 40 (resp. 62.5 = 125 / 2) instructions.
     let target = std::env::var("TARGET").unwrap_or_default();
-    let memory = if target.starts_with("thumbv6m") { "memory-microbit.x" } else { "memory-mps2-an386.x" };
+    let m0 = target.starts_with("thumbv6m");
+    let (memory, per_tick) =
+        if m0 { ("memory-microbit.x", (125, 2)) } else { ("memory-mps2-an386.x", (40, 1)) };
+    code.push_str(&format!(
+        "/// Instructions per SysTick tick, as a fraction.\npub const INSTRUCTIONS_PER_TICK: (u64, u64) = {per_tick:?};\n"
+    ));
+    std::fs::write(out.join("generated.rs"), code).map_err(|e| e.to_string())?;
     std::fs::copy(dir.join(memory), out.join("memory.x")).map_err(|e| format!("{memory}: {e}"))?;
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={memory}");

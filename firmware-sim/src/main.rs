@@ -100,33 +100,7 @@ fn simulate(
     csv: Option<&mut dyn std::io::Write>,
 ) -> Result<Vec<ScriptSummary>, String> {
     let table = Table::parse(bytes).map_err(|e| e.to_string())?;
-    let selected: Vec<_> = scripts.scripts.iter().filter(|s| only.is_none_or(|n| n == s.name)).collect();
-    if selected.is_empty() {
-        return Err(format!("no script named {:?}", only.unwrap_or("")));
-    }
-    // Views borrow the owned scripts; build them all, then run.
-    let frames: Vec<Vec<firmware_sim::device::Frame<'_>>> = selected
-        .iter()
-        .map(|s| {
-            s.frames
-                .iter()
-                .map(|f| firmware_sim::device::Frame { budget: f.budget, intensity: &f.intensity })
-                .collect()
-        })
-        .collect();
-    let views: Vec<firmware_sim::device::Script<'_>> = selected
-        .iter()
-        .zip(&frames)
-        .map(|(s, f)| firmware_sim::device::Script {
-            name: &s.name,
-            tolerance: s.tolerance,
-            initial: &s.initial,
-            boot_budget: s.boot_budget,
-            frames: f,
-        })
-        .collect();
-    let refs: Vec<&firmware_sim::device::Script<'_>> = views.iter().collect();
-    sim::simulate_with(arith, &table, &refs, csv).map_err(|e| e.to_string())
+    sim::simulate_file(arith, &table, scripts, only, csv).map_err(|e| e.to_string())
 }
 
 fn print_summary(arith: Arith, summaries: &[ScriptSummary]) {
@@ -208,7 +182,10 @@ fn run(args: &[String]) -> Result<(), String> {
             let mut parsed = Vec::new();
             for l in &logs {
                 let text = std::fs::read_to_string(l).map_err(|e| format!("{l}: {e}"))?;
-                parsed.push((l.to_string(), QemuLog::parse(&text).map_err(|e| format!("{l}: {e}"))?));
+                let name = Path::new(l)
+                    .file_stem()
+                    .map_or_else(|| l.to_string(), |s| s.to_string_lossy().into_owned());
+                parsed.push((name, QemuLog::parse(&text).map_err(|e| format!("{l}: {e}"))?));
             }
             let clock: f64 =
                 o.get("clock-mhz").unwrap_or("100").parse().map_err(|_| "--clock-mhz: a number")?;

@@ -8,7 +8,8 @@ use std::io::Write;
 
 use radiosity_core::{Buffers, Fixed, Scalar, Solver, Table};
 
-use crate::device::{self, write_trace, Bits, FrameRecord, NoMeter, RunError, Script};
+use crate::device::{self, write_trace, Bits, Frame, FrameRecord, NoMeter, RunError, Script};
+use crate::script::{OwnedScript, ScriptFile};
 
 /// The arithmetic a run uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -158,6 +159,8 @@ pub enum SimError {
     },
     /// Writing the CSV failed.
     Io(std::io::Error),
+    /// No script of that name.
+    NoScript(String),
 }
 
 impl std::fmt::Display for SimError {
@@ -165,6 +168,7 @@ impl std::fmt::Display for SimError {
         match self {
             SimError::Run { script, error } => write!(f, "script \"{script}\": {error}"),
             SimError::Io(e) => write!(f, "writing CSV: {e}"),
+            SimError::NoScript(name) => write!(f, "no script named {name:?}"),
         }
     }
 }
@@ -233,4 +237,39 @@ pub fn simulate_with(
         Arith::F32 => simulate::<f32>(table, scripts, csv),
         Arith::Fixed => simulate::<Fixed>(table, scripts, csv),
     }
+}
+
+/// [`simulate_with`] on the scripts of a parsed file (`only`: just the script of that name).
+///
+/// # Errors
+/// [`SimError`]; a name that matches no script gives [`SimError::NoScript`].
+pub fn simulate_file(
+    arith: Arith,
+    table: &Table<'_>,
+    file: &ScriptFile,
+    only: Option<&str>,
+    csv: Option<&mut dyn Write>,
+) -> Result<Vec<ScriptSummary>, SimError> {
+    let selected: Vec<&OwnedScript> =
+        file.scripts.iter().filter(|s| only.is_none_or(|n| n == s.name)).collect();
+    if selected.is_empty() {
+        return Err(SimError::NoScript(only.unwrap_or_default().to_string()));
+    }
+    let frames: Vec<Vec<Frame<'_>>> = selected
+        .iter()
+        .map(|s| s.frames.iter().map(|f| Frame { budget: f.budget, intensity: &f.intensity }).collect())
+        .collect();
+    let views: Vec<Script<'_>> = selected
+        .iter()
+        .zip(&frames)
+        .map(|(s, f)| Script {
+            name: &s.name,
+            tolerance: s.tolerance,
+            initial: &s.initial,
+            boot_budget: s.boot_budget,
+            frames: f,
+        })
+        .collect();
+    let refs: Vec<&Script<'_>> = views.iter().collect();
+    simulate_with(arith, table, &refs, csv)
 }

@@ -22,7 +22,7 @@ use radiosity_core::{Buffers, Scalar, Table};
 mod generated {
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
-use generated::{GROUPS, MATERIALS, PATCHES, SCRIPTS, TABLE};
+use generated::{GROUPS, INSTRUCTIONS_PER_TICK, MATERIALS, PATCHES, SCRIPTS, TABLE};
 
 /// The solver's arithmetic.
 #[cfg(not(feature = "fixed"))]
@@ -33,9 +33,6 @@ type S = radiosity_core::Fixed;
 
 /// SysTick reload: the full 24 bits, so the counter wraps every 2^24 ticks.
 const RELOAD: u32 = 0x00FF_FFFF;
-/// Instructions per SysTick tick: SysTick runs on the 25 MHz board clock and `-icount shift=0` makes one
-/// instruction take 1 ns of virtual time, so one tick is 40 instructions. Checked at boot by `CAL`.
-const INSTRUCTIONS_PER_TICK: u64 = 40;
 /// Iterations of the calibration loop (`cortex_m::asm::delay`: `subs` + `bne`, 2 instructions each).
 const CAL_CYCLES: u32 = 2_000_000;
 
@@ -61,7 +58,7 @@ fn now_ticks() -> u64 {
     }
 }
 
-/// Instructions per frame from SysTick (resolution one tick = 40 instructions).
+/// Instructions per frame from SysTick (resolution one tick: 40 instructions on mps2-an386, 62.5 on microbit).
 struct SysTickMeter {
     start: u64,
 }
@@ -74,7 +71,11 @@ impl Meter for SysTickMeter {
     }
     fn stop(&mut self) -> u64 {
         compiler_fence(Ordering::SeqCst);
-        now_ticks().saturating_sub(self.start) * INSTRUCTIONS_PER_TICK
+        // Instructions per tick (from the build script): SysTick runs on the board clock (mps2-an386 25 MHz,
+        // microbit 16 MHz) and `-icount shift=0` makes one instruction take 1 ns of virtual time. Checked at
+        // boot by `CAL`.
+        let (num, den) = INSTRUCTIONS_PER_TICK;
+        now_ticks().saturating_sub(self.start) * num / den
     }
 }
 
