@@ -23,9 +23,15 @@ cargo build --locked -q -p firmware-sim
 sim="${CARGO_TARGET_DIR:-target}/debug/firmware-sim"
 for target in m4-f32 m4-fixed m0-fixed; do
     echo "--- $target"
-    "$sim" qemu "${args[@]}" --target "$target" --timeout 120 --log "$out/$target.log"
+    "$sim" qemu "${args[@]}" --target "$target" --timeout 120 --log "$out/$target.log" | tee "$out/$target.txt"
 done
 "$sim" cost --log "$out/m4-f32.log" --log "$out/m4-fixed.log" --log "$out/m0-fixed.log" --out "$out/COST.md"
+{
+    printf '\n## Sizes (arm-none-eabi-size)\n\n'
+    for target in m4-f32 m4-fixed m0-fixed; do
+        grep -h '^size:' "$out/$target.txt" | sed "s/^size: /- $target: /"
+    done
+} >>"$out/COST.md"
 cat "$out/COST.md"
 if [[ "${1:-}" == "--update" ]]; then
     cp "$out/COST.md" firmware-sim/COST.md

@@ -218,9 +218,10 @@ fn qemu_run(
     if let Ok(out) = std::process::Command::new("arm-none-eabi-size").arg("-A").arg(&elf).output() {
         let sizes = qemu::Sizes::parse(&String::from_utf8_lossy(&out.stdout));
         println!(
-            "{} ({}): flash {} bytes, RAM {} bytes (static; stack not included)",
+            "size: {} ({:?}, {} bytes of table): flash {} bytes, RAM {} bytes (static; the stack comes on top)",
             target.triple,
-            elf.display(),
+            target.arith,
+            bytes.len(),
             sizes.flash,
             sizes.ram
         );
