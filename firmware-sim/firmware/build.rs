@@ -1,0 +1,73 @@
+//! Compiles the table and the relight scripts into the firmware.
+//!
+//! - `RADIOSITY_TABLE` (default `../tables/uniform-enclosure.rft`): the table, `include_bytes!`-ed into flash.
+//!   It is parsed here with core's `Table::parse`, and its counts size the solver's static buffers, so a baked
+//!   table drops in by changing this one path.
+//! - `RADIOSITY_SCRIPTS` (default `../../scenes/cornell-box.relight.toml`): the relight scripts, parsed and
+//!   validated with firmware-sim's parser and written out as const data.
+//! - The linker memory map follows the target: `memory-mps2-an386.x` (Cortex-M4, 512 KiB flash / 64 KiB RAM
+//!   budget) or `memory-microbit.x` (Cortex-M0, 256 KiB / 16 KiB).
+use std::path::{Path, PathBuf};
+
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn path_from_env(var: &str, default: &str, dir: &Path) -> PathBuf {
+    println!("cargo:rerun-if-env-changed={var}");
+    let p = std::env::var_os(var).map_or_else(|| dir.join(default), PathBuf::from);
+    if p.is_absolute() {
+        p
+    } else {
+        dir.join(p)
+    }
+}
+
+fn run() -> Result<(), String> {
+    let dir = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").map_err(|e| e.to_string())?);
+    let out = PathBuf::from(std::env::var("OUT_DIR").map_err(|e| e.to_string())?);
+    let table_path = path_from_env("RADIOSITY_TABLE", "../tables/uniform-enclosure.rft", &dir);
+    let scripts_path = path_from_env("RADIOSITY_SCRIPTS", "../../scenes/cornell-box.relight.toml", &dir);
+    println!("cargo:rerun-if-changed={}", table_path.display());
+    println!("cargo:rerun-if-changed={}", scripts_path.display());
+
+    let bytes = std::fs::read(&table_path)
+        .map_err(|e| format!("{}: cannot read table: {e}", table_path.display()))?;
+    let table = radiosity_core::Table::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
+    let scripts = firmware_sim::script::ScriptFile::load(&scripts_path).map_err(|e| e.to_string())?;
+    scripts.check_table(table.group_count()).map_err(|e| format!("{}: {e}", scripts_path.display()))?;
+
+    let mut code = String::new();
+    code.push_str(&format!(
+        "// Table {} ({} bytes), scripts {}.\n",
+        table_path.display(),
+        bytes.len(),
+        scripts_path.display()
+    ));
+    code.push_str(&format!("pub const PATCHES: usize = {};\n", table.patch_count()));
+    code.push_str(&format!("pub const GROUPS: usize = {};\n", table.group_count()));
+    code.push_str(&format!("pub const MATERIALS: usize = {};\n", table.material_count()));
+    code.push_str(&format!(
+        "pub static TABLE: &[u8] = include_bytes!({:?});\n",
+        table_path.display().to_string()
+    ));
+    code.push_str(&scripts.to_rust());
+    // SysTick's clock under QEMU: mps2-an386 25 MHz, microbit (nRF51) 16 MHz. With `-icount shift=0` an
+    // instruction takes 1 ns, so a tick is 40 (resp. 62.5 = 125 / 2) instructions.
+    let target = std::env::var("TARGET").unwrap_or_default();
+    let m0 = target.starts_with("thumbv6m");
+    let (memory, per_tick) =
+        if m0 { ("memory-microbit.x", (125, 2)) } else { ("memory-mps2-an386.x", (40, 1)) };
+    code.push_str(&format!(
+        "/// Instructions per SysTick tick, as a fraction.\npub const INSTRUCTIONS_PER_TICK: (u64, u64) = {per_tick:?};\n"
+    ));
+    std::fs::write(out.join("generated.rs"), code).map_err(|e| e.to_string())?;
+    std::fs::copy(dir.join(memory), out.join("memory.x")).map_err(|e| format!("{memory}: {e}"))?;
+    println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rerun-if-changed={memory}");
+    println!("cargo:rerun-if-changed=build.rs");
+    Ok(())
+}

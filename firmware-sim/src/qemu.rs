@@ -1,0 +1,241 @@
+//! Building the firmware, running it under QEMU, and reading its semihosting output.
+//!
+//! The firmware prints one line per event (all fields comma-separated):
+//! - `CAL,<instructions expected>,<instructions measured>`: the SysTick calibration loop at boot;
+//! - `B,<arith>,<script>,<boot units>`: a script's boot solve;
+//! - `F,...`: a frame, as [`crate::device::write_trace`] formats it (the last field is instructions);
+//! - `E,<script>,<message>`: a script failed;
+//! - `DONE,<failures>`: the end; the exit status is 0 if no script failed.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::sim::{Arith, ScriptSummary};
+
+/// One target the firmware is built for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Target {
+    /// Rust target triple.
+    pub triple: &'static str,
+    /// Arithmetic (the firmware's cargo feature `fixed` for [`Arith::Fixed`]).
+    pub arith: Arith,
+    /// QEMU machine and CPU arguments.
+    pub machine: &'static [&'static str],
+}
+
+/// Cortex-M4F (mps2-an386), f32.
+pub const M4_F32: Target = Target {
+    triple: "thumbv7em-none-eabihf",
+    arith: Arith::F32,
+    machine: &["-machine", "mps2-an386", "-cpu", "cortex-m4"],
+};
+/// Cortex-M4F (mps2-an386), fixed point.
+pub const M4_FIXED: Target = Target {
+    triple: "thumbv7em-none-eabihf",
+    arith: Arith::Fixed,
+    machine: &["-machine", "mps2-an386", "-cpu", "cortex-m4"],
+};
+/// Cortex-M0 (BBC micro:bit, nRF51), fixed point.
+pub const M0_FIXED: Target =
+    Target { triple: "thumbv6m-none-eabi", arith: Arith::Fixed, machine: &["-machine", "microbit"] };
+
+/// The firmware's cargo workspace: `firmware-sim/firmware`.
+#[must_use]
+pub fn firmware_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("firmware")
+}
+
+/// Builds the firmware for `target` (release) with the table at `table` and the scripts at `scripts`; returns
+/// the ELF path.
+///
+/// # Errors
+/// A message with cargo's output if the build fails.
+pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<PathBuf, String> {
+    let dir = firmware_dir();
+    let target_dir = dir.join("target").join(match target.arith {
+        Arith::F32 => "f32",
+        Arith::Fixed => "fixed",
+    });
+    let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    cmd.current_dir(&dir)
+        .args(["build", "--release", "--target", target.triple])
+        .arg("--target-dir")
+        .arg(&target_dir)
+        .env("RADIOSITY_TABLE", table)
+        .env("RADIOSITY_SCRIPTS", scripts)
+        // The root workspace's settings must not leak into the firmware's build.
+        .env_remove("CARGO_TARGET_DIR")
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS");
+    if target.arith == Arith::Fixed {
+        cmd.args(["--features", "fixed"]);
+    }
+    let out = cmd.output().map_err(|e| format!("cannot run cargo for the firmware: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "firmware build for {} failed:\n{}",
+            target.triple,
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    Ok(target_dir.join(target.triple).join("release").join("radiosity-firmware"))
+}
+
+/// QEMU's `-icount` setting: `shift=0`, one instruction per nanosecond of virtual time, so SysTick (25 MHz on
+/// mps2-an386) advances one tick per 40 instructions.
+pub const ICOUNT: &str = "shift=0,align=off,sleep=off";
+
+/// Runs `elf` under `qemu-system-arm` for `target`, killed after `timeout_s` seconds; returns its output and
+/// whether it exited with status 0.
+///
+/// # Errors
+/// A message saying QEMU is missing (install it with `make deps`) or did not finish.
+pub fn run_qemu(target: Target, elf: &Path, timeout_s: u32) -> Result<(String, bool), String> {
+    let probe = Command::new("qemu-system-arm").arg("--version").output();
+    if probe.is_err() {
+        return Err("qemu-system-arm not found: install it with `make deps` (scripts/deps.sh)".into());
+    }
+    let out = Command::new("timeout")
+        .arg(timeout_s.to_string())
+        .arg("qemu-system-arm")
+        .args(target.machine)
+        .args(["-nographic", "-semihosting-config", "enable=on,target=native", "-icount", ICOUNT, "-kernel"])
+        .arg(elf)
+        .output()
+        .map_err(|e| format!("cannot run qemu-system-arm: {e}"))?;
+    if out.status.code() == Some(124) {
+        return Err(format!("QEMU did not finish within {timeout_s} s ({})", elf.display()));
+    }
+    Ok((String::from_utf8_lossy(&out.stdout).into_owned(), out.status.success()))
+}
+
+/// A frame line of the firmware's output, split.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct QemuFrame {
+    /// The line without its last field (what must match the host).
+    pub key: String,
+    /// Script name.
+    pub script: String,
+    /// Budget (work units).
+    pub budget: u32,
+    /// Units used by the step.
+    pub used: u32,
+    /// Units of the light changes.
+    pub light_units: u32,
+    /// Instructions measured.
+    pub instructions: u64,
+}
+
+/// The firmware's output, parsed.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct QemuLog {
+    /// `(expected, measured)` instructions of the calibration loop.
+    pub calibration: Option<(u64, u64)>,
+    /// Frame lines in order.
+    pub frames: Vec<QemuFrame>,
+    /// `E` lines.
+    pub errors: Vec<String>,
+    /// Whether `DONE,0` was seen.
+    pub done_ok: bool,
+}
+
+fn field<T: std::str::FromStr>(parts: &[&str], k: usize, line: &str) -> Result<T, String> {
+    parts
+        .get(k)
+        .and_then(|s| s.parse().ok())
+        .ok_or_else(|| format!("firmware output: field {k} missing or malformed in line {line:?}"))
+}
+
+impl QemuLog {
+    /// Parses the firmware's output (other lines are ignored).
+    ///
+    /// # Errors
+    /// A malformed `F` or `CAL` line.
+    pub fn parse(text: &str) -> Result<QemuLog, String> {
+        let mut log = QemuLog::default();
+        for line in text.lines() {
+            let parts: Vec<&str> = line.trim_end().split(',').collect();
+            match parts[0] {
+                "CAL" => log.calibration = Some((field(&parts, 1, line)?, field(&parts, 2, line)?)),
+                "F" => {
+                    if parts.len() != 13 {
+                        return Err(format!(
+                            "firmware output: frame line has {} fields: {line:?}",
+                            parts.len()
+                        ));
+                    }
+                    log.frames.push(QemuFrame {
+                        key: parts[..12].join(","),
+                        script: parts[2].to_string(),
+                        budget: field(&parts, 4, line)?,
+                        used: field(&parts, 5, line)?,
+                        light_units: field(&parts, 6, line)?,
+                        instructions: field(&parts, 12, line)?,
+                    });
+                }
+                "E" => log.errors.push(line.to_string()),
+                "DONE" => log.done_ok = parts.get(1) == Some(&"0"),
+                _ => {}
+            }
+        }
+        Ok(log)
+    }
+}
+
+/// Compares the host simulator's trace with the firmware's, frame by frame, every field but instructions.
+/// Returns the number of frames compared.
+///
+/// # Errors
+/// The first difference (script, frame, both lines), or a differing frame count.
+pub fn compare(host: &[ScriptSummary], qemu: &QemuLog) -> Result<usize, String> {
+    let host_lines: Vec<&str> = host.iter().flat_map(|s| s.trace.iter().map(String::as_str)).collect();
+    for (k, (h, q)) in host_lines.iter().zip(&qemu.frames).enumerate() {
+        let h_key = h.rsplit_once(',').map_or(*h, |(a, _)| a);
+        if h_key != q.key {
+            return Err(format!("frame line {k} differs:\n  host: {h_key}\n  qemu: {}", q.key));
+        }
+    }
+    if host_lines.len() != qemu.frames.len() {
+        return Err(format!(
+            "host simulated {} frames, the firmware reported {} (errors: {:?})",
+            host_lines.len(),
+            qemu.frames.len(),
+            qemu.errors
+        ));
+    }
+    Ok(host_lines.len())
+}
+
+/// Flash and RAM use of a firmware ELF, from `arm-none-eabi-size -A`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sizes {
+    /// Flash: `.vector_table`, `.text`, `.rodata` and `.data`'s initial values.
+    pub flash: u64,
+    /// Static RAM: `.data`, `.bss`, `.uninit` (the stack comes on top).
+    pub ram: u64,
+}
+
+impl Sizes {
+    /// Parses `arm-none-eabi-size -A` output (section, size, address per line).
+    #[must_use]
+    pub fn parse(text: &str) -> Sizes {
+        let mut s = Sizes::default();
+        for line in text.lines() {
+            let mut parts = line.split_whitespace();
+            let (Some(name), Some(size)) = (parts.next(), parts.next().and_then(|v| v.parse::<u64>().ok()))
+            else {
+                continue;
+            };
+            match name {
+                ".vector_table" | ".text" | ".rodata" => s.flash += size,
+                ".data" => {
+                    s.flash += size;
+                    s.ram += size;
+                }
+                ".bss" | ".uninit" => s.ram += size,
+                _ => {}
+            }
+        }
+        s
+    }
+}

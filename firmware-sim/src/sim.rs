@@ -1,0 +1,275 @@
+//! The host simulator: the device loop ([`crate::device`]) on the host, with the firmware's fixed buffers.
+//!
+//! [`DeviceMemory`] holds the solver's buffers, sized once from the table's counts (the same sizes the
+//! firmware's build script gives its statics); after it is created the device loop allocates nothing. Output
+//! (CSV rows, trace lines) is formatted by the caller's closures, outside the device loop.
+
+use std::io::Write;
+
+use radiosity_core::{Buffers, Fixed, Scalar, Solver, Table};
+
+use crate::device::{self, write_trace, Bits, Frame, FrameRecord, NoMeter, RunError, Script};
+use crate::script::{OwnedScript, ScriptFile};
+
+/// The arithmetic a run uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Arith {
+    /// `f32` (Cortex-M4F with FPU).
+    F32,
+    /// [`Fixed`] Q32.32 (integer only, Cortex-M0).
+    Fixed,
+}
+
+impl Arith {
+    /// Parses `f32` or `fixed`.
+    #[must_use]
+    pub fn from_name(s: &str) -> Option<Arith> {
+        match s {
+            "f32" => Some(Arith::F32),
+            "fixed" => Some(Arith::Fixed),
+            _ => None,
+        }
+    }
+}
+
+/// The solver's buffers, sized from a table's counts once.
+#[derive(Debug)]
+pub struct DeviceMemory<S> {
+    power: Vec<[S; 3]>,
+    unshot: Vec<[S; 3]>,
+    incident: Vec<[S; 3]>,
+    tree: Vec<u32>,
+    intensity: Vec<[S; 3]>,
+    reflectance: Vec<[u16; 3]>,
+}
+
+impl<S: Scalar> DeviceMemory<S> {
+    /// Buffers for `table`: patch count for power, unshot, incident power and the tree; light-group count for
+    /// intensities; material count for reflectances.
+    #[must_use]
+    pub fn for_table(table: &Table<'_>) -> DeviceMemory<S> {
+        let n = table.patch_count() as usize;
+        DeviceMemory {
+            power: vec![[S::ZERO; 3]; n],
+            unshot: vec![[S::ZERO; 3]; n],
+            incident: vec![[S::ZERO; 3]; n],
+            tree: vec![0; n],
+            intensity: vec![[S::ZERO; 3]; table.group_count() as usize],
+            reflectance: vec![[0; 3]; table.material_count() as usize],
+        }
+    }
+
+    /// Bytes of RAM the buffers take (what the firmware's statics take for the same table).
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(&self.power[..])
+            + size_of_val(&self.unshot[..])
+            + size_of_val(&self.incident[..])
+            + size_of_val(&self.tree[..])
+            + size_of_val(&self.intensity[..])
+            + size_of_val(&self.reflectance[..])
+    }
+
+    /// The buffers, lent to a solver.
+    pub fn buffers(&mut self) -> Buffers<'_, S> {
+        Buffers {
+            power: &mut self.power,
+            unshot: &mut self.unshot,
+            incident: &mut self.incident,
+            tree: &mut self.tree,
+            intensity: &mut self.intensity,
+            reflectance: &mut self.reflectance,
+        }
+    }
+}
+
+/// What a script run produced, per script.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScriptSummary {
+    /// Script name.
+    pub name: String,
+    /// Units of the boot solve.
+    pub boot_units: u32,
+    /// Frames run.
+    pub frames: u32,
+    /// Frames that ended converged.
+    pub converged_frames: u32,
+    /// Sum of units used over the frames.
+    pub units_used: u64,
+    /// Sum of budgets over the frames.
+    pub units_budgeted: u64,
+    /// Largest `used / budget` of a frame.
+    pub max_fill: f64,
+    /// Trace lines, one per frame (without the instruction field's meaning: 0 on the host).
+    pub trace: Vec<String>,
+}
+
+/// Header of the per-frame, per-patch CSV.
+pub const CSV_HEADER: &str =
+    "arith,script,frame,budget,used,light_units,outcome,converged,unshot_r,unshot_g,unshot_b,\
+unshot_r_bits,unshot_g_bits,unshot_b_bits,patch,b_r,b_g,b_b,b_r_bits,b_g_bits,b_b_bits";
+
+fn csv_rows<S: Bits>(
+    out: &mut dyn Write,
+    script: &str,
+    r: &FrameRecord<S>,
+    solver: &Solver<'_, S>,
+    table: &Table<'_>,
+) -> std::io::Result<()> {
+    let u = r.unshot;
+    for i in 0..solver.patch_count() {
+        let b = solver.radiosity(table, i).unwrap_or([S::ZERO; 3]);
+        writeln!(
+            out,
+            "{},{script},{},{},{},{},{},{},{:e},{:e},{:e},{:x},{:x},{:x},{i},{:e},{:e},{:e},{:x},{:x},{:x}",
+            S::NAME,
+            r.frame,
+            r.budget,
+            r.used,
+            r.light_units,
+            device::outcome_code(r.outcome),
+            u8::from(r.converged()),
+            u[0].to_f32(),
+            u[1].to_f32(),
+            u[2].to_f32(),
+            u[0].bits(),
+            u[1].bits(),
+            u[2].bits(),
+            b[0].to_f32(),
+            b[1].to_f32(),
+            b[2].to_f32(),
+            b[0].bits(),
+            b[1].bits(),
+            b[2].bits()
+        )?;
+    }
+    Ok(())
+}
+
+/// Why a simulation failed.
+#[derive(Debug)]
+pub enum SimError {
+    /// The device loop failed.
+    Run {
+        /// Script.
+        script: String,
+        /// The error.
+        error: RunError,
+    },
+    /// Writing the CSV failed.
+    Io(std::io::Error),
+    /// No script of that name.
+    NoScript(String),
+}
+
+impl std::fmt::Display for SimError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SimError::Run { script, error } => write!(f, "script \"{script}\": {error}"),
+            SimError::Io(e) => write!(f, "writing CSV: {e}"),
+            SimError::NoScript(name) => write!(f, "no script named {name:?}"),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Runs `scripts` on `table` with arithmetic `S` in one [`DeviceMemory`], writing CSV rows to `csv` if given.
+///
+/// # Errors
+/// [`SimError`].
+pub fn simulate<S: Bits>(
+    table: &Table<'_>,
+    scripts: &[&Script<'_>],
+    mut csv: Option<&mut dyn Write>,
+) -> Result<Vec<ScriptSummary>, SimError> {
+    let mut memory = DeviceMemory::<S>::for_table(table);
+    let mut out = Vec::new();
+    for script in scripts {
+        let mut summary = ScriptSummary {
+            name: script.name.to_string(),
+            boot_units: 0,
+            frames: 0,
+            converged_frames: 0,
+            units_used: 0,
+            units_budgeted: 0,
+            max_fill: 0.0,
+            trace: Vec::with_capacity(script.frames.len()),
+        };
+        let mut io_error = None;
+        let result = device::run_script(table, memory.buffers(), script, &mut NoMeter, |r, solver| {
+            summary.frames += 1;
+            summary.converged_frames += u32::from(r.converged());
+            summary.units_used += u64::from(r.used);
+            summary.units_budgeted += u64::from(r.budget);
+            summary.max_fill = summary.max_fill.max(f64::from(r.used) / f64::from(r.budget));
+            let mut line = String::new();
+            let _ = write_trace(&mut line, script.name, r);
+            summary.trace.push(line);
+            if let Some(w) = csv.as_deref_mut() {
+                if let Err(e) = csv_rows(w, script.name, r, solver, table) {
+                    io_error.get_or_insert(e);
+                }
+            }
+        });
+        summary.boot_units =
+            result.map_err(|error| SimError::Run { script: script.name.to_string(), error })?;
+        if let Some(e) = io_error {
+            return Err(SimError::Io(e));
+        }
+        out.push(summary);
+    }
+    Ok(out)
+}
+
+/// [`simulate`] with the arithmetic chosen at run time.
+///
+/// # Errors
+/// [`SimError`].
+pub fn simulate_with(
+    arith: Arith,
+    table: &Table<'_>,
+    scripts: &[&Script<'_>],
+    csv: Option<&mut dyn Write>,
+) -> Result<Vec<ScriptSummary>, SimError> {
+    match arith {
+        Arith::F32 => simulate::<f32>(table, scripts, csv),
+        Arith::Fixed => simulate::<Fixed>(table, scripts, csv),
+    }
+}
+
+/// [`simulate_with`] on the scripts of a parsed file (`only`: just the script of that name).
+///
+/// # Errors
+/// [`SimError`]; a name that matches no script gives [`SimError::NoScript`].
+pub fn simulate_file(
+    arith: Arith,
+    table: &Table<'_>,
+    file: &ScriptFile,
+    only: Option<&str>,
+    csv: Option<&mut dyn Write>,
+) -> Result<Vec<ScriptSummary>, SimError> {
+    let selected: Vec<&OwnedScript> =
+        file.scripts.iter().filter(|s| only.is_none_or(|n| n == s.name)).collect();
+    if selected.is_empty() {
+        return Err(SimError::NoScript(only.unwrap_or_default().to_string()));
+    }
+    let frames: Vec<Vec<Frame<'_>>> = selected
+        .iter()
+        .map(|s| s.frames.iter().map(|f| Frame { budget: f.budget, intensity: &f.intensity }).collect())
+        .collect();
+    let views: Vec<Script<'_>> = selected
+        .iter()
+        .zip(&frames)
+        .map(|(s, f)| Script {
+            name: &s.name,
+            tolerance: s.tolerance,
+            initial: &s.initial,
+            boot_budget: s.boot_budget,
+            frames: f,
+        })
+        .collect();
+    let refs: Vec<&Script<'_>> = views.iter().collect();
+    simulate_with(arith, table, &refs, csv)
+}

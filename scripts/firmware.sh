@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# The firmware check: builds the Cortex-M firmware (f32 and fixed point for the Cortex-M4 on mps2-an386, fixed
+# point for the Cortex-M0 on microbit), runs every relight script under QEMU with a timeout, compares every
+# frame with the host simulator bit for bit, and fits and checks the cost model.
+#   scripts/firmware.sh            check (logs and the cost report go to $CARGO_TARGET_DIR/firmware/)
+#   scripts/firmware.sh --update   also rewrite the committed firmware-sim/COST.md
+# Table and scripts: RADIOSITY_TABLE / RADIOSITY_SCRIPTS (default: the committed synthetic table and
+# scenes/cornell-box.relight.toml).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+command -v qemu-system-arm >/dev/null || {
+    echo "error: qemu-system-arm not found: install it with \`make deps\` (scripts/deps.sh)" >&2
+    exit 1
+}
+out="${CARGO_TARGET_DIR:-target}/firmware"
+mkdir -p "$out"
+args=()
+[[ -n "${RADIOSITY_TABLE:-}" ]] && args+=(--table "$RADIOSITY_TABLE")
+[[ -n "${RADIOSITY_SCRIPTS:-}" ]] && args+=(--scripts "$RADIOSITY_SCRIPTS")
+
+cargo build --locked -q -p firmware-sim
+sim="${CARGO_TARGET_DIR:-target}/debug/firmware-sim"
+for target in m4-f32 m4-fixed m0-fixed; do
+    echo "--- $target"
+    "$sim" qemu "${args[@]}" --target "$target" --timeout 120 --log "$out/$target.log" | tee "$out/$target.txt"
+done
+"$sim" cost --log "$out/m4-f32.log" --log "$out/m4-fixed.log" --log "$out/m0-fixed.log" --out "$out/COST.md"
+{
+    printf '\n## Sizes (arm-none-eabi-size)\n\n'
+    for target in m4-f32 m4-fixed m0-fixed; do
+        grep -h '^size:' "$out/$target.txt" | sed "s/^size: /- $target: /"
+    done
+} >>"$out/COST.md"
+cat "$out/COST.md"
+if [[ "${1:-}" == "--update" ]]; then
+    cp "$out/COST.md" firmware-sim/COST.md
+    echo "updated firmware-sim/COST.md"
+fi

@@ -1,0 +1,64 @@
+//! The firmware end to end: build it for the Cortex-M4 (f32 and fixed point), run every shipped relight script
+//! under QEMU, and check that it agrees with the host simulator bit for bit on every frame, that no frame
+//! spends more than its budget, that the SysTick instruction count is calibrated, and that the cost model
+//! fitted on one script bounds every frame of every script.
+//!
+//! Needs `qemu-system-arm` (installed by `make deps`); without it the test fails and says so.
+
+use std::path::PathBuf;
+
+use firmware_sim::qemu::{self, QemuLog, Target};
+use firmware_sim::script::ScriptFile;
+use firmware_sim::sim;
+use radiosity_core::Table;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn run(target: Target) {
+    let table_path = root().join("firmware-sim/tables/uniform-enclosure.rft");
+    let scripts_path = root().join("scenes/cornell-box.relight.toml");
+    let bytes = std::fs::read(&table_path).unwrap();
+    let table = Table::parse(&bytes).unwrap();
+    let scripts = ScriptFile::load(&scripts_path).unwrap();
+
+    let elf = qemu::build_firmware(target, &table_path, &scripts_path).unwrap_or_else(|e| panic!("{e}"));
+    let (text, ok) = qemu::run_qemu(target, &elf, 120).unwrap_or_else(|e| panic!("{e}"));
+    let log = QemuLog::parse(&text).unwrap();
+    assert!(ok && log.done_ok, "firmware failed under QEMU: {:?}\n{text}", log.errors);
+
+    // Calibration: a loop of known length. Each of the two measurements (loop, empty) is quantized to one
+    // SysTick tick (40 instructions on mps2-an386), so their difference is within 2 ticks of the truth.
+    let (expected, measured) = log.calibration.expect("no CAL line");
+    assert!(
+        expected.abs_diff(measured) <= 80,
+        "SysTick calibration: expected {expected}, measured {measured}"
+    );
+
+    // Bit-exact agreement on every frame of every script.
+    let host = sim::simulate_file(target.arith, &table, &scripts, None, None).unwrap();
+    let frames = qemu::compare(&host, &log).unwrap_or_else(|e| panic!("{e}"));
+    let expected_frames: usize = scripts.scripts.iter().map(|s| s.frames.len()).sum();
+    assert_eq!(frames, expected_frames);
+
+    // No frame spends more than its budget, on the device.
+    for f in &log.frames {
+        assert!(f.used <= f.budget, "{}: used {} > budget {}", f.script, f.used, f.budget);
+    }
+
+    // The cost model fitted on `budget-sweep` bounds every frame of every script.
+    let model = firmware_sim::cost::calibrate("test", &log, "budget-sweep").unwrap();
+    assert!(model.per_unit > 0.0, "{model:?}");
+    assert_eq!(model.violations, 0, "frames over the cost model's bound: {model:?}");
+}
+
+#[test]
+fn cortex_m4_f32_matches_host_bit_for_bit() {
+    run(qemu::M4_F32);
+}
+
+#[test]
+fn cortex_m4_fixed_point_matches_host_bit_for_bit() {
+    run(qemu::M4_FIXED);
+}
