@@ -16,3 +16,4 @@ pub mod picture;
 pub mod pipeline;
 pub mod reference;
 pub mod scene;
+pub mod view;

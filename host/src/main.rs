@@ -9,9 +9,11 @@ use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{write_patch_csv, Format};
+use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem};
+use radiosity_host::view;
 
 /// Precomputed diffuse lighting for small devices: scenes in, quantized form-factor tables out, every answer
 /// checked against an exact f64 solve.
@@ -79,6 +81,46 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Csv)]
         format: Format,
     },
+    /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
+    /// patch to show the mesh). Prints the output path.
+    Render {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Camera as "px,py,pz;tx,ty,tz;ux,uy,uz;fov_degrees" (position; target; up; vertical field of view).
+        /// Default: the published Cornell camera for scenes named cornell-box*, else a view of the bounding box.
+        #[arg(long, allow_hyphen_values = true)]
+        camera: Option<String>,
+        /// Image width in pixels.
+        #[arg(long, default_value_t = 512)]
+        width: u32,
+        /// Image height in pixels.
+        #[arg(long, default_value_t = 512)]
+        height: u32,
+        /// What the picture shows.
+        #[arg(long, value_enum, default_value_t = RenderModeArg::Shaded)]
+        mode: RenderModeArg,
+        /// Output PNG file.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
+    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths.
+    Lightmap {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output path without extension.
+        #[arg(short, long, value_name = "STEM")]
+        output: PathBuf,
+    },
+}
+
+/// `render --mode`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum RenderModeArg {
+    /// Smoothly shaded radiosity, tone mapped.
+    Shaded,
+    /// One colour per patch (the mesh).
+    Patches,
 }
 
 /// Options shared by the commands that read a scene.
@@ -263,6 +305,24 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                         writeln!(out, "{}", serde_json::to_string_pretty(&doc)?)?;
                     }
                 }
+            }
+        }
+        Command::Render { scene, camera, width, height, mode, output } => {
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            let b = view::solve_default(&p)?;
+            let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
+            let mode = match mode {
+                RenderModeArg::Shaded => view::RenderMode::Shaded,
+                RenderModeArg::Patches => view::RenderMode::Patches,
+            };
+            let image = view::render_scene(&p, &b, &view::RenderOptions { camera, width, height, mode })?;
+            write_png(&output, &image)?;
+            writeln!(out, "{}", output.display())?;
+        }
+        Command::Lightmap { scene, output } => {
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            for path in view::write_light_map(&p, &view::solve_default(&p)?, &output)? {
+                writeln!(out, "{}", path.display())?;
             }
         }
     }

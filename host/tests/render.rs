@@ -1,0 +1,205 @@
+//! Rendering the real Cornell box (real form factors, f64 solve) and checking from the pixels what a person would
+//! see; the light-map atlas of the same solve.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use glam::DVec3;
+use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::picture::camera::Camera;
+use radiosity_host::picture::tonemap::{luminance, srgb_decode};
+use radiosity_host::picture::write_png;
+use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
+use radiosity_host::view::{
+    render_view, solve_default, write_light_map, PatchTracer, RenderMode, RenderOptions, LEGEND_HEIGHT,
+};
+
+const SIZE: u32 = 64;
+
+/// The Cornell box meshed coarsely (patch edge <= 140 mm, at most 400 patches) with few form-factor samples, so the
+/// whole file runs in seconds; the checks below are about what is visible, which such a mesh already shows.
+fn cornell() -> &'static (Prepared, Vec<[f64; 3]>) {
+    static CELL: OnceLock<(Prepared, Vec<[f64; 3]>)> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
+        let options = PrepareOptions {
+            no_subdivide: false,
+            max_patch_edge: Some(140.0),
+            max_patches: Some(400),
+            form_factors: FormFactorOptions {
+                samples_per_patch: 4,
+                rays_per_pair: 4,
+                progress: false,
+                ..FormFactorOptions::default()
+            },
+            verbose: false,
+        };
+        let p = prepare(&path, &options).unwrap();
+        let b = solve_default(&p).unwrap();
+        (p, b)
+    })
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("render");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn material_name(p: &Prepared, patch: usize) -> &str {
+    &p.scene.materials[p.patches[patch].material].name
+}
+
+/// Linear luminance of an 8-bit sRGB pixel (what the viewer's screen shows, up to the display's scale).
+fn pixel_luminance(rgb: [u8; 3]) -> f64 {
+    luminance(rgb.map(|c| srgb_decode(f64::from(c) / 255.0)))
+}
+
+#[test]
+fn cornell_box_looks_right() {
+    let (p, b) = cornell();
+    let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode: RenderMode::Shaded };
+    let view = render_view(p, b, &options).unwrap();
+    write_png(&scratch("cornell-shaded.png"), &view.image).unwrap();
+    assert_eq!((view.image.width, view.image.height), (SIZE, SIZE));
+
+    // The published camera sees the box's open side: most of the picture is the box.
+    let visible = view.patch.iter().filter(|p| p.is_some()).count();
+    assert!(visible > (SIZE * SIZE / 2) as usize, "only {visible} of {} pixels see the box", SIZE * SIZE);
+
+    // Every pixel that sees a surface is finite and not black: every surface of the closed room behind the open
+    // side receives at least indirect light, so a black pixel would be a shading or tone-mapping fault.
+    for (k, (lin, patch)) in view.linear.iter().zip(&view.patch).enumerate() {
+        assert!(lin.iter().all(|v| v.is_finite()), "pixel {k}: radiosity {lin:?}");
+        if patch.is_some() {
+            let px = view.image.get(k as u32 % SIZE, k as u32 / SIZE);
+            assert_ne!(px, [0, 0, 0], "pixel {k} sees patch {patch:?} but is black");
+        }
+    }
+
+    // Every pixel of the red wall is red-dominant and every pixel of the green wall green-dominant (smooth
+    // shading never blends across a material boundary, so no pixel of a wall carries another wall's colour).
+    let mut red = 0;
+    let mut green = 0;
+    for (k, patch) in view.patch.iter().enumerate() {
+        let Some(patch) = patch else { continue };
+        let [r, g, bl] = view.image.get(k as u32 % SIZE, k as u32 / SIZE);
+        match material_name(p, *patch as usize) {
+            "red" => {
+                red += 1;
+                assert!(r > g && r > bl, "red wall pixel {k} is {:?}", [r, g, bl]);
+            }
+            "green" => {
+                green += 1;
+                assert!(g > r && g > bl, "green wall pixel {k} is {:?}", [r, g, bl]);
+            }
+            _ => {}
+        }
+    }
+    // Each side wall covers a strip of roughly 1/8 of the picture width from this camera.
+    assert!(red > 50 && green > 50, "red wall {red} pixels, green wall {green} pixels");
+
+    // The floor below the light against the ceiling's far corners. Hit points come from the same tracer and
+    // camera as the render, so each pixel is classified by where its ray lands.
+    let tracer = PatchTracer::new(&p.patches).unwrap();
+    let camera = Camera::cornell_box();
+    let mut under_light = Vec::new();
+    let mut far_corners = Vec::new();
+    for k in 0..SIZE * SIZE {
+        let (x, y) = (k % SIZE, k / SIZE);
+        let (o, d) = camera.ray(x, y, SIZE, SIZE);
+        let Some(hit) = tracer.closest_hit(o, d) else { continue };
+        assert_eq!(
+            Some(hit.patch as u32),
+            view.patch[k as usize],
+            "pixel {k}: tracer differs from the render"
+        );
+        let n = p.patches[hit.patch].normal;
+        let q = hit.point;
+        let lum = pixel_luminance(view.image.get(x, y));
+        // The light spans x 213..343, z 227..332 at y 548.8 (scenes/cornell-box.obj); floor at y = 0.
+        if n.dot(DVec3::Y) > 0.99
+            && q.y < 1.0
+            && (213.0..=343.0).contains(&q.x)
+            && (227.0..=332.0).contains(&q.z)
+        {
+            under_light.push(lum);
+        }
+        // Ceiling (y = 548.8, normal down) within 100 mm of the back wall (z = 559.2) and a side wall.
+        if n.dot(DVec3::NEG_Y) > 0.99 && q.y > 548.0 && q.z > 459.0 && !(100.0..=456.0).contains(&q.x) {
+            far_corners.push(lum);
+        }
+    }
+    assert!(!under_light.is_empty() && !far_corners.is_empty(), "{under_light:?} {far_corners:?}");
+    let floor_min = under_light.iter().copied().fold(f64::INFINITY, f64::min);
+    let corner_max = far_corners.iter().copied().fold(0.0, f64::max);
+    assert!(
+        floor_min > corner_max,
+        "floor below the light (darkest pixel {floor_min:.4}) is not brighter than the ceiling's far corners \
+         (brightest pixel {corner_max:.4})"
+    );
+}
+
+#[test]
+fn patch_and_error_views() {
+    let (p, b) = cornell();
+    let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode: RenderMode::Patches };
+    let view = render_view(p, b, &options).unwrap();
+    write_png(&scratch("cornell-patches.png"), &view.image).unwrap();
+    // Neighbouring patches get distinct colours, so the mesh shows: many distinct colours in the picture.
+    let mut colours: Vec<[u8; 3]> = (0..SIZE * SIZE).map(|k| view.image.get(k % SIZE, k / SIZE)).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(colours.len() > 20, "only {} colours in the by-patch view", colours.len());
+
+    // Error view: the reference is `b`, the rendered values are `b` with one visible patch doubled. That patch's
+    // pixels must show the largest error colour, every other patch the zero-error colour, and the legend is below.
+    let target = view.patch.iter().flatten().copied().nth(SIZE as usize * 10).unwrap() as usize;
+    let mut wrong = b.clone();
+    wrong[target] = wrong[target].map(|v| 2.0 * v);
+    let options =
+        RenderOptions { camera: None, width: SIZE, height: SIZE, mode: RenderMode::Error { reference: b } };
+    let err = render_view(p, &wrong, &options).unwrap();
+    write_png(&scratch("cornell-error.png"), &err.image).unwrap();
+    assert_eq!(err.image.height, SIZE + LEGEND_HEIGHT);
+    let scale = err.error_scale.unwrap();
+    for (k, patch) in err.patch.iter().enumerate() {
+        let Some(patch) = patch else { continue };
+        let px = err.image.get(k as u32 % SIZE, k as u32 / SIZE);
+        let expected = if *patch as usize == target { scale.colour(1.0) } else { scale.colour(0.0) };
+        assert_eq!(px, expected, "pixel {k} on patch {patch}");
+    }
+    assert_ne!(scale.colour(1.0), scale.colour(0.0));
+}
+
+#[test]
+fn light_map_maps_every_face() {
+    let (p, b) = cornell();
+    let stem = scratch("cornell-lightmap");
+    let paths = write_light_map(p, b, &stem).unwrap();
+    for path in &paths {
+        assert!(std::fs::metadata(path).unwrap().len() > 0, "{} is empty", path.display());
+    }
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&paths[2]).unwrap()).unwrap();
+    let width = json["atlas"]["width"].as_u64().unwrap();
+    let height = json["atlas"]["height"].as_u64().unwrap();
+    let faces = json["faces"].as_array().unwrap();
+    let mut seen = vec![false; p.scene.faces.len()];
+    for f in faces {
+        let face = f["face"].as_u64().unwrap() as usize;
+        assert!(face < seen.len() && !seen[face], "face {face} out of range or mapped twice");
+        seen[face] = true;
+        let (x, y, w, h) = (
+            f["x"].as_u64().unwrap(),
+            f["y"].as_u64().unwrap(),
+            f["width"].as_u64().unwrap(),
+            f["height"].as_u64().unwrap(),
+        );
+        assert!(
+            w > 0 && h > 0 && x + w <= width && y + h <= height,
+            "face {face}: rect {x},{y} {w}x{h} in {width}x{height}"
+        );
+    }
+    let missing: Vec<usize> = seen.iter().enumerate().filter(|(_, s)| !**s).map(|(i, _)| i).collect();
+    assert!(missing.is_empty(), "faces without a light-map rectangle: {missing:?}");
+}
