@@ -66,7 +66,8 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
-    /// Run the main job on the bundled Cornell box: bake it, validate the table, and print what it costs.
+    /// Run the main job on the bundled Cornell box: bake it, validate the table, print what it costs, and render it
+    /// (out/cornell-box.png and a light-map atlas).
     Demo {
         /// Folder for the outputs.
         #[arg(long, default_value = "out")]
@@ -402,5 +403,18 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, Format::Text, out)?;
     writeln!(out, "\n== inspect {} (validated by the device's own parser)", table.display())?;
     writeln!(out, "{}", inspect_file(&table)?)?;
+    writeln!(out, "\n== pictures (exact f64 solve, published camera)")?;
+    let b = view::solve_default(&p)?;
+    let image = view::render_scene(
+        &p,
+        &b,
+        &view::RenderOptions { camera: None, width: 512, height: 512, mode: view::RenderMode::Shaded },
+    )?;
+    let png = dir.join("cornell-box.png");
+    write_png(&png, &image)?;
+    writeln!(out, "{}", png.display())?;
+    for path in view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"))? {
+        writeln!(out, "{}", path.display())?;
+    }
     Ok(())
 }
