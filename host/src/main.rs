@@ -40,6 +40,17 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Csv)]
         format: Format,
     },
+    /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
+    /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
+    Check {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        check: radiosity_host::check::CheckArgs,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
 }
 
 /// Options shared by the commands that read a scene.
@@ -209,6 +220,14 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                         writeln!(out, "{}", serde_json::to_string_pretty(&doc)?)?;
                     }
                 }
+            }
+        }
+        Command::Check { scene, check, format } => {
+            let report =
+                radiosity_host::check::check_scene(&scene.scene, &scene.prepare_options(), &check.options())?;
+            match format {
+                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                _ => write!(out, "{report}")?,
             }
         }
     }
