@@ -176,7 +176,7 @@ fn corrupted_truncated_wrong_version_tables_are_clear_errors() {
     }
     assert!(matches!(Table::parse(&blob[..blob.len() - 1]), Err(TableError::Truncated { .. })));
     // Wrong version: the version is the varint after the 4-byte magic (1 byte while < 128).
-    assert!(FORMAT_VERSION < 127);
+    const { assert!(FORMAT_VERSION < 127) };
     let mut old = blob.clone();
     old[4] = (FORMAT_VERSION + 1) as u8;
     match Table::parse(&old) {
