@@ -113,6 +113,17 @@ enum Command {
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
     },
+    /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
+    /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
+    Check {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        check: radiosity_host::check::CheckArgs,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
 }
 
 /// `render --mode`.
@@ -324,6 +335,14 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             for path in view::write_light_map(&p, &view::solve_default(&p)?, &output)? {
                 writeln!(out, "{}", path.display())?;
+            }
+        }
+        Command::Check { scene, check, format } => {
+            let report =
+                radiosity_host::check::check_scene(&scene.scene, &scene.prepare_options(), &check.options())?;
+            match format {
+                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                _ => write!(out, "{report}")?,
             }
         }
     }
