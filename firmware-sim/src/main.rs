@@ -18,7 +18,14 @@ use firmware_sim::script::ScriptFile;
 use firmware_sim::sim::{self, Arith, ScriptSummary};
 use radiosity_core::Table;
 
-const USAGE: &str = "usage:
+const USAGE: &str = "The radiosity device loop on the host, and its Cortex-M firmware under QEMU.
+
+usage:
+  firmware-sim gen-table OUT.rft     write the synthetic test table
+  firmware-sim run   ...             run relight scripts on the host simulator (per-frame CSV with --csv)
+  firmware-sim qemu  ...             build the firmware, run it under QEMU, compare with the host bit for bit
+  firmware-sim cost  ...             fit and check the cost model from QEMU logs
+
   firmware-sim gen-table OUT.rft
   firmware-sim run   [--table T] [--scripts S] [--arith f32|fixed] [--script NAME] [--csv OUT]
   firmware-sim qemu  [--table T] [--scripts S] [--target m4-f32|m4-fixed|m0-fixed] [--timeout SECONDS] [--log OUT]
@@ -26,6 +33,10 @@ const USAGE: &str = "usage:
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.is_empty() || args.iter().any(|a| a == "--help" || a == "-h" || a == "help") {
+        println!("{USAGE}");
+        return ExitCode::SUCCESS;
+    }
     match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
