@@ -676,14 +676,21 @@ pub fn default_method(n: usize) -> Method {
 
 /// Everything the device sees, decoded back from a parsed table into f64: reflectance per patch, emission per
 /// patch with every group at its default intensity, areas and the shooter rows.
-struct Decoded {
-    rho: Vec<[f64; 3]>,
-    emission: Vec<[f64; 3]>,
-    area: Vec<f64>,
-    rows: FormFactorMatrix,
+#[derive(Clone, Debug)]
+pub struct Decoded {
+    /// Reflectance per patch (decoded codes).
+    pub rho: Vec<[f64; 3]>,
+    /// Static plus dynamic emission per patch at the table's default intensities (W/m^2).
+    pub emission: Vec<[f64; 3]>,
+    /// Patch areas (the table's f32 values).
+    pub area: Vec<f64>,
+    /// Shooter rows with decoded form factors.
+    pub rows: FormFactorMatrix,
 }
 
-fn decode_table(table: &Table<'_>) -> Decoded {
+/// Decodes a parsed table into f64: what the device computes with, for comparison with the f64 reference.
+#[must_use]
+pub fn decode_table(table: &Table<'_>) -> Decoded {
     use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
     let n = table.patch_count();
     let emission_of = |codes: [u16; 3]| codes.map(|c| f64::from(decode_emission_f32(c)));

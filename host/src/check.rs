@@ -28,7 +28,6 @@
 use std::fmt;
 use std::path::Path;
 
-use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
 use radiosity_core::{Buffers, Config, Fixed, Outcome, Scalar, Solver, Table};
 use serde::Serialize;
 use thiserror::Error;
@@ -307,7 +306,7 @@ pub fn check(
         error: metrics::compare(&b_sparse, &b_full, &area)?,
     });
     // 3. Quantization.
-    let dec = decode(&table);
+    let dec = crate::bake::decode_table(&table);
     let b_dec = solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.emission)?;
     components.push(Component {
         name: "quantization".into(),
@@ -383,51 +382,6 @@ pub fn check(
         settings,
         frames,
     })
-}
-
-/// The f64 contents of a table: what the device sees.
-struct Decoded {
-    rho: Vec<[f64; 3]>,
-    /// Static plus dynamic emission at the table's default intensities.
-    emission: Vec<[f64; 3]>,
-    area: Vec<f64>,
-    rows: FormFactorMatrix,
-}
-
-fn decode(table: &Table<'_>) -> Decoded {
-    let n = table.patch_count();
-    let emission_of = |codes: [u16; 3]| codes.map(|c| f64::from(decode_emission_f32(c)));
-    let mut d = Decoded {
-        rho: Vec::new(),
-        emission: Vec::new(),
-        area: Vec::new(),
-        rows: FormFactorMatrix { n: n as usize, row_start: vec![0], col: Vec::new(), value: Vec::new() },
-    };
-    for i in 0..n {
-        let r = table.material(i).and_then(|m| table.reflectance(m)).unwrap_or([0; 3]);
-        d.rho.push(r.map(|c| f64::from(decode_reflectance(c).to_f32())));
-        d.emission.push(emission_of(table.base_emission(i).unwrap_or([0; 3])));
-        d.area.push(f64::from(table.area(i).unwrap_or(0.0)));
-        for k in table.row(i).unwrap_or(0..0) {
-            if let Some((j, f)) = table.entry(i, k) {
-                d.rows.col.push(j);
-                d.rows.value.push(f64::from(f.to_f32()));
-            }
-        }
-        d.rows.row_start.push(d.rows.col.len());
-    }
-    for g in 0..table.group_count() {
-        let intensity = table.default_intensity(g).unwrap_or([0.0; 3]);
-        for k in table.group_members(g).unwrap_or(0..0) {
-            if let Some(m) = table.member(k) {
-                let e = emission_of(m.emission);
-                for c in 0..3 {
-                    d.emission[m.patch as usize][c] += f64::from(intensity[c]) * e[c];
-                }
-            }
-        }
-    }
-    d
 }
 
 /// Per-patch RGB radiosity.
