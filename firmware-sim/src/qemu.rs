@@ -52,6 +52,10 @@ pub fn firmware_dir() -> PathBuf {
 /// A message with cargo's output if the build fails.
 pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<PathBuf, String> {
     let dir = firmware_dir();
+    // The firmware's build script runs in the firmware workspace, so relative paths must be made absolute here.
+    let absolute =
+        |p: &Path| std::fs::canonicalize(p).map_err(|e| format!("cannot find {}: {e}", p.display()));
+    let (table, scripts) = (absolute(table)?, absolute(scripts)?);
     let target_dir = dir.join("target").join(match target.arith {
         Arith::F32 => "f32",
         Arith::Fixed => "fixed",

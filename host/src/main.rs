@@ -13,6 +13,7 @@ use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem};
+use radiosity_host::relight;
 use radiosity_host::view;
 
 /// Precomputed diffuse lighting for small devices: scenes in, quantized form-factor tables out, every answer
@@ -100,9 +101,50 @@ enum Command {
         /// What the picture shows.
         #[arg(long, value_enum, default_value_t = RenderModeArg::Shaded)]
         mode: RenderModeArg,
+        /// Table for `--mode error` (baked from SCENE with the same meshing options; default: bake one).
+        #[arg(long, value_name = "TABLE")]
+        table: Option<PathBuf>,
         /// Output PNG file.
         #[arg(short, long)]
         output: PathBuf,
+    },
+    /// Run relight scripts on a table the way the device runs them and print every frame's error against the
+    /// exact f64 answer for that frame's light intensities.
+    ///
+    /// The device loop (the code the firmware links) runs on the host in f32 and Q32.32 fixed point; with
+    /// `--qemu` the Cortex-M4 firmware is also built with the same table and scripts and run under
+    /// qemu-system-arm (mps2-an386, -icount shift=0), adding the instructions each frame took, flash and RAM use,
+    /// and a bit-for-bit comparison of every frame with the host run.
+    Relight {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// The table baked from SCENE with the same meshing options (default: bake one at default settings).
+        #[arg(long, value_name = "TABLE")]
+        table: Option<PathBuf>,
+        /// Relight scripts (TOML, format in firmware-sim/src/script.rs; default: SCENE's stem + .relight.toml).
+        #[arg(long, value_name = "FILE")]
+        scripts: Option<PathBuf>,
+        /// Only the script of this name.
+        #[arg(long, value_name = "NAME")]
+        script: Option<String>,
+        /// Also build the Cortex-M4 firmware and run it under QEMU (needs `make deps`).
+        #[arg(long)]
+        qemu: bool,
+        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png.
+        #[arg(long, value_name = "DIR")]
+        frames: Option<PathBuf>,
+        /// Size of the frame pictures (pixels, square).
+        #[arg(long, default_value_t = 256)]
+        frame_size: u32,
+        /// Write the per-frame rows as CSV to FILE.
+        #[arg(long, value_name = "FILE")]
+        csv: Option<PathBuf>,
+        /// Plot error against cumulative work units per script to STEM.svg and STEM.png.
+        #[arg(long, value_name = "STEM")]
+        plot: Option<PathBuf>,
+        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
     },
     /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
     /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths.
@@ -133,6 +175,9 @@ enum RenderModeArg {
     Shaded,
     /// One colour per patch (the mesh).
     Patches,
+    /// The device's converged f32 answer on a table (`--table`, or one baked at default settings), false-coloured
+    /// by its relative error against the exact f64 answer, with a legend.
+    Error,
 }
 
 /// Options shared by the commands that read a scene.
@@ -319,17 +364,60 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
         }
-        Command::Render { scene, camera, width, height, mode, output } => {
+        Command::Render { scene, camera, width, height, mode, table, output } => {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
-            let b = view::solve_default(&p)?;
+            let exact = view::solve_default(&p)?;
             let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
-            let mode = match mode {
-                RenderModeArg::Shaded => view::RenderMode::Shaded,
-                RenderModeArg::Patches => view::RenderMode::Patches,
+            let (b, mode) = match mode {
+                RenderModeArg::Shaded => (exact.clone(), view::RenderMode::Shaded),
+                RenderModeArg::Patches => (exact.clone(), view::RenderMode::Patches),
+                RenderModeArg::Error => {
+                    let bytes = table_bytes(&p, table.as_deref())?;
+                    let intensity: Vec<[f32; 3]> =
+                        p.lighting.default_intensity.iter().map(|v| v.map(|x| x as f32)).collect();
+                    let b = relight::device_answer(&bytes, &intensity)?;
+                    (b, view::RenderMode::Error { reference: &exact })
+                }
             };
             let image = view::render_scene(&p, &b, &view::RenderOptions { camera, width, height, mode })?;
             write_png(&output, &image)?;
             writeln!(out, "{}", output.display())?;
+        }
+        Command::Relight { scene, table, scripts, script, qemu, frames, frame_size, csv, plot, format } => {
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            let scripts = scripts.unwrap_or_else(|| scene.scene.with_extension("relight.toml"));
+            let (table_path, _temp) = match table {
+                Some(t) => (t, None),
+                None => {
+                    let bytes = table_bytes(&p, None)?;
+                    let path =
+                        std::env::temp_dir().join(format!("radiosity-relight-{}.rft", std::process::id()));
+                    std::fs::write(&path, &bytes).map_err(|e| format!("writing {}: {e}", path.display()))?;
+                    (path.clone(), Some(TempFile(path)))
+                }
+            };
+            let bytes =
+                std::fs::read(&table_path).map_err(|e| format!("reading {}: {e}", table_path.display()))?;
+            let options =
+                relight::RelightOptions { only: script, qemu, ..relight::RelightOptions::default() };
+            let report = relight::relight(&p, &bytes, &table_path, &scripts, &options)?;
+            write_relight_outputs(
+                &p,
+                &report,
+                frames.as_deref(),
+                frame_size,
+                csv.as_deref(),
+                plot.as_deref(),
+                &mut out,
+            )?;
+            match format {
+                Format::Text => write!(out, "{report}")?,
+                Format::Csv => write!(out, "{}", report.to_csv())?,
+                Format::Json => {
+                    serde_json::to_writer_pretty(&mut out, &report)?;
+                    writeln!(out)?;
+                }
+            }
         }
         Command::Lightmap { scene, output } => {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
@@ -388,6 +476,59 @@ fn bake_to_files(
     Ok(())
 }
 
+/// The table's bytes: read from `path`, or baked from `p` at default settings.
+fn table_bytes(p: &Prepared, path: Option<&std::path::Path>) -> Result<Vec<u8>, BoxError> {
+    match path {
+        Some(path) => Ok(std::fs::read(path).map_err(|e| format!("reading {}: {e}", path.display()))?),
+        None => {
+            let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
+            Ok(bake(&input, &BakeOptions::default())?.table)
+        }
+    }
+}
+
+/// A temporary file removed when dropped.
+struct TempFile(PathBuf);
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// Writes the optional outputs of `relight` (frame pictures, CSV, plot) and prints their paths.
+fn write_relight_outputs(
+    p: &Prepared,
+    report: &relight::RelightReport,
+    frames: Option<&std::path::Path>,
+    frame_size: u32,
+    csv: Option<&std::path::Path>,
+    plot: Option<&std::path::Path>,
+    out: &mut impl Write,
+) -> Result<(), BoxError> {
+    if let Some(dir) = frames {
+        let paths = relight::write_frames(p, report, dir, frame_size, frame_size)?;
+        if let (Some(first), Some(last)) = (paths.first(), paths.last()) {
+            writeln!(out, "frames of {}: {} .. {}", report.first_script, first.display(), last.display())?;
+        }
+    }
+    if let Some(path) = csv {
+        std::fs::write(path, report.to_csv()).map_err(|e| format!("writing {}: {e}", path.display()))?;
+        writeln!(out, "{}", path.display())?;
+    }
+    if let Some(stem) = plot {
+        let chart = radiosity_host::picture::plot::Plot::ErrorWork {
+            title: "Relight scripts: device error against the exact f64 answer".into(),
+            x_label: "cumulative work units (light changes + shooting)".into(),
+            y_label: "relative L2 error of B".into(),
+            series: report.error_series(),
+        };
+        let (svg, png) = chart.write(stem, 900, 600)?;
+        writeln!(out, "{}\n{}", svg.display(), png.display())?;
+    }
+    Ok(())
+}
+
 /// `path` with `suffix` appended to its file name.
 fn with_suffix(path: &std::path::Path, suffix: &str) -> PathBuf {
     let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
@@ -435,5 +576,64 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     for path in view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"))? {
         writeln!(out, "{}", path.display())?;
     }
+    let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
+    let intensity: Vec<[f32; 3]> = p.lighting.default_intensity.iter().map(|v| v.map(|x| x as f32)).collect();
+    let device = relight::device_answer(&bytes, &intensity)?;
+    let image = view::render_scene(
+        &p,
+        &device,
+        &view::RenderOptions {
+            camera: None,
+            width: 512,
+            height: 512,
+            mode: view::RenderMode::Error { reference: &b },
+        },
+    )?;
+    let error_png = dir.join("cornell-box-error.png");
+    write_png(&error_png, &image)?;
+    writeln!(out, "{} (device answer on the table, relative error against f64)", error_png.display())?;
+    let areas: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
+    let histogram = radiosity_host::picture::plot::Plot::Histogram {
+        title: format!("Cornell box mesh: {} patches", p.patches.len()),
+        x_label: "patch area (scene units^2)".into(),
+        values: areas,
+        bins: 24,
+    };
+    let (svg, png) = histogram.write(&dir.join("cornell-box-mesh"), 800, 500)?;
+    writeln!(out, "{}\n{}", svg.display(), png.display())?;
+
+    let scripts = scene.with_extension("relight.toml");
+    let script = "lights-on";
+    writeln!(
+        out,
+        "\n== relight script {script:?} ({}): device loop on the host (f32, fixed point) and the Cortex-M4 \
+         firmware under QEMU",
+        scripts.display()
+    )?;
+    let options = relight::RelightOptions {
+        only: Some(script.into()),
+        qemu: true,
+        ..relight::RelightOptions::default()
+    };
+    let report = match relight::relight(&p, &bytes, &table, &scripts, &options) {
+        Ok(r) => r,
+        Err(e @ relight::RelightError::Qemu { .. }) => {
+            writeln!(out, "QEMU run skipped: {e}\n(the host simulator's numbers follow)")?;
+            let options = relight::RelightOptions { qemu: false, ..options };
+            relight::relight(&p, &bytes, &table, &scripts, &options)?
+        }
+        Err(e) => return Err(e.into()),
+    };
+    write!(out, "{report}")?;
+    writeln!(out, "instructions: light change + shooting per frame, counted by SysTick under QEMU -icount (firmware-sim/COST.md)")?;
+    write_relight_outputs(
+        &p,
+        &report,
+        Some(&dir.join("frames")),
+        256,
+        Some(&dir.join("cornell-box-relight.csv")),
+        Some(&dir.join("cornell-box-relight")),
+        out,
+    )?;
     Ok(())
 }

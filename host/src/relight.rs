@@ -1,0 +1,503 @@
+//! `radiosity relight`: a relight script run the way the device runs it, every frame compared with the exact answer.
+//!
+//! The device side is `firmware-sim`'s device loop ([`firmware_sim::device::run_script`]): the same code the
+//! Cortex-M firmware links, with the table parsed in place and the solver state in fixed buffers sized from the
+//! table. It runs on the host in `f32` and in Q32.32 fixed point; optionally the firmware itself is built with
+//! the same table and scripts and run under QEMU (Cortex-M4, `mps2-an386`, `-icount shift=0`), which adds the
+//! instructions each frame took and proves the host run is bit-exact with the device's.
+//!
+//! The exact answer of a frame is the f64 relighting of the scene's own form-factor matrix (unsparsified,
+//! unquantized): `B = B_static + sum_g I_g T_g` with the frame's intensities `I_g` ([`TransferVectors`]). The
+//! per-frame error therefore holds every source at once: form-factor estimation is the only one left out (the
+//! matrix is the same estimate), while sparsification, quantization, iteration truncation at the frame's budget
+//! and arithmetic are all in it. `radiosity check` separates them.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use firmware_sim::device::{self, Bits, NoMeter};
+use firmware_sim::qemu::{self, QemuLog, Target};
+use firmware_sim::script::{OwnedScript, ScriptFile};
+use firmware_sim::sim::{self, Arith, DeviceMemory};
+use radiosity_core::{Fixed, Table};
+use serde::Serialize;
+use thiserror::Error;
+
+use crate::metrics::{self, ErrorReport, MetricsError};
+use crate::picture::render::{trace_view, write_frame_sequence, Frame};
+use crate::picture::shading::{ShadingOptions, SmoothShader};
+use crate::picture::PictureError;
+use crate::pipeline::Prepared;
+use crate::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem, ReferenceError};
+use crate::view::{default_camera, PatchTracer, ViewError};
+
+/// Why a relight run failed.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum RelightError {
+    /// The table does not parse.
+    #[error("table: {0}")]
+    Table(radiosity_core::TableError),
+    /// The table was not baked from this scene's patches.
+    #[error("the table does not match the scene: {0}")]
+    Mismatch(String),
+    /// The relight scripts could not be read or do not fit the table.
+    #[error("relight scripts {path}: {reason}")]
+    Scripts {
+        /// The script file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The device loop failed.
+    #[error("device loop: {0}")]
+    Device(#[from] sim::SimError),
+    /// The f64 reference failed.
+    #[error("f64 reference: {0}")]
+    Reference(#[from] ReferenceError),
+    /// Error metrics failed (e.g. a non-finite device value).
+    #[error("{0}")]
+    Metrics(#[from] MetricsError),
+    /// Building or running the firmware under QEMU failed.
+    #[error("QEMU ({target}): {reason}")]
+    Qemu {
+        /// The firmware build.
+        target: &'static str,
+        /// What went wrong.
+        reason: String,
+    },
+    /// Rendering the frames failed.
+    #[error("frames: {0}")]
+    Picture(#[from] PictureError),
+    /// Setting up the view failed.
+    #[error("frames: {0}")]
+    View(#[from] ViewError),
+}
+
+/// What to run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RelightOptions {
+    /// Only the script of this name (all scripts of the file when `None`).
+    pub only: Option<String>,
+    /// Also build the firmware and run it under QEMU (Cortex-M4, f32 and fixed point).
+    pub qemu: bool,
+    /// Seconds each QEMU run may take.
+    pub qemu_timeout_s: u32,
+}
+
+impl Default for RelightOptions {
+    fn default() -> Self {
+        RelightOptions { only: None, qemu: false, qemu_timeout_s: 300 }
+    }
+}
+
+/// One frame of one script in one arithmetic.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FrameRow {
+    /// `f32` or `fixed`.
+    pub arith: &'static str,
+    /// Script name.
+    pub script: String,
+    /// Frame index in the script.
+    pub frame: u32,
+    /// Budget of the frame (work units).
+    pub budget: u32,
+    /// Units the step used.
+    pub used: u32,
+    /// Units the light changes of the frame cost (outside the budget).
+    pub light_units: u32,
+    /// Whether the frame ended converged.
+    pub converged: bool,
+    /// The device's radiosity against the exact f64 answer for the frame's intensities.
+    pub error: ErrorReport,
+    /// Instructions the frame took on the emulated Cortex-M4 (light changes and step), when QEMU ran.
+    pub instructions: Option<u64>,
+}
+
+/// One firmware run under QEMU.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct QemuRun {
+    /// The build (`m4-f32` or `m4-fixed`).
+    pub target: &'static str,
+    /// Flash use of the ELF (bytes: code, table, constants).
+    pub flash: u64,
+    /// Static RAM use (bytes; the stack comes on top).
+    pub ram: u64,
+    /// Frames whose trace (units, outcome, radiosity hash) matched the host simulator's bit for bit.
+    pub frames_bit_exact: usize,
+}
+
+/// Everything a relight run measured.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RelightReport {
+    /// Patches of the table.
+    pub patches: usize,
+    /// Table size in bytes.
+    pub table_bytes: usize,
+    /// Per-frame rows, script by script, f32 before fixed point.
+    pub frames: Vec<FrameRow>,
+    /// The QEMU runs (empty without `--qemu`).
+    pub qemu: Vec<QemuRun>,
+    /// The f32 device radiosity of every frame of the first selected script (for pictures), scene patch order.
+    #[serde(skip)]
+    pub first_script_frames: Vec<Vec<[f64; 3]>>,
+    /// Name of the first selected script.
+    pub first_script: String,
+}
+
+/// The transfer vectors of the scene's own matrix: the exact answer for any light intensities.
+///
+/// # Errors
+/// [`ReferenceError`] if the system is invalid or the solve fails.
+pub fn exact_transfer(p: &Prepared) -> Result<crate::reference::TransferVectors, ReferenceError> {
+    let l = &p.lighting;
+    let system = RadiositySystem::new(&l.rho, &p.form_factors)?;
+    let lights = LightGroupEmission {
+        static_emission: &l.static_emission,
+        unit_emission: &l.unit_emission,
+        group: &l.group,
+        group_count: l.dynamic_groups.len(),
+    };
+    transfer_vectors(system, &lights, &Method::for_size(p.patches.len()))
+}
+
+/// One frame of the device loop: what it spent and the radiosity of every patch (f64, table order).
+struct DeviceFrame {
+    frame: u32,
+    budget: u32,
+    used: u32,
+    light_units: u32,
+    converged: bool,
+    b: Vec<[f64; 3]>,
+}
+
+/// Runs `script` through the device loop in arithmetic `S`, collecting every frame's radiosity.
+fn device_frames<S: Bits>(table: &Table<'_>, script: &OwnedScript) -> Result<Vec<DeviceFrame>, RelightError> {
+    let mut memory = DeviceMemory::<S>::for_table(table);
+    let mut frames = Vec::with_capacity(script.frames.len());
+    let n = table.patch_count();
+    script
+        .with_view(|view| {
+            device::run_script(table, memory.buffers(), view, &mut NoMeter, |r, solver| {
+                let b = (0..n)
+                    .map(|i| {
+                        let v = solver.radiosity(table, i).unwrap_or([S::ZERO; 3]);
+                        v.map(|x| f64::from(x.to_f32()))
+                    })
+                    .collect();
+                frames.push(DeviceFrame {
+                    frame: r.frame,
+                    budget: r.budget,
+                    used: r.used,
+                    light_units: r.light_units,
+                    converged: r.converged(),
+                    b,
+                });
+            })
+        })
+        .map_err(|error| sim::SimError::Run { script: script.name.clone(), error })?;
+    Ok(frames)
+}
+
+/// Checks that `table` holds the patches of `p` (count and areas, to the f32 the table stores).
+fn check_match(p: &Prepared, table: &Table<'_>) -> Result<(), RelightError> {
+    let n = table.patch_count() as usize;
+    if n != p.patches.len() {
+        return Err(RelightError::Mismatch(format!(
+            "the table has {n} patches, the scene meshes into {}",
+            p.patches.len()
+        )));
+    }
+    for (i, patch) in p.patches.iter().enumerate() {
+        let a = table.area(i as u32).map_or(f64::NAN, f64::from);
+        // The table stores areas as f32: relative rounding 2^-24; allow a few ulps.
+        if !((a - patch.area).abs() <= 4.0 * f64::from(f32::EPSILON) * patch.area) {
+            return Err(RelightError::Mismatch(format!(
+                "patch {i}: area {a} in the table, {} in the scene",
+                patch.area
+            )));
+        }
+    }
+    let groups = p.lighting.dynamic_groups.len();
+    if table.group_count() as usize != groups {
+        return Err(RelightError::Mismatch(format!(
+            "the table has {} dynamic light groups, the scene {groups}",
+            table.group_count()
+        )));
+    }
+    Ok(())
+}
+
+/// Runs the relight scripts of `scripts_path` on `table_bytes` (baked from `p`) and compares every frame with
+/// the exact answer; with [`RelightOptions::qemu`], also on the firmware under QEMU.
+///
+/// # Errors
+/// [`RelightError`], naming the script, frame or file.
+pub fn relight(
+    p: &Prepared,
+    table_bytes: &[u8],
+    table_path: &Path,
+    scripts_path: &Path,
+    options: &RelightOptions,
+) -> Result<RelightReport, RelightError> {
+    let table = Table::parse(table_bytes).map_err(RelightError::Table)?;
+    check_match(p, &table)?;
+    let script_error = |reason: String| RelightError::Scripts { path: scripts_path.to_path_buf(), reason };
+    let file = ScriptFile::load(scripts_path).map_err(|e| script_error(e.to_string()))?;
+    file.check_table(table.group_count()).map_err(|e| script_error(e.to_string()))?;
+    let selected: Vec<&OwnedScript> =
+        file.scripts.iter().filter(|s| options.only.as_deref().is_none_or(|n| n == s.name)).collect();
+    if selected.is_empty() {
+        return Err(script_error(format!(
+            "no script named {:?} (the file has {})",
+            options.only.as_deref().unwrap_or_default(),
+            file.scripts.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
+        )));
+    }
+
+    let tv = exact_transfer(p)?;
+    let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
+    let mut rows = Vec::new();
+    let mut first_script_frames = Vec::new();
+    for arith in [Arith::F32, Arith::Fixed] {
+        for (k, script) in selected.iter().enumerate() {
+            let frames = match arith {
+                Arith::F32 => device_frames::<f32>(&table, script)?,
+                Arith::Fixed => device_frames::<Fixed>(&table, script)?,
+            };
+            for (f, spec) in frames.iter().zip(&script.frames) {
+                let intensity: Vec<[f64; 3]> = spec.intensity.iter().map(|v| v.map(f64::from)).collect();
+                let exact = tv.relight(&intensity)?;
+                let error = metrics::compare(&f.b, &exact, &area).map_err(|e| {
+                    script_error(format!("script {:?} frame {} ({arith:?}): {e}", script.name, f.frame))
+                })?;
+                rows.push(FrameRow {
+                    arith: if arith == Arith::F32 { "f32" } else { "fixed" },
+                    script: script.name.clone(),
+                    frame: f.frame,
+                    budget: f.budget,
+                    used: f.used,
+                    light_units: f.light_units,
+                    converged: f.converged,
+                    error,
+                    instructions: None,
+                });
+            }
+            if arith == Arith::F32 && k == 0 {
+                first_script_frames = frames.into_iter().map(|f| f.b).collect();
+            }
+        }
+    }
+
+    let mut qemu_runs = Vec::new();
+    if options.qemu {
+        for (target, name) in [(qemu::M4_F32, "m4-f32"), (qemu::M4_FIXED, "m4-fixed")] {
+            let (run, log) = run_firmware(target, name, &table, &file, table_path, scripts_path, options)?;
+            let arith = if target.arith == Arith::F32 { "f32" } else { "fixed" };
+            // Frames in the log are in script order, frame order; pair them with the rows by script and index.
+            let mut index = std::collections::HashMap::<&str, u32>::new();
+            for q in &log.frames {
+                let k = index.entry(q.script.as_str()).or_insert(0);
+                if let Some(row) =
+                    rows.iter_mut().find(|r| r.arith == arith && r.script == q.script && r.frame == *k)
+                {
+                    row.instructions = Some(q.instructions);
+                }
+                *k += 1;
+            }
+            qemu_runs.push(run);
+        }
+    }
+    Ok(RelightReport {
+        patches: p.patches.len(),
+        table_bytes: table_bytes.len(),
+        frames: rows,
+        qemu: qemu_runs,
+        first_script_frames,
+        first_script: selected[0].name.clone(),
+    })
+}
+
+/// Builds the firmware for `target` with the table and scripts, runs it under QEMU, checks it against the host
+/// simulator bit for bit and reads its size.
+fn run_firmware(
+    target: Target,
+    name: &'static str,
+    table: &Table<'_>,
+    file: &ScriptFile,
+    table_path: &Path,
+    scripts_path: &Path,
+    options: &RelightOptions,
+) -> Result<(QemuRun, QemuLog), RelightError> {
+    let fail = |reason: String| RelightError::Qemu { target: name, reason };
+    let elf = qemu::build_firmware(target, table_path, scripts_path).map_err(fail)?;
+    let (output, ok) = qemu::run_qemu(target, &elf, options.qemu_timeout_s).map_err(fail)?;
+    let log = QemuLog::parse(&output).map_err(fail)?;
+    if !ok || !log.done_ok || !log.errors.is_empty() {
+        return Err(fail(format!("the firmware failed: {:?}", log.errors)));
+    }
+    let host = sim::simulate_file(target.arith, table, file, None, None)?;
+    let frames_bit_exact = qemu::compare(&host, &log).map_err(fail)?;
+    let size = std::process::Command::new("arm-none-eabi-size")
+        .arg("-A")
+        .arg(&elf)
+        .output()
+        .map_err(|e| fail(format!("cannot run arm-none-eabi-size (install it with `make deps`): {e}")))?;
+    let sizes = qemu::Sizes::parse(&String::from_utf8_lossy(&size.stdout));
+    Ok((QemuRun { target: name, flash: sizes.flash, ram: sizes.ram, frames_bit_exact }, log))
+}
+
+/// Renders the f32 device answer of every frame of the report's first script to `<dir>/<script>-NNNN.png`
+/// (one tone map for all frames: the last frame's, so an unconverged frame looks as dark as it is), through the
+/// scene's default camera. Returns the paths.
+///
+/// # Errors
+/// [`RelightError::View`] / [`RelightError::Picture`] for the view or the files.
+pub fn write_frames(
+    p: &Prepared,
+    report: &RelightReport,
+    dir: &Path,
+    width: u32,
+    height: u32,
+) -> Result<Vec<PathBuf>, RelightError> {
+    std::fs::create_dir_all(dir).map_err(|e| PictureError::Io { path: dir.to_path_buf(), source: e })?;
+    let camera = default_camera(p)?;
+    let tracer = PatchTracer::new(&p.patches)?;
+    let trace = |o, d| tracer.closest_hit(o, d);
+    let hits = trace_view(&Frame { camera, width, height }, &trace)?;
+    let shader = SmoothShader::new(&p.patches, &ShadingOptions::default())?;
+    let (paths, _) =
+        write_frame_sequence(&hits, &shader, &report.first_script_frames, None, dir, &report.first_script)?;
+    Ok(paths)
+}
+
+/// The per-frame CSV header.
+pub const CSV_HEADER: &str =
+    "arith,script,frame,budget,used,light_units,converged,rel_l2,max_rel,luminance_rel_l2,\
+instructions_m4";
+
+impl RelightReport {
+    /// The per-frame rows as CSV ([`CSV_HEADER`]; `instructions_m4` empty without QEMU).
+    #[must_use]
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from(CSV_HEADER);
+        s.push('\n');
+        for r in &self.frames {
+            s.push_str(&format!(
+                "{},{},{},{},{},{},{},{:e},{:e},{:e},{}\n",
+                r.arith,
+                r.script,
+                r.frame,
+                r.budget,
+                r.used,
+                r.light_units,
+                u8::from(r.converged),
+                r.error.rel_l2,
+                r.error.max_rel,
+                r.error.luminance_rel_l2,
+                r.instructions.map(|i| i.to_string()).unwrap_or_default()
+            ));
+        }
+        s
+    }
+
+    /// Error against cumulative work units, one series per script and arithmetic (for
+    /// [`crate::picture::plot::Plot::ErrorWork`]); points with zero error or work are left out (log axes).
+    #[must_use]
+    pub fn error_series(&self) -> Vec<crate::picture::plot::Series> {
+        let mut series: Vec<crate::picture::plot::Series> = Vec::new();
+        let mut work = 0.0;
+        for r in &self.frames {
+            let name = format!("{} ({})", r.script, r.arith);
+            if series.last().is_none_or(|s| s.name != name) {
+                series.push(crate::picture::plot::Series { name, points: Vec::new() });
+                work = 0.0;
+            }
+            work += f64::from(r.used) + f64::from(r.light_units);
+            if work > 0.0 && r.error.rel_l2 > 0.0 {
+                if let Some(s) = series.last_mut() {
+                    s.points.push((work, r.error.rel_l2));
+                }
+            }
+        }
+        series.retain(|s| !s.points.is_empty());
+        series
+    }
+}
+
+impl fmt::Display for RelightReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{} patches, table {} bytes; error = area-weighted relative L2 of B against the exact f64 answer \
+             for the frame's intensities",
+            self.patches, self.table_bytes
+        )?;
+        for q in &self.qemu {
+            writeln!(
+                f,
+                "QEMU {}: flash {} bytes, static RAM {} bytes, host and firmware bit-exact on {} frames",
+                q.target, q.flash, q.ram, q.frames_bit_exact
+            )?;
+        }
+        let has_qemu = !self.qemu.is_empty();
+        writeln!(
+            f,
+            "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10} {:>10}{}",
+            "script",
+            "frame",
+            "budget",
+            "used",
+            "conv",
+            "err f32",
+            "err fixed",
+            if has_qemu { "   instr f32 instr fixed" } else { "" }
+        )?;
+        let f32_rows = self.frames.iter().filter(|r| r.arith == "f32");
+        for r in f32_rows {
+            let fixed =
+                self.frames.iter().find(|x| x.arith == "fixed" && x.script == r.script && x.frame == r.frame);
+            write!(
+                f,
+                "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10.3e} {:>10}",
+                r.script,
+                r.frame,
+                r.budget,
+                r.used,
+                if r.converged { "yes" } else { "no" },
+                r.error.rel_l2,
+                fixed.map_or("-".into(), |x| format!("{:.3e}", x.error.rel_l2))
+            )?;
+            if has_qemu {
+                let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
+                write!(f, " {:>11} {:>11}", show(r.instructions), show(fixed.and_then(|x| x.instructions)))?;
+            }
+            writeln!(f)?;
+        }
+        Ok(())
+    }
+}
+
+/// Relative tolerance of [`device_answer`]'s solve (of the lights' total power at unit intensity): far below the
+/// quantization error of a 16-bit table, so the answer shows what the table can do, not where iteration stopped.
+pub const CONVERGED_TOLERANCE: f32 = 1e-6;
+
+/// The device's converged answer on `table` (f32, the device loop's boot solve at [`CONVERGED_TOLERANCE`]) for
+/// per-group `intensity`, in table patch order; e.g. for a picture of its error against the f64 answer.
+///
+/// # Errors
+/// [`RelightError::Table`] if the table does not parse, [`RelightError::Device`] if a light change is rejected or
+/// the solve does not converge within [`firmware_sim::script::DEFAULT_BOOT_BUDGET`] work units.
+pub fn device_answer(table_bytes: &[u8], intensity: &[[f32; 3]]) -> Result<Vec<[f64; 3]>, RelightError> {
+    let table = Table::parse(table_bytes).map_err(RelightError::Table)?;
+    let script = OwnedScript {
+        name: "converged".into(),
+        description: String::new(),
+        tolerance: CONVERGED_TOLERANCE,
+        boot_budget: firmware_sim::script::DEFAULT_BOOT_BUDGET,
+        initial: intensity.to_vec(),
+        frames: vec![firmware_sim::script::OwnedFrame { budget: 1, intensity: intensity.to_vec() }],
+    };
+    let mut frames = device_frames::<f32>(&table, &script)?;
+    Ok(frames.pop().map(|f| f.b).unwrap_or_default())
+}
