@@ -211,7 +211,8 @@ fn check_match(p: &Prepared, table: &Table<'_>) -> Result<(), RelightError> {
     for (i, patch) in p.patches.iter().enumerate() {
         let a = table.area(i as u32).map_or(f64::NAN, f64::from);
         // The table stores areas as f32: relative rounding 2^-24; allow a few ulps.
-        if !((a - patch.area).abs() <= 4.0 * f64::from(f32::EPSILON) * patch.area) {
+        let close = (a - patch.area).abs() <= 4.0 * f64::from(f32::EPSILON) * patch.area;
+        if !close {
             return Err(RelightError::Mismatch(format!(
                 "patch {i}: area {a} in the table, {} in the scene",
                 patch.area
