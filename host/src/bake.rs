@@ -49,6 +49,9 @@
 //!    ([`TransferReport`]) gives the section's bytes and core's f32 relight at the default intensities against
 //!    the f64 solve of the original matrix and against the f64 `B_static + sum_g I_g T_g` it was quantized from.
 //!
+//! The table's header carries [`scene_fingerprint`] of the patches, so a tool holding a table and a scene can
+//! tell whether the table was baked from that scene and meshing ([`Table::fingerprint`]).
+//!
 //! [`Capacities`] are the sizes a firmware build needs for exactly this table.
 
 use std::collections::VecDeque;
@@ -214,6 +217,38 @@ pub fn group_id(name: &str) -> u32 {
     for &b in name.as_bytes() {
         h ^= u32::from(b);
         h = h.wrapping_mul(0x0100_0193);
+    }
+    h
+}
+
+/// The scene fingerprint stored in a table's header: 64-bit FNV-1a (Fowler, Noll, Vo; IETF draft
+/// draft-eastlake-fnv) over the patch count and, per patch in order, its parent face and material index
+/// (`u64` LE) and the f64 bits (LE) of its area, centroid and normal. It identifies the scene and its meshing:
+/// any moved, resized, re-meshed or re-materialled patch changes it (up to hash collisions, probability
+/// about `2^-64` per pair of scenes). Reflectance and emission values are not included: they are in the
+/// table itself. `-0.0` is hashed as `0.0`, so the sign of a zero coordinate does not matter.
+#[must_use]
+pub fn scene_fingerprint(patches: &[Patch]) -> u64 {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let mut h = OFFSET;
+    let mut eat = |word: u64| {
+        for b in word.to_le_bytes() {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(PRIME);
+        }
+    };
+    let bits = |x: f64| (x + 0.0).to_bits();
+    eat(patches.len() as u64);
+    for p in patches {
+        eat(p.face as u64);
+        eat(p.material as u64);
+        eat(bits(p.area));
+        for v in [p.centroid, p.normal] {
+            eat(bits(v.x));
+            eat(bits(v.y));
+            eat(bits(v.z));
+        }
     }
     h
 }
@@ -420,6 +455,8 @@ pub struct BakeReport {
     pub runtime_state: RuntimeState,
     /// Error introduced by the bake.
     pub error: BakeErrors,
+    /// The scene fingerprint stored in the table ([`scene_fingerprint`]).
+    pub fingerprint: u64,
     /// The transfer basis, if baked.
     pub transfer: Option<TransferReport>,
     /// Largest relative residual of the f64 solves.
@@ -430,6 +467,7 @@ impl fmt::Display for BakeReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let e = &self.energy_dropped;
         writeln!(f, "patches            {} ({} materials)", self.patches, self.materials)?;
+        writeln!(f, "scene fingerprint  {:#018x}", self.fingerprint)?;
         writeln!(f, "light groups       {} dynamic, {} members", self.groups.len(), self.members)?;
         for g in &self.groups {
             writeln!(
@@ -919,6 +957,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         transfer.as_ref().map(|tv| (0..n).flat_map(|i| tv.t.iter().map(move |t| to_f32x3(t[i]))).collect());
 
     // 4. Quantize and write.
+    let fingerprint = scene_fingerprint(input.patches);
     let materials: Vec<[f32; 3]> = input.materials.iter().map(|&r| to_f32x3(r)).collect();
     let row_start: Vec<u32> = sparse.matrix.row_start.iter().map(|&s| s as u32).collect();
     let form_factor: Vec<f32> = sparse.matrix.value.iter().map(|&f| f as f32).collect();
@@ -929,7 +968,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         rows: RowsSpec { row_start: &row_start, receiver: &sparse.matrix.col, form_factor: &form_factor },
         codec: options.codec,
         base_solved: true,
-        fingerprint: 0,
+        fingerprint,
         transfer: transfer_f32.as_deref(),
     };
     let len = required_len(&spec).map_err(BakeError::Write)?;
@@ -997,6 +1036,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         },
         error,
         reference_residual: [res_sparse, r0, r1, r3].into_iter().chain(transfer_residual).fold(0.0, f64::max),
+        fingerprint,
         transfer,
     };
     let capacities = Capacities::of_table(&table, blob.len());

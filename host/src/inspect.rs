@@ -183,6 +183,8 @@ pub struct InspectReport {
     pub version: u16,
     /// CRC-32 of the table.
     pub crc: u32,
+    /// Scene fingerprint from the header ([`crate::bake::scene_fingerprint`] of the patches it was baked from).
+    pub fingerprint: u64,
     /// Counts.
     pub counts: TableCounts,
     /// Codec name.
@@ -227,6 +229,7 @@ impl fmt::Display for InspectReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let c = &self.counts;
         writeln!(f, "table format v{}  crc {:#010x}  valid", self.version, self.crc)?;
+        writeln!(f, "fingerprint  {:#018x} (scene and meshing)", self.fingerprint)?;
         writeln!(f, "patches      {} (total area {:.6e})", c.patches, self.total_area)?;
         writeln!(f, "materials    {}", c.materials)?;
         writeln!(f, "light groups {} ({} members)", c.groups, c.members)?;
@@ -357,6 +360,7 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
     Ok(InspectReport {
         version: FORMAT_VERSION,
         crc: table.crc(),
+        fingerprint: table.fingerprint(),
         counts,
         codec: codec_name(codec),
         ff_bits: codec.bits,
