@@ -554,6 +554,11 @@ pub struct Capacities {
     pub reflectance: usize,
     /// Jacobi scratch elements (`[S; 3]`), only for [`radiosity_core::Solver::step_jacobi`].
     pub jacobi_scratch: usize,
+    /// Output elements (`[S; 3]`) of [`radiosity_core::relight_transfer`]: patches with a transfer basis, else 0.
+    pub transfer_out: usize,
+    /// Work units of one [`radiosity_core::relight_transfer`] ([`radiosity_core::transfer_cost`]); 0 without a
+    /// transfer basis.
+    pub transfer_cost: usize,
     /// Table size in bytes.
     pub table_bytes: usize,
 }
@@ -586,6 +591,12 @@ impl Capacities {
             intensity: table.group_count() as usize,
             reflectance: table.material_count() as usize,
             jacobi_scratch: n,
+            transfer_out: if table.has_transfer() { n } else { 0 },
+            transfer_cost: if table.has_transfer() {
+                radiosity_core::transfer_cost(table) as usize
+            } else {
+                0
+            },
             table_bytes,
         }
     }
@@ -593,7 +604,7 @@ impl Capacities {
     /// The capacities as a Rust source file of `pub const NAME: usize = value;` items.
     #[must_use]
     pub fn to_rust(&self) -> String {
-        let items: [(&str, &str, usize); 14] = [
+        let items: [(&str, &str, usize); 16] = [
             ("PATCHES", "Patches in the table.", self.patches),
             ("MATERIALS", "Materials.", self.materials),
             ("GROUPS", "Light groups.", self.groups),
@@ -607,6 +618,16 @@ impl Capacities {
             ("INTENSITY_LEN", "`Buffers::intensity` length.", self.intensity),
             ("REFLECTANCE_LEN", "`Buffers::reflectance` length.", self.reflectance),
             ("JACOBI_SCRATCH_LEN", "Scratch length for `Solver::step_jacobi`.", self.jacobi_scratch),
+            (
+                "TRANSFER_OUT_LEN",
+                "Output length for `relight_transfer` (0: no transfer basis).",
+                self.transfer_out,
+            ),
+            (
+                "TRANSFER_COST",
+                "Work units of one `relight_transfer` (0: no transfer basis).",
+                self.transfer_cost,
+            ),
             ("TABLE_BYTES", "Table size in bytes.", self.table_bytes),
         ];
         let mut s = String::from(

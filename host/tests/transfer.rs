@@ -132,6 +132,13 @@ fn cornell_transfer_relight_matches_f64_within_the_quantization_bound() {
     assert!(t.quantization.max_rel <= 2f64.powi(-13) * (1.0 + 1e-3), "{:?}", t.quantization);
     assert_eq!(t.bytes, groups * 3 + table.patch_count() as usize * groups * 6);
     assert_eq!(baked.table.len(), baked.report.table_bytes.total);
+    // Firmware capacities size the relight's output and state its cost.
+    assert_eq!(baked.capacities.transfer_out, table.patch_count() as usize);
+    assert_eq!(baked.capacities.transfer_cost, transfer_cost(&table) as usize);
+    assert!(baked
+        .capacities
+        .to_rust()
+        .contains(&format!("pub const TRANSFER_OUT_LEN: usize = {};", table.patch_count())));
     // Inspect shows the section with the same bytes.
     let report = inspect(&baked.table).unwrap();
     let info = report.transfer.expect("inspect shows the transfer section");
@@ -154,5 +161,6 @@ fn bake_without_transfer_has_no_section() {
     assert!(!table.has_transfer());
     assert!(baked.report.transfer.is_none());
     assert_eq!(baked.report.table_bytes.transfer, 0);
+    assert_eq!((baked.capacities.transfer_out, baked.capacities.transfer_cost), (0, 0));
     assert!(inspect(&baked.table).unwrap().transfer.is_none());
 }
