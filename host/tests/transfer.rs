@@ -164,3 +164,18 @@ fn bake_without_transfer_has_no_section() {
     assert_eq!((baked.capacities.transfer_out, baked.capacities.transfer_cost), (0, 0));
     assert!(inspect(&baked.table).unwrap().transfer.is_none());
 }
+
+/// With 8-bit codes the decoded rows' shooting form exceeds row sum 1 by the codec's rounding (up to 2^-5);
+/// the bake's f64 solve of the decoded table allows for it instead of failing.
+#[test]
+fn eight_bit_bake_with_transfer_succeeds() {
+    let p = cornell();
+    let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
+    let codec = radiosity_core::FfCodec::FLOAT8;
+    let baked = bake(&input, &BakeOptions { transfer: true, codec, ..BakeOptions::default() }).unwrap();
+    let table = Table::parse(&baked.table).unwrap();
+    assert_eq!(table.codec(), codec);
+    // The transfer basis does not depend on the form-factor codec: same quantization bound.
+    let t = baked.report.transfer.as_ref().unwrap();
+    assert!(t.quantization.max_rel <= 2f64.powi(-13) * (1.0 + 1e-3), "{:?}", t.quantization);
+}
