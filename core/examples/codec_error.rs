@@ -128,6 +128,8 @@ fn main() {
             rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &value },
             codec,
             base_solved: false,
+            fingerprint: 0,
+            transfer: None,
         };
         let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
         write_table(&spec, &mut bytes).unwrap();

@@ -75,6 +75,8 @@ fn table_bytes(as_group: bool) -> (Vec<u8>, usize) {
         rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &value },
         codec: FfCodec::FLOAT16,
         base_solved: false,
+        fingerprint: 0,
+        transfer: None,
     };
     let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
     write_table(&spec, &mut bytes).unwrap();

@@ -15,7 +15,8 @@
 //! 4. **Steps** ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]): at most `budget`
 //!    work units each, reporting an [`Outcome`].
 //! 5. **Relighting** ([`Solver::set_light`], [`Solver::set_reflectance`]): changes injected as unshot power into
-//!    the current solution (warm start).
+//!    the current solution (warm start). Its peer, when the table carries a transfer basis:
+//!    [`relight_transfer`] (module [`transfer`]), `B = B_static + sum_g I_g T_g` in one bounded pass.
 //!
 //! # Physics conventions (units)
 //! - Diffuse surfaces only, static geometry, RGB. Patch `i`: area `A_i` (scene units squared), reflectance
@@ -41,11 +42,35 @@
 //! no work at run time, and a reflectance edit still sees the static light through `H`. If not, `G_s` should be
 //! zero and the static power starts as unshot power and is shot by the device.
 //!
-//! # Table layout (format version 1)
+//! # Transfer basis
+//! With reflectances fixed, radiosity is linear in the light-group intensities: `B = B_static + sum_g I_g T_g`
+//! (crate docs above, "Linearity"). A table may carry the quantized responses `T_g` (W/m^2 per unit intensity,
+//! RGB, every patch and light group) as an optional section; `B_static` is the solved static base,
+//! `E_s + rho G_s` per patch (so a transfer section requires `base_solved`; [`static_radiosity`] decodes it).
+//! Entry points:
+//! - [`relight_transfer`]`::<S>(table, intensity: &[[S; 3]], out: &mut [[S; 3]]) -> Result<u32, TransferError>`
+//!   writes `B` of every patch into the caller's `out` (f32 or [`Fixed`], no allocation) and returns the work
+//!   units spent, [`transfer_cost`]`(table) = patches x (groups + 1)` (one unit per patch for the static base,
+//!   one per patch and group: an RGB code triple decoded and three multiply-adds, like one form-factor entry).
+//! - [`Table::has_transfer`], [`Table::transfer_exponent`], [`Table::transfer_code`],
+//!   [`Table::transfer_response`] to read the section; the writer takes it as [`TableSpec::transfer`].
+//!
+//! Quantization: core's 16-bit small float ([`FfCodec::FLOAT16`]) under a power-of-two scale `2^K` per
+//! group and channel (`K = floor(log2)` of the group's largest response), rounded to nearest, so each response
+//! is within `max(2^-13 T, 2^(K - 27))` of the host's value: relative `1.2e-4` down to `2^-14` of the group's
+//! brightest patch. A relight is within `sum_g |I_g| max(2^-13 T_g, 2^(K_g - 27))` plus the static base's code
+//! error plus arithmetic rounding of the exact `B_static + sum_g I_g T_g` (details and
+//! the arithmetic terms in [`transfer`]). The basis holds for the table's reflectances only: after
+//! [`Solver::set_reflectance`], or with many groups (the section grows as `patches x groups`), shoot.
+//!
+//! # Table layout (format version 2)
 //! `header | payload | crc32`. The header is postcard (varint integers) with the fields, in order:
 //! `magic: [u8; 4] = "RFT\x1a"`, `version: u16`, `patch_count n: u32`, `material_count m: u32`,
 //! `group_count g: u32`, `member_count M: u32`, `entry_count nnz: u32`, `ff_bits: u8` (8 or 16),
-//! `ff_exponent_bits: u8` (0..=4), `index_bytes: u8` (2 if `n <= 65536`, else 4), `base_solved: bool`.
+//! `ff_exponent_bits: u8` (0..=4), `index_bytes: u8` (2 if `n <= 65536`, else 4), `base_solved: bool`,
+//! `fingerprint: u64` (the host's scene fingerprint, [`Table::fingerprint`]; not interpreted by core),
+//! `transfer: bool` (the transfer sections are present). Version 1 had neither of the last two fields nor
+//! the transfer sections.
 //! A reader decodes `(magic, version)` first, so an old or new blob gets "unsupported table format version N,
 //! expected M". The payload is these little-endian sections, back to back, unaligned (read bytewise):
 //!
@@ -65,11 +90,15 @@
 //! | row exponent | `u8` | `n` |
 //! | entry receiver | index (`index_bytes`) | `nnz` |
 //! | entry form-factor code | `ff_bits / 8` bytes | `nnz` |
+//! | transfer scale exponent `K` (only if `transfer`) | `i8` x 3 | `g` |
+//! | transfer response code (FLOAT16, only if `transfer`), patch-major: patch `i`, group `g` at `i * g_count + g` | `u16` x 3 | `n * g` |
 //!
 //! The trailing CRC-32 (IEEE, `u32` LE) covers header and payload. [`Table::parse`] checks magic, version,
 //! header, quantization parameters, length, CRC, then content: areas finite and positive, offsets starting at 0,
 //! monotone and ending at their counts, every index in range, receivers strictly increasing within a row, row
-//! exponents `<= 64`, every row's decoded sum `<= 1` (summed exactly in integers), intensities finite.
+//! exponents `<= 64`, every row's decoded sum `<= 1` (summed exactly in integers), intensities finite, and
+//! with a transfer section: the base is solved and every step exponent is in
+//! [`transfer::TRANSFER_MIN_EXPONENT`]`..=`[`transfer::TRANSFER_MAX_EXPONENT`].
 //!
 //! # Cost model: work units
 //! A work unit is one of: one form-factor entry applied (decode, three multiply-adds into power, unshot and
@@ -88,6 +117,8 @@
 //! - Outside the budget, reported as return values where they depend on the scene: [`Solver::set_light`]
 //!   (members plus their paths), [`Solver::set_reflectance`] (patches scanned plus paths); and
 //!   [`Solver::new`], [`Solver::reset`], [`Solver::ambient`], which are `O(patches + members)`.
+//! - Transfer relight ([`relight_transfer`]): `patches x (groups + 1)` units, outside any budget, not
+//!   resumable (its cost is known from the counts).
 //!
 //! # Error bounds
 //! - Form factors (see [`codec`]): the default [`FfCodec::FLOAT16`] (4 exponent and 12 mantissa bits under a
@@ -167,6 +198,8 @@
 //!     rows: RowsSpec { row_start: &[0, 1, 2], receiver: &[1, 0], form_factor: &[0.4, 0.2] },
 //!     codec: FfCodec::FLOAT16,
 //!     base_solved: false,
+//!     fingerprint: 0,
+//!     transfer: None,
 //! };
 //! let mut blob = vec![0u8; required_len(&spec)?];
 //! let written = write_table(&spec, &mut blob)?;
@@ -199,12 +232,14 @@ pub mod crc;
 pub mod scalar;
 pub mod solver;
 pub mod table;
+pub mod transfer;
 pub mod write;
 
 pub use codec::{FfCodec, Frac};
 pub use scalar::{Fixed, Scalar};
 pub use solver::{Buffers, Config, NoProgressReason, Outcome, Solver, SolverError};
 pub use table::{Table, TableError, FORMAT_VERSION, MAGIC};
+pub use transfer::{relight_transfer, static_radiosity, transfer_cost, TransferError};
 pub use write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };

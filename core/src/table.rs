@@ -10,12 +10,13 @@ use serde::{Deserialize, Serialize};
 
 use crate::codec::{CodecParamError, FfCodec, Frac, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
+use crate::transfer::{decode_transfer, TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPONENT};
 
 /// The four bytes every table starts with.
 pub const MAGIC: [u8; 4] = *b"RFT\x1a";
 
 /// The format version this crate reads and writes.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 
 /// The postcard-encoded header (the part before the payload).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -31,6 +32,8 @@ pub(crate) struct Header {
     pub ff_exponent_bits: u8,
     pub index_bytes: u8,
     pub base_solved: bool,
+    pub fingerprint: u64,
+    pub transfer: bool,
 }
 
 /// The version prefix every format version keeps, decoded before the full header.
@@ -40,8 +43,8 @@ struct Prefix {
     version: u16,
 }
 
-/// Largest postcard header, in bytes (4 magic + varints: 3 for u16, 5 per u32, 1 per u8/bool).
-pub(crate) const MAX_HEADER_LEN: usize = 4 + 3 + 5 * 5 + 4;
+/// Largest postcard header, in bytes (4 magic + varints: 3 for u16, 5 per u32, 10 per u64, 1 per u8/bool).
+pub(crate) const MAX_HEADER_LEN: usize = 4 + 3 + 5 * 5 + 4 + 10 + 1;
 
 /// Byte ranges of the payload sections, in payload order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -60,6 +63,8 @@ pub(crate) struct Layout {
     pub row_exponent: usize,
     pub entry_receiver: usize,
     pub entry_code: usize,
+    pub transfer_exponent: usize,
+    pub transfer_code: usize,
     /// End of the payload (start of the CRC).
     pub end: usize,
 }
@@ -74,6 +79,8 @@ impl Layout {
         let nnz = h.entry_count as usize;
         let ib = usize::from(h.index_bytes);
         let cb = usize::from(h.ff_bits / 8);
+        // The optional transfer basis: per group 3 exponents, per (patch, group) 3 codes of 2 bytes.
+        let (tg, tn) = if h.transfer { (g, n) } else { (0, 0) };
         let mut at = 0usize;
         let mut next = |len: Option<usize>| -> Option<usize> {
             let start = at;
@@ -95,6 +102,8 @@ impl Layout {
             row_exponent: next(Some(n))?,
             entry_receiver: next(nnz.checked_mul(ib))?,
             entry_code: next(nnz.checked_mul(cb))?,
+            transfer_exponent: next(tg.checked_mul(3))?,
+            transfer_code: next(tn.checked_mul(tg)?.checked_mul(6))?,
             end: 0,
         };
         Some(Layout { end: at, ..l })
@@ -190,6 +199,9 @@ pub enum TableError {
         /// The light group.
         group: u32,
     },
+    /// The table has a transfer basis but its static base is not solved: the basis relights as
+    /// `B = B_static + sum_g I_g T_g` and needs `B_static` (see the crate docs, "Transfer basis").
+    TransferWithoutSolvedBase,
 }
 
 /// The quantization parameter a [`TableError::BadQuantParams`] refers to.
@@ -203,6 +215,8 @@ pub enum QuantParam {
     IndexBytes,
     /// A row exponent (0..=64); the value is the row.
     RowExponent,
+    /// A transfer-basis step exponent (see [`crate::transfer`]); the value is the light group.
+    TransferExponent,
 }
 
 /// The offset array a [`TableError::NonMonotoneOffsets`] refers to.
@@ -268,6 +282,9 @@ impl fmt::Display for TableError {
             TableError::BadIntensity { group } => {
                 write!(f, "light group {group}: default intensity not finite")
             }
+            TableError::TransferWithoutSolvedBase => {
+                write!(f, "transfer basis present but the static base is not solved")
+            }
         }
     }
 }
@@ -315,6 +332,8 @@ pub struct Table<'a> {
     row_exponent: &'a [u8],
     entry_receiver: &'a [u8],
     entry_code: &'a [u8],
+    transfer_exponent: &'a [u8],
+    transfer_code: &'a [u8],
 }
 
 /// One light-group member: a patch and its emission at unit intensity.
@@ -413,7 +432,9 @@ impl<'a> Table<'a> {
             row_start: sec(layout.row_start, layout.row_exponent),
             row_exponent: sec(layout.row_exponent, layout.entry_receiver),
             entry_receiver: sec(layout.entry_receiver, layout.entry_code),
-            entry_code: sec(layout.entry_code, layout.end),
+            entry_code: sec(layout.entry_code, layout.transfer_exponent),
+            transfer_exponent: sec(layout.transfer_exponent, layout.transfer_code),
+            transfer_code: sec(layout.transfer_code, layout.end),
         };
         table.validate()?;
         Ok(table)
@@ -490,6 +511,22 @@ impl<'a> Table<'a> {
                 return Err(TableError::RowSumExceedsOne { row });
             }
         }
+        if self.header.transfer {
+            if !self.header.base_solved {
+                return Err(TableError::TransferWithoutSolvedBase);
+            }
+            for g in 0..self.header.group_count {
+                for c in 0..3 {
+                    let k = self.transfer_exponent.get(g as usize * 3 + c).map_or(0, |&b| b as i8);
+                    if !(TRANSFER_MIN_EXPONENT..=TRANSFER_MAX_EXPONENT).contains(&k) {
+                        return Err(TableError::BadQuantParams {
+                            param: QuantParam::TransferExponent,
+                            value: g,
+                        });
+                    }
+                }
+            }
+        }
         Ok(())
     }
 
@@ -543,6 +580,48 @@ impl<'a> Table<'a> {
     #[must_use]
     pub fn base_solved(&self) -> bool {
         self.header.base_solved
+    }
+
+    /// The scene fingerprint the host stored: identifies the scene and meshing the table was baked from (the
+    /// host's `bake::scene_fingerprint`; 0 if the writer was given none). Core does not interpret it.
+    #[must_use]
+    pub fn fingerprint(&self) -> u64 {
+        self.header.fingerprint
+    }
+
+    /// Whether the table carries the optional transfer basis (see [`crate::transfer`]).
+    #[must_use]
+    pub fn has_transfer(&self) -> bool {
+        self.header.transfer
+    }
+
+    /// Transfer-basis step exponents `k` (RGB) of light `group`: its response codes decode to `code * 2^k`
+    /// W/m^2 at unit intensity. `None` without a transfer section or out of range.
+    #[must_use]
+    pub fn transfer_exponent(&self, group: u32) -> Option<[i8; 3]> {
+        (self.has_transfer() && group < self.group_count()).then(|| {
+            let at = group as usize * 3;
+            [0, 1, 2].map(|c| self.transfer_exponent.get(at + c).map_or(0, |&b| b as i8))
+        })
+    }
+
+    /// Transfer-basis response codes (RGB) of `patch` to light `group` at unit intensity (see
+    /// [`crate::transfer`]). `None` without a transfer section or out of range.
+    #[must_use]
+    pub fn transfer_code(&self, patch: u32, group: u32) -> Option<[u16; 3]> {
+        if !self.has_transfer() || patch >= self.patch_count() || group >= self.group_count() {
+            return None;
+        }
+        // patch < n, group < g and n * g * 6 bytes fit (checked by the layout), so no overflow.
+        Some(rgb16(self.transfer_code, patch as usize * self.group_count() as usize + group as usize))
+    }
+
+    /// The decoded transfer response `T_g` (W/m^2 at unit intensity, RGB) of `patch` to light `group`.
+    #[must_use]
+    pub fn transfer_response(&self, patch: u32, group: u32) -> Option<[f32; 3]> {
+        let code = self.transfer_code(patch, group)?;
+        let k = self.transfer_exponent(group)?;
+        Some([0, 1, 2].map(|c| decode_transfer(code[c], k[c])))
     }
 
     /// The CRC-32 of the blob (identifies the table; solver state remembers it).

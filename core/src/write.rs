@@ -9,6 +9,7 @@ use core::fmt;
 use crate::codec::{self, f32_to_exact, FfCodec, EXACT_SHIFT};
 use crate::crc::crc32;
 use crate::table::{Header, Layout, FORMAT_VERSION, MAGIC, MAX_HEADER_LEN};
+use crate::transfer::{encode_transfer, transfer_exponent_for, TRANSFER_MAX};
 
 /// One patch as the writer takes it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -71,6 +72,13 @@ pub struct TableSpec<'a> {
     /// `true`: `base_irradiance` is the converged static solution, the solver starts with the static power
     /// already shot. `false`: the solver shoots the static emission itself.
     pub base_solved: bool,
+    /// Scene fingerprint stored in the header (identifies the scene and meshing; 0 if none). Core does not
+    /// interpret it.
+    pub fingerprint: u64,
+    /// Optional transfer basis (see [`crate::transfer`]): the response `T_g` (W/m^2 at unit intensity, RGB,
+    /// finite and `>= 0`) of every patch to every light group, patch-major: `transfer[i * groups + g]`,
+    /// length patches x groups. Needs `base_solved`.
+    pub transfer: Option<&'a [[f32; 3]]>,
 }
 
 /// Largest amount by which a row's sum may exceed 1 before the writer rejects it (f32 rounding of a closed
@@ -126,6 +134,15 @@ pub enum WriteError {
     },
     /// The codec parameters are not valid.
     BadCodec,
+    /// The transfer basis does not have patches x groups responses.
+    TransferLength {
+        /// Responses needed.
+        expected: usize,
+        /// Responses given.
+        got: usize,
+    },
+    /// A transfer basis is given but `base_solved` is false (the basis relights on the solved static base).
+    TransferNeedsSolvedBase,
 }
 
 impl fmt::Display for WriteError {
@@ -149,6 +166,12 @@ impl fmt::Display for WriteError {
             }
             WriteError::RowSumExceedsOne { row } => write!(f, "form-factor row {row}: sum exceeds 1"),
             WriteError::BadCodec => write!(f, "form-factor codec parameters invalid"),
+            WriteError::TransferLength { expected, got } => {
+                write!(f, "transfer basis: {got} responses, expected {expected} (patches x light groups)")
+            }
+            WriteError::TransferNeedsSolvedBase => {
+                write!(f, "transfer basis needs a solved static base (base_solved = true)")
+            }
         }
     }
 }
@@ -178,6 +201,8 @@ fn header_of(spec: &TableSpec<'_>) -> Result<Header, WriteError> {
         ff_exponent_bits: spec.codec.exponent_bits,
         index_bytes: if patch_count <= 0x1_0000 { 2 } else { 4 },
         base_solved: spec.base_solved,
+        fingerprint: spec.fingerprint,
+        transfer: spec.transfer.is_some(),
     })
 }
 
@@ -302,6 +327,21 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
             emission_codes("light group member emission", k, member.emission)?;
         }
     }
+    if let Some(t) = spec.transfer {
+        if !spec.base_solved {
+            return Err(WriteError::TransferNeedsSolvedBase);
+        }
+        let expected =
+            n.checked_mul(spec.groups.len()).ok_or(WriteError::TooMany { what: "transfer responses" })?;
+        if t.len() != expected {
+            return Err(WriteError::TransferLength { expected, got: t.len() });
+        }
+        for (k, rgb) in t.iter().enumerate() {
+            for &v in rgb {
+                check_value("transfer response", k, v, v.is_finite() && (0.0..=TRANSFER_MAX).contains(&v))?;
+            }
+        }
+    }
     for j in 0..n {
         let (s, e) = (rows.row_start[j] as usize, rows.row_start[j + 1] as usize);
         let mut sum = 0u128;
@@ -401,6 +441,9 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
         }
     }
     o.at = codes_at + rows.receiver.len() * spec.codec.code_bytes();
+    if let Some(t) = spec.transfer {
+        write_transfer(t, spec.groups.len(), &mut o);
+    }
     let crc = crc32(o.buf.get(..o.at).unwrap_or(&[]));
     o.u32(crc);
     Ok(o.at)
@@ -436,6 +479,25 @@ fn quantize_row_into(
         pos += chunk.len() * codec.code_bytes();
     }
     e
+}
+
+/// Writes the transfer section: per group and channel the step exponent of its largest response, then the
+/// codes, patch-major (validated by the caller: `t.len() = patches x groups`, values in `[0, TRANSFER_MAX]`).
+fn write_transfer(t: &[[f32; 3]], groups: usize, o: &mut Out<'_>) {
+    let exps_at = o.at;
+    for g in 0..groups {
+        for c in 0..3 {
+            let max = t.iter().skip(g).step_by(groups).map(|v| v[c]).fold(0.0f32, f32::max);
+            o.bytes(&[transfer_exponent_for(max) as u8]);
+        }
+    }
+    for (k, rgb) in t.iter().enumerate() {
+        let g = k % groups.max(1);
+        for (c, &v) in rgb.iter().enumerate() {
+            let exp = o.buf.get(exps_at + g * 3 + c).map_or(0, |&b| b as i8);
+            o.u16(encode_transfer(v, exp));
+        }
+    }
 }
 
 fn write_codes(codec: FfCodec, codes: &[u16], o: &mut Out<'_>, at: usize) {

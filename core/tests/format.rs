@@ -18,11 +18,12 @@ fn tiny() -> Scene {
     s.materials = vec![[0.5, 0.25, 0.75]];
     s.groups = vec![(0xABCD, [1.0, 1.0, 1.0], vec![MemberSpec { patch: 1, emission: [2.0, 2.0, 2.0] }])];
     s.rows = vec![vec![(1, 0.5)], vec![(0, 0.25)]];
+    s.fingerprint = 300;
     s
 }
 
-/// Payload section offsets of the tiny table (header is 14 bytes), mirroring the layout in the crate docs.
-const HEADER: usize = 14;
+/// Payload section offsets of the tiny table (header is 17 bytes), mirroring the layout in the crate docs.
+const HEADER: usize = 17;
 const AREA: usize = HEADER;
 const MATERIAL: usize = HEADER + 8;
 const GROUP_INTENSITY: usize = HEADER + 46;
@@ -36,6 +37,46 @@ const TOTAL: usize = HEADER + 96 + 4;
 
 #[rustfmt::skip]
 const GOLDEN: [u8; TOTAL] = [
+    // header (postcard): magic, version 2, 2 patches, 1 material, 1 group, 1 member, 2 entries,
+    // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved, fingerprint 300 (varint 0xac 0x02),
+    // no transfer section
+    0x52, 0x46, 0x54, 0x1a, 0x02, 0x02, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00, 0xac, 0x02, 0x00,
+    // areas (f32): 1.0, 2.0
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x00, 0x40,
+    // materials (u16): 0, 0
+    0x00, 0x00, 0x00, 0x00,
+    // base emission codes: patch 0 (1, 0, 0), patch 1 (0, 0, 0); 1.0 = (1024 + 0) * 2^(31 - 41): x 31 = 0x7c00
+    0x00, 0x7c, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+    // base irradiance codes: patch 0 zero, patch 1 (0, 0.5, 0); 0.5: x 30 = 0x7800
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x78, 0x00, 0x00,
+    // reflectance codes: 0.5, 0.25, 0.75 = 0x8000, 0x4000, 0xc000
+    0x00, 0x80, 0x00, 0x40, 0x00, 0xc0,
+    // group ids
+    0xcd, 0xab, 0x00, 0x00,
+    // group default intensities (f32 x 3)
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x80, 0x3f,
+    // group member starts: 0, 1
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00,
+    // member patch: 1
+    0x01, 0x00,
+    // member emission codes: 2.0 x 3: x 32 = 0x8000
+    0x00, 0x80, 0x00, 0x80, 0x00, 0x80,
+    // row starts: 0, 1, 2
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+    // row exponents: 0.5 -> 1, 0.25 -> 2
+    0x01, 0x02,
+    // receivers: 1, 0
+    0x01, 0x00, 0x00, 0x00,
+    // codes: top binade value 2^-e = x 15, m 0 = 0xf000
+    0x00, 0xf0, 0x00, 0xf0,
+    // CRC-32 over everything above
+    0x3c, 0xab, 0x7d, 0x67,
+];
+
+/// The same tiny table in format version 1 (before the fingerprint and the transfer section): the blob a v1
+/// writer produced, kept to show an old table gets a clear error.
+#[rustfmt::skip]
+const GOLDEN_V1: [u8; 114] = [
     // header (postcard): magic, version 1, 2 patches, 1 material, 1 group, 1 member, 2 entries,
     // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved
     0x52, 0x46, 0x54, 0x1a, 0x01, 0x02, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00,
@@ -87,6 +128,11 @@ fn golden_bytes_pin_the_layout() {
     assert_eq!(t.default_intensity(0), Some([1.0; 3]));
     assert_eq!(t.area(2), None);
     assert_eq!(t.entry_code(2), None);
+    assert_eq!(t.fingerprint(), 300);
+    assert!(!t.has_transfer());
+    assert_eq!(t.transfer_code(0, 0), None);
+    // The mutation test's transfer table is valid before it is mutated.
+    assert!(Table::parse(&medium_transfer()).is_ok_and(|t| t.has_transfer()));
 }
 
 fn fix_crc(b: &mut [u8]) {
@@ -109,9 +155,11 @@ fn named_corruptions_map_to_their_errors() {
     use TableError as E;
     assert_eq!(corrupt(|b| b[0] = b'X', false), Err(E::BadMagic { found: *b"XFT\x1a" }));
     assert_eq!(
-        corrupt(|b| b[4] = 2, false),
-        Err(E::UnsupportedVersion { found: 2, expected: FORMAT_VERSION })
+        corrupt(|b| b[4] = 3, false),
+        Err(E::UnsupportedVersion { found: 3, expected: FORMAT_VERSION })
     );
+    // A real version-1 blob (CRC intact) gets the version error, not a header or length error.
+    assert_eq!(Table::parse(&GOLDEN_V1).err(), Some(E::UnsupportedVersion { found: 1, expected: 2 }));
     let msg = E::UnsupportedVersion { found: 2, expected: 1 }.to_string();
     assert_eq!(msg, "unsupported table format version 2, expected 1");
     assert_eq!(
@@ -252,6 +300,8 @@ fn write_into(s: &Scene, out: &mut [u8]) -> Result<usize, WriteError> {
         },
         codec: s.codec,
         base_solved: s.base_solved,
+        fingerprint: s.fingerprint,
+        transfer: s.transfer.as_deref(),
     };
     radiosity_core::write_table(&spec, out)
 }
@@ -263,6 +313,18 @@ fn try_write(s: &Scene) -> Result<usize, WriteError> {
 
 /// A medium table with 8-bit codes and several groups, for the mutation test.
 fn medium() -> Vec<u8> {
+    medium_scene().write()
+}
+
+/// [`medium`] with a solved base and a transfer basis, so mutations reach the transfer sections.
+fn medium_transfer() -> Vec<u8> {
+    let mut s = medium_scene();
+    s.base_solved = true;
+    s.transfer = Some((0..12).map(|k| [k as f32 * 0.1, 1.0 / (k + 1) as f32, 1e-3 * k as f32]).collect());
+    s.write()
+}
+
+fn medium_scene() -> Scene {
     let mut s = Scene::new(6);
     s.codec = FfCodec::FLOAT8;
     s.materials = vec![[0.3, 0.5, 0.7], [0.9, 0.1, 0.0]];
@@ -278,7 +340,7 @@ fn medium() -> Vec<u8> {
             vec![MemberSpec { patch: 3, emission: [1.0; 3] }, MemberSpec { patch: 4, emission: [1e6; 3] }],
         ),
     ];
-    s.write()
+    s
 }
 
 /// Everything a caller can do with a parsed table, to show no accessor panics.
@@ -295,6 +357,12 @@ fn exercise(bytes: &[u8]) {
     for g in 0..t.group_count() + 1 {
         let _ = (t.group_id(g), t.default_intensity(g), t.group_members(g).map(|r| r.map(|k| t.member(k))));
     }
+    for g in 0..t.group_count() + 1 {
+        let _ = (t.transfer_exponent(g), t.transfer_response(0, g), t.transfer_code(t.patch_count(), g));
+    }
+    let intensity = vec![[1.0f32; 3]; t.group_count() as usize];
+    let mut out = vec![[0.0f32; 3]; t.patch_count() as usize];
+    let _ = radiosity_core::relight_transfer(&t, &intensity, &mut out);
     let mut store = Store::<f32>::for_table(&t);
     let mut s = store.solver(&t, Config { tolerance: 1e-3, overshoot: 0 });
     let _ = s.step(&t, 500);
@@ -307,13 +375,17 @@ proptest! {
 
     #[test]
     fn parse_never_panics_on_mutations(
-        which in 0usize..2,
+        which in 0usize..3,
         flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6),
         cut in any::<usize>(),
         truncate in any::<bool>(),
         fix in any::<bool>(),
     ) {
-        let mut b = if which == 0 { GOLDEN.to_vec() } else { medium() };
+        let mut b = match which {
+            0 => GOLDEN.to_vec(),
+            1 => medium(),
+            _ => medium_transfer(),
+        };
         for (pos, v) in flips {
             let len = b.len();
             b[pos % len] = v;

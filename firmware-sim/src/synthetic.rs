@@ -67,6 +67,8 @@ pub fn uniform_enclosure(k: u32, area: f32, codec: FfCodec) -> Result<Vec<u8>, W
         rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
         codec,
         base_solved: false,
+        fingerprint: 0,
+        transfer: None,
     };
     let mut blob = vec![0u8; required_len(&spec)?];
     let len = write_table(&spec, &mut blob)?;

@@ -42,6 +42,16 @@
 //!    `sparsify` (the shooting form of the sparsified matrix, f64) and `sparsify_quantize` (everything decoded
 //!    back from the written table with [`Table::parse`]: form factors, reflectances, areas, emissions).
 //!
+//! 7. **Transfer basis** (with [`BakeOptions::transfer`]). The responses `T_g` of every patch to every
+//!    dynamic light group at unit intensity are solved in f64 by [`transfer_vectors`] on the same shooting form
+//!    of the sparsified matrix as the static base, then quantized by core's writer into the table's transfer
+//!    section (core's `transfer` module: per group and channel a power-of-two scale, 16-bit small floats). The report
+//!    ([`TransferReport`]) gives the section's bytes and core's f32 relight at the default intensities against
+//!    the f64 solve of the original matrix and against the f64 `B_static + sum_g I_g T_g` it was quantized from.
+//!
+//! The table's header carries [`scene_fingerprint`] of the patches, so a tool holding a table and a scene can
+//! tell whether the table was baked from that scene and meshing ([`Table::fingerprint`]).
+//!
 //! [`Capacities`] are the sizes a firmware build needs for exactly this table.
 
 use std::collections::VecDeque;
@@ -57,7 +67,10 @@ use crate::inspect::{SectionBytes, TableCounts};
 use crate::lighting::PatchLighting;
 use crate::metrics::{self, ErrorReport, MetricsError};
 use crate::patch::{FormFactorMatrix, Patch};
-use crate::reference::{solve_many, GaussSeidelOptions, Method, RadiositySystem, ReferenceError};
+use crate::reference::{
+    solve_many, transfer_vectors, GaussSeidelOptions, LightGroupEmission, Method, RadiositySystem,
+    ReferenceError, TransferVectors,
+};
 use crate::scene::Scene;
 
 /// Default sparsification threshold: each row may lose at most 0.1% of the energy it transports.
@@ -79,6 +92,9 @@ pub struct BakeOptions {
     pub row_sum_tolerance: f64,
     /// Reference solver; `None` picks [`default_method`].
     pub method: Option<Method>,
+    /// Store the transfer basis (core's `transfer` module): the response `T_g` of every patch to every dynamic
+    /// light group, solved in f64 on the table's own matrix and quantized, for `B = B_static + sum_g I_g T_g`.
+    pub transfer: bool,
 }
 
 impl Default for BakeOptions {
@@ -88,6 +104,7 @@ impl Default for BakeOptions {
             codec: FfCodec::FLOAT16,
             row_sum_tolerance: DEFAULT_ROW_SUM_TOLERANCE,
             method: None,
+            transfer: false,
         }
     }
 }
@@ -160,6 +177,9 @@ pub enum BakeError {
     /// The written table does not parse (a writer bug; never expected).
     #[error("the written table does not parse: {0}")]
     Parse(radiosity_core::TableError),
+    /// Core's transfer relight of the written table failed (a writer bug; never expected).
+    #[error("transfer relight of the written table: {0}")]
+    Transfer(radiosity_core::TransferError),
     /// Error metrics could not be computed.
     #[error("error metrics: {0}")]
     Metrics(#[from] MetricsError),
@@ -197,6 +217,38 @@ pub fn group_id(name: &str) -> u32 {
     for &b in name.as_bytes() {
         h ^= u32::from(b);
         h = h.wrapping_mul(0x0100_0193);
+    }
+    h
+}
+
+/// The scene fingerprint stored in a table's header: 64-bit FNV-1a (Fowler, Noll, Vo; IETF draft
+/// draft-eastlake-fnv) over the patch count and, per patch in order, its parent face and material index
+/// (`u64` LE) and the f64 bits (LE) of its area, centroid and normal. It identifies the scene and its meshing:
+/// any moved, resized, re-meshed or re-materialled patch changes it (up to hash collisions, probability
+/// about `2^-64` per pair of scenes). Reflectance and emission values are not included: they are in the
+/// table itself. `-0.0` is hashed as `0.0`, so the sign of a zero coordinate does not matter.
+#[must_use]
+pub fn scene_fingerprint(patches: &[Patch]) -> u64 {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let mut h = OFFSET;
+    let mut eat = |word: u64| {
+        for b in word.to_le_bytes() {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(PRIME);
+        }
+    };
+    let bits = |x: f64| (x + 0.0).to_bits();
+    eat(patches.len() as u64);
+    for p in patches {
+        eat(p.face as u64);
+        eat(p.material as u64);
+        eat(bits(p.area));
+        for v in [p.centroid, p.normal] {
+            eat(bits(v.x));
+            eat(bits(v.y));
+            eat(bits(v.z));
+        }
     }
     h
 }
@@ -355,6 +407,19 @@ pub struct BakeErrors {
     pub sparsify_quantize: ErrorReport,
 }
 
+/// The transfer basis of a bake (see [`BakeOptions::transfer`] and the module docs, step 7).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TransferReport {
+    /// Bytes of the transfer sections (scale exponents and response codes).
+    pub bytes: usize,
+    /// Core's f32 transfer relight at the default intensities vs the f64 solve of the original matrix (what
+    /// the device shows against the exact answer).
+    pub vs_reference: ErrorReport,
+    /// The same relight vs f64 `B_static + sum_g I_g T_g` on the table's own (sparsified) matrix: the
+    /// quantization of the basis and the static base alone.
+    pub quantization: ErrorReport,
+}
+
 /// The bake summary.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BakeReport {
@@ -390,6 +455,10 @@ pub struct BakeReport {
     pub runtime_state: RuntimeState,
     /// Error introduced by the bake.
     pub error: BakeErrors,
+    /// The scene fingerprint stored in the table ([`scene_fingerprint`]).
+    pub fingerprint: u64,
+    /// The transfer basis, if baked.
+    pub transfer: Option<TransferReport>,
     /// Largest relative residual of the f64 solves.
     pub reference_residual: f64,
 }
@@ -398,6 +467,7 @@ impl fmt::Display for BakeReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let e = &self.energy_dropped;
         writeln!(f, "patches            {} ({} materials)", self.patches, self.materials)?;
+        writeln!(f, "scene fingerprint  {:#018x}", self.fingerprint)?;
         writeln!(f, "light groups       {} dynamic, {} members", self.groups.len(), self.members)?;
         for g in &self.groups {
             writeln!(
@@ -440,6 +510,17 @@ impl fmt::Display for BakeReport {
         writeln!(f, "{}", line("reciprocity", &self.error.reciprocity))?;
         writeln!(f, "{}", line("sparsify", &self.error.sparsify))?;
         writeln!(f, "{}", line("sparsify+quantize", &self.error.sparsify_quantize))?;
+        if let Some(t) = &self.transfer {
+            writeln!(
+                f,
+                "transfer basis     {} bytes ({} groups x {} patches)",
+                t.bytes,
+                self.groups.len(),
+                self.patches
+            )?;
+            writeln!(f, "{}", line("transfer relight", &t.vs_reference))?;
+            writeln!(f, "{}", line("  quantization", &t.quantization))?;
+        }
         write!(f, "reference residual {:.3e}", self.reference_residual)
     }
 }
@@ -473,6 +554,11 @@ pub struct Capacities {
     pub reflectance: usize,
     /// Jacobi scratch elements (`[S; 3]`), only for [`radiosity_core::Solver::step_jacobi`].
     pub jacobi_scratch: usize,
+    /// Output elements (`[S; 3]`) of [`radiosity_core::relight_transfer`]: patches with a transfer basis, else 0.
+    pub transfer_out: usize,
+    /// Work units of one [`radiosity_core::relight_transfer`] ([`radiosity_core::transfer_cost`]); 0 without a
+    /// transfer basis.
+    pub transfer_cost: usize,
     /// Table size in bytes.
     pub table_bytes: usize,
 }
@@ -505,6 +591,12 @@ impl Capacities {
             intensity: table.group_count() as usize,
             reflectance: table.material_count() as usize,
             jacobi_scratch: n,
+            transfer_out: if table.has_transfer() { n } else { 0 },
+            transfer_cost: if table.has_transfer() {
+                radiosity_core::transfer_cost(table) as usize
+            } else {
+                0
+            },
             table_bytes,
         }
     }
@@ -512,7 +604,7 @@ impl Capacities {
     /// The capacities as a Rust source file of `pub const NAME: usize = value;` items.
     #[must_use]
     pub fn to_rust(&self) -> String {
-        let items: [(&str, &str, usize); 14] = [
+        let items: [(&str, &str, usize); 16] = [
             ("PATCHES", "Patches in the table.", self.patches),
             ("MATERIALS", "Materials.", self.materials),
             ("GROUPS", "Light groups.", self.groups),
@@ -526,6 +618,16 @@ impl Capacities {
             ("INTENSITY_LEN", "`Buffers::intensity` length.", self.intensity),
             ("REFLECTANCE_LEN", "`Buffers::reflectance` length.", self.reflectance),
             ("JACOBI_SCRATCH_LEN", "Scratch length for `Solver::step_jacobi`.", self.jacobi_scratch),
+            (
+                "TRANSFER_OUT_LEN",
+                "Output length for `relight_transfer` (0: no transfer basis).",
+                self.transfer_out,
+            ),
+            (
+                "TRANSFER_COST",
+                "Work units of one `relight_transfer` (0: no transfer basis).",
+                self.transfer_cost,
+            ),
             ("TABLE_BYTES", "Table size in bytes.", self.table_bytes),
         ];
         let mut s = String::from(
@@ -728,6 +830,32 @@ pub fn decode_table(table: &Table<'_>) -> Decoded {
     d
 }
 
+/// Relights `table` with core's f32 transfer relight at `intensity` and compares it with the f64 reference
+/// `b_ref` (original matrix) and with the f64 basis `tv` it was quantized from.
+fn transfer_report(
+    table: &Table<'_>,
+    tv: &TransferVectors,
+    intensity: &[[f64; 3]],
+    b_ref: &[[f64; 3]],
+    area: &[f64],
+    bytes: &SectionBytes,
+) -> Result<TransferReport, BakeError> {
+    let i_f32: Vec<[f32; 3]> = intensity.iter().map(|&v| to_f32x3(v)).collect();
+    let mut out = vec![[0.0f32; 3]; table.patch_count() as usize];
+    radiosity_core::relight_transfer(table, &i_f32, &mut out).map_err(BakeError::Transfer)?;
+    let relit: Vec<[f64; 3]> = out.iter().map(|b| b.map(f64::from)).collect();
+    // The f64 basis at the intensities the device was given (f32-rounded), so only the basis's quantization
+    // and the static base's codes separate the two.
+    let i_used: Vec<[f64; 3]> = i_f32.iter().map(|v| v.map(f64::from)).collect();
+    let exact =
+        tv.relight(&i_used).map_err(|source| BakeError::Reference { what: "transfer relight", source })?;
+    Ok(TransferReport {
+        bytes: bytes.transfer,
+        vs_reference: metrics::compare(&relit, b_ref, area)?,
+        quantization: metrics::compare(&relit, &exact, area)?,
+    })
+}
+
 /// Bakes a table (see the module docs for the steps).
 ///
 /// # Errors
@@ -824,7 +952,33 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         .map(|((&id, m), &d)| GroupSpec { id, default_intensity: to_f32x3(d), members: m })
         .collect();
 
+    // 7 (solved before writing). Transfer basis on the table's own matrix, the shooting form of the sparsified
+    // rows, so that it and the base describe the same system the device's shooting converges to.
+    let transfer = if options.transfer {
+        let system =
+            RadiositySystem::with_row_sum_tolerance(&lighting.rho, &sparse_shoot, options.row_sum_tolerance)
+                .map_err(|source| BakeError::Reference { what: "transfer basis", source })?;
+        let lights = LightGroupEmission {
+            static_emission: &lighting.static_emission,
+            unit_emission: &lighting.unit_emission,
+            group: &lighting.group,
+            group_count: ids.len(),
+        };
+        let method = options.method.unwrap_or_else(|| default_method(n));
+        Some(
+            transfer_vectors(system, &lights, &method)
+                .map_err(|source| BakeError::Reference { what: "transfer basis", source })?,
+        )
+    } else {
+        None
+    };
+    // Patch-major, as core's writer takes it: response of patch i to group g at [i * groups + g].
+    let transfer_residual = transfer.as_ref().map(|tv| tv.residual);
+    let transfer_f32: Option<Vec<[f32; 3]>> =
+        transfer.as_ref().map(|tv| (0..n).flat_map(|i| tv.t.iter().map(move |t| to_f32x3(t[i]))).collect());
+
     // 4. Quantize and write.
+    let fingerprint = scene_fingerprint(input.patches);
     let materials: Vec<[f32; 3]> = input.materials.iter().map(|&r| to_f32x3(r)).collect();
     let row_start: Vec<u32> = sparse.matrix.row_start.iter().map(|&s| s as u32).collect();
     let form_factor: Vec<f32> = sparse.matrix.value.iter().map(|&f| f as f32).collect();
@@ -835,6 +989,8 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         rows: RowsSpec { row_start: &row_start, receiver: &sparse.matrix.col, form_factor: &form_factor },
         codec: options.codec,
         base_solved: true,
+        fingerprint,
+        transfer: transfer_f32.as_deref(),
     };
     let len = required_len(&spec).map_err(BakeError::Write)?;
     let mut blob = vec![0u8; len];
@@ -850,8 +1006,23 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     let (b_recip, r1) =
         solve_one("original, shooting form", &lighting.rho, &shooting_form(ff, &area), &e, options)?;
     let dec = decode_table(&table);
-    let (b_dec, r3) =
-        solve_one("decoded table", &dec.rho, &shooting_form(&dec.rows, &dec.area), &dec.emission, options)?;
+    // The decoded rows' shooting form exceeds the original's row sums by the codec's rounding: an entry is
+    // bumped up by at most one code step, at most 2^-M of the entry for M mantissa bits (core's crate docs,
+    // "Error bounds"), so its row sums may exceed 1 + tolerance by that factor (2^-5 with 8-bit codes). The
+    // device shoots the stored rows, whose sums stay <= 1, so this is no physical error.
+    let mantissa_bits = i32::from(options.codec.bits.saturating_sub(options.codec.exponent_bits));
+    let decoded_options = BakeOptions {
+        row_sum_tolerance: options.row_sum_tolerance
+            + 2f64.powi(-mantissa_bits) * (1.0 + options.row_sum_tolerance),
+        ..*options
+    };
+    let (b_dec, r3) = solve_one(
+        "decoded table",
+        &dec.rho,
+        &shooting_form(&dec.rows, &dec.area),
+        &dec.emission,
+        &decoded_options,
+    )?;
     let error = BakeErrors {
         reciprocity: metrics::compare(&b_recip, &b_ref, &area)?,
         sparsify: metrics::compare(&b_sparse, &b_ref, &area)?,
@@ -860,6 +1031,12 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
 
     let counts = TableCounts::of(&table);
     let table_bytes = SectionBytes::new(&counts, blob.len());
+    let transfer = match &transfer {
+        Some(tv) => {
+            Some(transfer_report(&table, tv, &lighting.default_intensity, &b_ref, &area, &table_bytes)?)
+        }
+        None => None,
+    };
     let nnz = sparse.matrix.nonzeros();
     let report = BakeReport {
         patches: n,
@@ -894,7 +1071,9 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
             excluded_by_core: false,
         },
         error,
-        reference_residual: [res_sparse, r0, r1, r3].into_iter().fold(0.0, f64::max),
+        reference_residual: [res_sparse, r0, r1, r3].into_iter().chain(transfer_residual).fold(0.0, f64::max),
+        fingerprint,
+        transfer,
     };
     let capacities = Capacities::of_table(&table, blob.len());
     Ok(Baked { table: blob, report, capacities, sparse, reachable, static_radiosity: b_static })

@@ -31,6 +31,8 @@ pub struct TableCounts {
     pub index_bytes: usize,
     /// Bytes per form-factor code.
     pub code_bytes: usize,
+    /// Whether the table carries the transfer basis sections.
+    pub transfer: bool,
 }
 
 impl TableCounts {
@@ -50,6 +52,7 @@ impl TableCounts {
             entries: table.entry_count() as usize,
             index_bytes: if n <= 0x1_0000 { 2 } else { 4 },
             code_bytes: table.codec().code_bytes(),
+            transfer: table.has_transfer(),
         }
     }
 }
@@ -73,6 +76,8 @@ pub struct SectionBytes {
     pub entry_receivers: usize,
     /// Entry form-factor codes.
     pub entry_codes: usize,
+    /// Transfer basis: scale exponents (3 per group) and response codes (6 bytes per patch and group); 0 without.
+    pub transfer: usize,
     /// Everything between header and CRC.
     pub payload: usize,
     /// The CRC-32.
@@ -92,7 +97,9 @@ impl SectionBytes {
         let rows = (c.patches + 1) * 4 + c.patches;
         let entry_receivers = c.entries * c.index_bytes;
         let entry_codes = c.entries * c.code_bytes;
-        let payload = patches + materials + groups + members + rows + entry_receivers + entry_codes;
+        let transfer = if c.transfer { c.groups * 3 + c.patches * c.groups * 6 } else { 0 };
+        let payload =
+            patches + materials + groups + members + rows + entry_receivers + entry_codes + transfer;
         SectionBytes {
             header: total.saturating_sub(payload + 4),
             patches,
@@ -102,6 +109,7 @@ impl SectionBytes {
             rows,
             entry_receivers,
             entry_codes,
+            transfer,
             payload,
             crc: 4,
             total,
@@ -113,7 +121,7 @@ impl fmt::Display for SectionBytes {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "  header {} | patches {} | materials {} | groups {} | members {} | rows {} | receivers {} | codes {} | crc {}",
+            "  header {} | patches {} | materials {} | groups {} | members {} | rows {} | receivers {} | codes {} | transfer {} | crc {}",
             self.header,
             self.patches,
             self.materials,
@@ -122,6 +130,7 @@ impl fmt::Display for SectionBytes {
             self.rows,
             self.entry_receivers,
             self.entry_codes,
+            self.transfer,
             self.crc
         )
     }
@@ -174,6 +183,8 @@ pub struct InspectReport {
     pub version: u16,
     /// CRC-32 of the table.
     pub crc: u32,
+    /// Scene fingerprint from the header ([`crate::bake::scene_fingerprint`] of the patches it was baked from).
+    pub fingerprint: u64,
     /// Counts.
     pub counts: TableCounts,
     /// Codec name.
@@ -198,12 +209,27 @@ pub struct InspectReport {
     pub static_emitters: usize,
     /// Light groups.
     pub groups: Vec<GroupInfo>,
+    /// The transfer basis section, if present.
+    pub transfer: Option<TransferInfo>,
+}
+
+/// The transfer basis section of a table (core's `transfer` module).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TransferInfo {
+    /// Bytes of the section.
+    pub bytes: usize,
+    /// Per light group, the scale `2^K` of its codes per channel (W/m^2 per unit intensity); a response `T`
+    /// is within `max(2^-13 T, 2^(K - 27))` of the host's f64 value.
+    pub scale: Vec<[f64; 3]>,
+    /// Per light group, the largest decoded response per channel (W/m^2 per unit intensity).
+    pub max_response: Vec<[f64; 3]>,
 }
 
 impl fmt::Display for InspectReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let c = &self.counts;
         writeln!(f, "table format v{}  crc {:#010x}  valid", self.version, self.crc)?;
+        writeln!(f, "fingerprint  {:#018x} (scene and meshing)", self.fingerprint)?;
         writeln!(f, "patches      {} (total area {:.6e})", c.patches, self.total_area)?;
         writeln!(f, "materials    {}", c.materials)?;
         writeln!(f, "light groups {} ({} members)", c.groups, c.members)?;
@@ -235,6 +261,22 @@ impl fmt::Display for InspectReport {
             "row sum      min {:.6} mean {:.6} max {:.6}",
             self.row_sum.min, self.row_sum.mean, self.row_sum.max
         )?;
+        if let Some(t) = &self.transfer {
+            writeln!(
+                f,
+                "transfer     basis for {} groups x {} patches, {} bytes",
+                c.groups, c.patches, t.bytes
+            )?;
+            for (g, (scale, max)) in t.scale.iter().zip(&t.max_response).enumerate() {
+                writeln!(
+                    f,
+                    "  group {g:<3} scale {:.3e} {:.3e} {:.3e}  max response {:.3e} {:.3e} {:.3e}",
+                    scale[0], scale[1], scale[2], max[0], max[1], max[2]
+                )?;
+            }
+        } else {
+            writeln!(f, "transfer     none")?;
+        }
         writeln!(f, "bytes        {}", self.bytes.total)?;
         write!(f, "{}", self.bytes)
     }
@@ -296,15 +338,35 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
         })
         .collect();
     let codec = table.codec();
+    let bytes_of = SectionBytes::new(&counts, bytes.len());
+    let transfer = table.has_transfer().then(|| TransferInfo {
+        bytes: bytes_of.transfer,
+        scale: (0..table.group_count())
+            .map(|g| table.transfer_exponent(g).unwrap_or([0; 3]).map(|k| 2f64.powi(i32::from(k))))
+            .collect(),
+        max_response: (0..table.group_count())
+            .map(|g| {
+                let mut m = [0.0f64; 3];
+                for i in 0..n {
+                    let r = table.transfer_response(i, g).unwrap_or([0.0; 3]);
+                    for c in 0..3 {
+                        m[c] = m[c].max(f64::from(r[c]));
+                    }
+                }
+                m
+            })
+            .collect(),
+    });
     Ok(InspectReport {
         version: FORMAT_VERSION,
         crc: table.crc(),
+        fingerprint: table.fingerprint(),
         counts,
         codec: codec_name(codec),
         ff_bits: codec.bits,
         ff_exponent_bits: codec.exponent_bits,
         base_solved: table.base_solved(),
-        bytes: SectionBytes::new(&counts, bytes.len()),
+        bytes: bytes_of,
         row_len: Stats::of(row_lens.iter().copied()),
         row_sum: Stats::of((0..n).filter_map(|i| table.row_sum(i)).map(f64::from)),
         empty_rows: row_lens.iter().filter(|&&l| l == 0.0).count(),
@@ -314,5 +376,6 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
             .filter(|e| e.iter().any(|&c| decode_emission_f32(c) > 0.0))
             .count(),
         groups,
+        transfer,
     })
 }

@@ -55,6 +55,11 @@ enum Command {
         /// dropped.
         #[arg(long, default_value_t = radiosity_host::bake::DEFAULT_THRESHOLD)]
         threshold: f64,
+        /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
+        /// device can relight as B = B_static + sum_g I_g T_g in one pass; the summary reports its bytes and
+        /// relight error.
+        #[arg(long)]
+        transfer: bool,
         /// Output format of the summary.
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
@@ -293,9 +298,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
         }
-        Command::Bake { scene, output, bits, threshold, format } => {
+        Command::Bake { scene, output, bits, threshold, transfer, format } => {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
-            bake_to_files(&p, &output, bits, threshold, format, &mut out)?;
+            bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
         }
         Command::Inspect { table, format } => {
             let report = inspect_file(&table)?;
@@ -444,10 +449,11 @@ fn bake_to_files(
     output: &std::path::Path,
     bits: u32,
     threshold: f64,
+    transfer: bool,
     format: Format,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
-    let options = BakeOptions { threshold, codec: codec_for_bits(bits)?, ..BakeOptions::default() };
+    let options = BakeOptions { threshold, codec: codec_for_bits(bits)?, transfer, ..BakeOptions::default() };
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
     let baked = bake(&input, &options)?;
     if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -560,7 +566,7 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let p = prepare(&scene, &options)?;
     writeln!(out, "\n== bake (16-bit codes)")?;
     let table = dir.join("cornell-box.rft");
-    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, Format::Text, out)?;
+    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, Format::Text, out)?;
     writeln!(out, "\n== inspect {} (validated by the device's own parser)", table.display())?;
     writeln!(out, "{}", inspect_file(&table)?)?;
     writeln!(out, "\n== pictures (exact f64 solve, published camera)")?;

@@ -531,7 +531,7 @@ fn capacities_size_the_solver_exactly() {
     let rust = cap.to_rust();
     assert!(rust.contains(&format!("pub const PATCHES: usize = {};", cap.patches)), "{rust}");
     assert!(rust.contains(&format!("pub const TREE_LEN: usize = {};", cap.tree)), "{rust}");
-    assert_eq!(rust.matches("pub const ").count(), 14);
+    assert_eq!(rust.matches("pub const ").count(), 16);
     let json = serde_json::to_value(cap).unwrap();
     assert_eq!(json["entries"], cap.entries);
 }

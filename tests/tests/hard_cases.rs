@@ -34,6 +34,8 @@ fn furnace_table(n: usize, rho: f32, e: f32, group: bool) -> Vec<u8> {
         rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
         codec: FfCodec::FLOAT16,
         base_solved: false,
+        fingerprint: 0,
+        transfer: None,
     };
     let mut blob = vec![0u8; required_len(&spec).expect("furnace spec is valid")];
     let written = write_table(&spec, &mut blob).expect("furnace table writes");

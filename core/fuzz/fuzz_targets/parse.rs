@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use radiosity_core::{Buffers, Config, Solver, Table};
+use radiosity_core::{relight_transfer, Buffers, Config, Fixed, Solver, Table};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(t) = Table::parse(data) else { return };
@@ -18,7 +18,17 @@ fuzz_target!(|data: &[u8]| {
         let _ = (t.area(i), t.material(i), t.base_emission(i), t.base_irradiance(i), t.row_sum(i));
     }
     for g in 0..=t.group_count() {
-        let _ = (t.group_id(g), t.default_intensity(g), t.group_members(g));
+        let _ = (t.group_id(g), t.default_intensity(g), t.group_members(g), t.transfer_exponent(g));
+        let _ = (t.transfer_code(0, g), t.transfer_response(n, g));
+    }
+    let _ = t.fingerprint();
+    if u64::from(n) * u64::from(t.group_count()) <= 1 << 20 {
+        let ones = vec![[1.0f32; 3]; t.group_count() as usize];
+        let mut out = vec![[0.0f32; 3]; n as usize];
+        let _ = relight_transfer(&t, &ones, &mut out);
+        let ones = vec![[Fixed(1 << 32); 3]; t.group_count() as usize];
+        let mut out = vec![[Fixed(0); 3]; n as usize];
+        let _ = relight_transfer(&t, &ones, &mut out);
     }
     let n = n as usize;
     let mut power = vec![[0.0f32; 3]; n];

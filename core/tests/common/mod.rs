@@ -18,6 +18,9 @@ pub struct Scene {
     pub rows: Vec<Vec<(u32, f32)>>,
     pub codec: FfCodec,
     pub base_solved: bool,
+    pub fingerprint: u64,
+    /// Transfer basis, patch-major (`[i * groups + g]`), if any.
+    pub transfer: Option<Vec<[f32; 3]>>,
 }
 
 impl Scene {
@@ -37,6 +40,8 @@ impl Scene {
             rows: vec![Vec::new(); n],
             codec: FfCodec::FLOAT16,
             base_solved: false,
+            fingerprint: 0,
+            transfer: None,
         }
     }
 
@@ -63,6 +68,8 @@ impl Scene {
             rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
             codec: self.codec,
             base_solved: self.base_solved,
+            fingerprint: self.fingerprint,
+            transfer: self.transfer.as_deref(),
         };
         let len = radiosity_core::required_len(&spec).expect("required_len");
         let mut out = vec![0u8; len];
