@@ -64,9 +64,6 @@
 //!    part of the hemisphere is physics, and its error (visibility noise) stays visible in the reported row-sum
 //!    range. The open Cornell box keeps row sums from 0.05 to 1.
 //!
-//! Measured on the closed Cornell box (354 patches, seed 1) against a 256-ray estimate: see the report of issue 4
-//! in the commit history for numbers; the closed matrix's rows are exact where the raw ones were off by up to 0.9 %.
-//!
 //! # Near field and shared edges
 //! The point kernel `F_{x → j}` stays bounded (at most 1/2 for a point on an edge `j` shares with `i`, the
 //! half-plane limit) and only its derivative is singular there, while the `1/r²` integrand of plain Monte Carlo
