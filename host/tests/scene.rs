@@ -416,7 +416,10 @@ fn toml_errors() {
         ("[meshing]\npatch_budget = 0\n".to_owned(), "patch_budget = 0 must be at least 1"),
         ("[meshing]\nrefine_passes = 7\n".to_owned(), "refine_passes = 7 must be between 0 and 6"),
         ("[meshing]\nrefine_passes = -1\n".to_owned(), "refine_passes = -1 must be between 0 and 6"),
-        ("[meshing]\nrefine_tolerance = 0.0\n".to_owned(), "refine_tolerance = 0 must be finite and positive"),
+        (
+            "[meshing]\nrefine_tolerance = 0.0\n".to_owned(),
+            "refine_tolerance = 0 must be finite and positive",
+        ),
     ];
     for (toml, expect) in &cases {
         let (e, msg, file) = toml_err(toml);
