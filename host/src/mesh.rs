@@ -433,3 +433,234 @@ pub fn refine(patches: &[Patch], which: &[usize]) -> Result<Vec<Patch>, MeshErro
     }
     Ok(out)
 }
+
+/// Most adaptive refinement passes a scene may ask for (each pass can halve a patch's edges once).
+pub const MAX_REFINE_PASSES: usize = 6;
+/// Adaptive refinement passes when the scene's TOML file sets none.
+pub const DEFAULT_REFINE_PASSES: usize = 2;
+/// Refinement tolerance when the scene's TOML file sets none: a patch is a candidate when light changes across it
+/// by more than this fraction of the scene's mean radiosity.
+pub const DEFAULT_REFINE_TOLERANCE: f64 = 0.1;
+
+/// How adaptive refinement chooses patches to split (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefineOptions {
+    /// Refinement passes (0: keep the uniform mesh).
+    pub passes: usize,
+    /// A patch is a candidate when its estimated radiosity change exceeds `tolerance` times the area-weighted
+    /// mean radiosity of the non-emitting patches.
+    pub tolerance: f64,
+}
+
+impl RefineOptions {
+    /// The scene's own settings (its TOML file), or [`DEFAULT_REFINE_PASSES`] and [`DEFAULT_REFINE_TOLERANCE`].
+    #[must_use]
+    pub fn for_scene(scene: &Scene) -> RefineOptions {
+        RefineOptions {
+            passes: scene.meshing.refine_passes.unwrap_or(DEFAULT_REFINE_PASSES),
+            tolerance: scene.meshing.refine_tolerance.unwrap_or(DEFAULT_REFINE_TOLERANCE),
+        }
+    }
+}
+
+/// What one solved pass tells refinement, per patch. All radiosities are luminance-like: the mean of the three
+/// channels (W/m^2).
+#[derive(Clone, Copy, Debug)]
+pub struct RefineInput<'a> {
+    /// The current patches.
+    pub patches: &'a [Patch],
+    /// Radiosity per patch (the f64 reference solution of this mesh).
+    pub radiosity: &'a [[f64; 3]],
+    /// Emission per patch.
+    pub emission: &'a [[f64; 3]],
+    /// Reflectance per patch.
+    pub reflectance: &'a [[f64; 3]],
+    /// The form factors of this mesh.
+    pub form_factors: &'a crate::patch::FormFactorMatrix,
+    /// One flag per stored entry of `form_factors`: the pair is partly visible (a shadow boundary).
+    pub partly_visible: &'a [bool],
+}
+
+/// Why a patch is worth splitting: three estimates of how much its radiosity changes across it (W/m^2).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RefineScore {
+    /// Largest radiosity difference to a neighbour of the same face (the radiosity gradient).
+    pub gradient: f64,
+    /// Light the patch reflects from partly visible patches, `rho_i sum_j F_ij B_j` over partly visible pairs:
+    /// how much a shadow boundary crossing it can change its radiosity.
+    pub shadow: f64,
+    /// Contact edges: for a patch touched by another face along a line in its plane (a block standing on the
+    /// floor, two walls meeting), `rho_i max_j (1/2 - F_ij) |B_j - H_i|`, with `H_i` the irradiance: at the contact
+    /// line the other face fills half the view (a half-plane's form factor is 1/2), far from it only `F_ij`.
+    pub contact: f64,
+}
+
+impl RefineScore {
+    /// The largest of the three estimates.
+    #[must_use]
+    pub fn change(&self) -> f64 {
+        self.gradient.max(self.shadow).max(self.contact)
+    }
+}
+
+fn luminance(c: &[f64; 3]) -> f64 {
+    (c[0] + c[1] + c[2]) / 3.0
+}
+
+/// The [`RefineScore`] of every patch.
+///
+/// # Panics
+/// If the slices do not all have one entry per patch (and `partly_visible` one per stored entry).
+#[must_use]
+pub fn refine_scores(input: &RefineInput<'_>) -> Vec<RefineScore> {
+    let n = input.patches.len();
+    assert!(
+        input.radiosity.len() == n
+            && input.emission.len() == n
+            && input.reflectance.len() == n
+            && input.form_factors.n == n
+            && input.partly_visible.len() == input.form_factors.nonzeros(),
+        "one value per patch and one flag per form factor"
+    );
+    let b: Vec<f64> = input.radiosity.iter().map(luminance).collect();
+    let neighbours = adjacency(input.patches);
+    let ff = input.form_factors;
+    (0..n)
+        .map(|i| {
+            let rho = luminance(&input.reflectance[i]);
+            let gradient = neighbours[i].iter().map(|&j| (b[i] - b[j]).abs()).fold(0.0, f64::max);
+            let range = ff.row_start[i]..ff.row_start[i + 1];
+            let mut shadow = 0.0;
+            let mut irradiance = 0.0;
+            for k in range.clone() {
+                let (j, f) = (ff.col[k] as usize, ff.value[k]);
+                irradiance += f * b[j];
+                if input.partly_visible[k] {
+                    shadow += f * b[j];
+                }
+            }
+            let mut contact = 0.0f64;
+            for k in range {
+                let (j, f) = (ff.col[k] as usize, ff.value[k]);
+                if touches(&input.patches[i], &input.patches[j]) {
+                    contact = contact.max((0.5 - f).max(0.0) * (b[j] - irradiance).abs());
+                }
+            }
+            RefineScore { gradient, shadow: rho * shadow, contact: rho * contact }
+        })
+        .collect()
+}
+
+/// Whether patch `other` (of another, non-parallel plane) has an edge lying in `patch`'s plane that crosses
+/// `patch`: a contact edge. Tolerances are `1e-6` of the larger patch's size.
+fn touches(patch: &Patch, other: &Patch) -> bool {
+    if patch.face == other.face || patch.normal.dot(other.normal).abs() > 1.0 - 1e-9 {
+        return false;
+    }
+    let size = |p: &Patch| p.vertices.iter().map(|v| v.distance(p.centroid)).fold(0.0, f64::max);
+    let tol = 1e-6 * size(patch).max(size(other));
+    let height = |v: DVec3| patch.normal.dot(v - patch.centroid);
+    let m = other.vertices.len();
+    (0..m).any(|k| {
+        let (a, b) = (other.vertices[k], other.vertices[(k + 1) % m]);
+        if height(a).abs() > tol || height(b).abs() > tol {
+            return false;
+        }
+        // Clip the segment a-b to the convex polygon (Cyrus-Beck): keep the part inside every edge's half-plane.
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let v = &patch.vertices;
+        for e in 0..v.len() {
+            let (p, q) = (v[e], v[(e + 1) % v.len()]);
+            let inward = patch.normal.cross(q - p);
+            let (fa, fb) = (inward.dot(a - p), inward.dot(b - p));
+            let scale = inward.length();
+            let (fa, fb) = (fa / scale, fb / scale);
+            if fa < -tol && fb < -tol {
+                return false;
+            }
+            if (fa < -tol) != (fb < -tol) {
+                let t = fa / (fa - fb);
+                if fa < -tol {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        (t1 - t0) * a.distance(b) > tol
+    })
+}
+
+/// Chooses the patches to split in one refinement pass: those whose [`RefineScore::change`] exceeds
+/// `tolerance` times the area-weighted mean radiosity of the non-emitting patches (of all patches if all emit), in decreasing order of
+/// `change * sqrt(area)` (the area-weighted L2 error a constant patch makes is about the change across it times
+/// the square root of its area), as long as the patches they add keep the mesh within `budget`.
+///
+/// # Panics
+/// If `scores` or `input` do not match `input.patches`.
+#[must_use]
+pub fn select_for_refinement(
+    input: &RefineInput<'_>,
+    scores: &[RefineScore],
+    tolerance: f64,
+    budget: usize,
+) -> Vec<usize> {
+    let patches = input.patches;
+    assert_eq!(scores.len(), patches.len(), "one score per patch");
+    // Mean radiosity of the non-emitting patches (of all patches if every patch emits, as in a white furnace).
+    let mean = |emitting_too: bool| {
+        let (mut weighted, mut area) = (0.0, 0.0);
+        for (i, p) in patches.iter().enumerate() {
+            if emitting_too || luminance(&input.emission[i]) == 0.0 {
+                weighted += luminance(&input.radiosity[i]) * p.area;
+                area += p.area;
+            }
+        }
+        if area > 0.0 {
+            weighted / area
+        } else {
+            0.0
+        }
+    };
+    let reference = if patches.iter().enumerate().any(|(i, _)| luminance(&input.emission[i]) == 0.0) {
+        mean(false)
+    } else {
+        mean(true)
+    };
+    let threshold = tolerance * reference;
+    let mut candidates: Vec<(usize, f64)> = scores
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.change() > threshold)
+        .map(|(i, s)| (i, s.change() * patches[i].area.sqrt()))
+        .collect();
+    candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let mut count = patches.len();
+    let mut chosen = Vec::new();
+    for (i, _) in candidates {
+        let added = children(&patches[i]) - 1;
+        if count + added <= budget {
+            count += added;
+            chosen.push(i);
+        }
+    }
+    chosen.sort_unstable();
+    chosen
+}
+
+/// Number of children [`refine`] makes of a patch.
+fn children(p: &Patch) -> usize {
+    match p.vertices.len() {
+        3 | 4 => 4,
+        n => Polygon::with_normal(p.vertices.clone(), p.normal).map_or(n, |poly| centroid_quads(&poly).len()),
+    }
+}
+
+/// The patch areas of a mesh, sorted ascending: the patch-size distribution (e.g. for a histogram of an adaptive
+/// mesh, where small patches sit where light changes fast).
+#[must_use]
+pub fn patch_area_distribution(patches: &[Patch]) -> Vec<f64> {
+    let mut areas: Vec<f64> = patches.iter().map(|p| p.area).collect();
+    areas.sort_by(f64::total_cmp);
+    areas
+}

@@ -1,12 +1,26 @@
 //! The host pipeline's first stages, shared by the commands: load a scene, mesh it into patches, and compute
 //! form factors, reporting each stage on stderr.
+//!
+//! # Adaptive meshing
+//! Unless `--no-subdivide` is given, the scene is first meshed uniformly ([`crate::mesh::mesh`]), then refined in
+//! up to `refine_passes` passes (the scene's TOML, default [`crate::mesh::DEFAULT_REFINE_PASSES`]). Each pass
+//! computes the form factors of the current mesh, solves it with the f64 reference at the scene's default light
+//! intensities, scores every patch by how much its radiosity changes across it (radiosity gradient between
+//! neighbours, light arriving through partly visible pairs = shadow boundaries, contact edges; see
+//! [`crate::mesh::refine_scores`]) and splits the patches above the refinement tolerance, highest
+//! `change * sqrt(area)` first, within an equal share of the patch budget left per remaining pass (so later
+//! passes can still split the children of earlier ones). Evenly lit patches stay as the uniform mesh made them.
+//! The form factors of the final mesh are the ones returned. Every patch keeps its parent face.
 
 use std::path::{Path, PathBuf};
 
-use crate::formfactor::{compute_form_factors, FormFactorOptions, FormFactorStats};
+use crate::formfactor::{estimate_form_factors, FormFactorOptions, FormFactorStats};
 use crate::lighting::PatchLighting;
-use crate::mesh::{mesh, MeshOptions};
+use crate::mesh::{
+    mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions,
+};
 use crate::patch::{FormFactorMatrix, Patch, RowClamp};
+use crate::reference::{solve_many, Method, RadiositySystem};
 use crate::scene::Scene;
 
 /// How to turn a scene into patches and form factors.
@@ -41,6 +55,19 @@ pub struct Prepared {
     pub clamp: RowClamp,
     /// Largest relative difference between the two estimates of a pair's energy exchange, before averaging.
     pub reciprocity_change: f64,
+    /// One flag per stored entry of `form_factors`: the pair is partly visible (a shadow boundary crosses it).
+    pub partly_visible: Vec<bool>,
+    /// The meshing passes: the uniform mesh, then one entry per refinement pass that split patches.
+    pub mesh_passes: Vec<MeshPass>,
+}
+
+/// One meshing pass of [`prepare`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshPass {
+    /// Patches after the pass.
+    pub patches: usize,
+    /// Patches the pass split (0 for the uniform mesh).
+    pub split: usize,
 }
 
 /// Why the pipeline stopped; the message names the stage and the input.
@@ -56,6 +83,14 @@ pub enum PipelineError {
         path: PathBuf,
         /// What went wrong.
         source: crate::mesh::MeshError,
+    },
+    /// The reference solve of a refinement pass failed.
+    #[error("solving {path} for adaptive refinement: {source}")]
+    Solve {
+        /// The scene file.
+        path: PathBuf,
+        /// What went wrong.
+        source: crate::reference::ReferenceError,
     },
     /// Form factors could not be computed.
     #[error("form factors of {path}: {source}")]
@@ -99,35 +134,142 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             meshed.max_patch_edge
         );
     }
-    let (mut form_factors, stats) = compute_form_factors(&meshed.patches, &options.form_factors)
-        .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
-    let areas: Vec<f64> = meshed.patches.iter().map(|q| q.area).collect();
-    let reciprocity_change = form_factors.enforce_reciprocity(&areas);
-    let clamp = form_factors.clamp_rows_to_one();
-    if options.verbose {
-        eprintln!(
-            "form factors: {} nonzeros, row sums {:.6}..{:.6}, reciprocity error {:.2e}, {} rays in {:.2} s \
-             ({:.2} Mrays/s)",
-            stats.nonzeros,
-            stats.row_sum_min,
-            stats.row_sum_max,
-            stats.reciprocity_error_max,
-            stats.rays_cast,
-            stats.elapsed.as_secs_f64(),
-            stats.rays_per_second / 1e6
-        );
-        eprintln!(
-            "form factors: reciprocity enforced (each pair's two estimates averaged; largest relative \
-             difference {reciprocity_change:.2e})"
-        );
-        if clamp.rows > 0 {
+    let refine_options = if options.no_subdivide {
+        RefineOptions { passes: 0, ..RefineOptions::for_scene(&scene) }
+    } else {
+        RefineOptions::for_scene(&scene)
+    };
+    let budget = mesh_options.patch_budget;
+    let mut patches = meshed.patches;
+    let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0 }];
+    loop {
+        let estimate = estimate_form_factors(&patches, &options.form_factors)
+            .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
+        let stats = estimate.stats;
+        let mut form_factors = estimate.matrix.clone();
+        let areas: Vec<f64> = patches.iter().map(|q| q.area).collect();
+        let mut reciprocity_change = form_factors.enforce_reciprocity(&areas);
+        if let Some(c) = &stats.closure {
+            // A closed scene's matrix was made reciprocal (and then closed) inside the estimator already.
+            reciprocity_change = reciprocity_change.max(c.reciprocity_change);
+        }
+        let clamp = form_factors.clamp_rows_to_one();
+        let lighting = PatchLighting::new(&scene, &patches);
+        let done = mesh_passes.len() > refine_options.passes || patches.len() >= budget;
+        let split = if done {
+            Vec::new()
+        } else {
+            let system = RadiositySystem::new(&lighting.rho, &form_factors)
+                .map_err(|source| PipelineError::Solve { path: path.into(), source })?;
+            let emission = lighting.default_emission();
+            let solution = solve_many(system, &[&emission], &Method::for_size(patches.len()))
+                .map_err(|source| PipelineError::Solve { path: path.into(), source })?;
+            let input = RefineInput {
+                patches: &patches,
+                radiosity: &solution[0].b,
+                emission: &emission,
+                reflectance: &lighting.rho,
+                form_factors: &estimate.matrix,
+                partly_visible: &estimate.partly_visible,
+            };
+            let scores = refine_scores(&input);
+            let passes_left = refine_options.passes + 1 - mesh_passes.len();
+            let share = patches.len() + (budget - patches.len()) / passes_left.max(1);
+            select_for_refinement(&input, &scores, refine_options.tolerance, share)
+        };
+        if options.verbose {
+            report_form_factors(&stats, reciprocity_change, &clamp);
+        }
+        if split.is_empty() {
+            if options.verbose && mesh_passes.len() > 1 {
+                let counts: Vec<String> = mesh_passes.iter().map(|p| p.patches.to_string()).collect();
+                eprintln!("adaptive meshing: patches per pass {}", counts.join(" -> "));
+            }
+            // Form factors and patches are recomputed from the estimate after closure: keep the flags aligned
+            // with the final (reciprocal, clamped) matrix's entries by looking each entry up in the estimate.
+            let partly_visible = align_flags(&estimate.matrix, &estimate.partly_visible, &form_factors);
+            return Ok(Prepared {
+                scene,
+                patches,
+                lighting,
+                form_factors,
+                stats,
+                clamp,
+                reciprocity_change,
+                partly_visible,
+                mesh_passes,
+            });
+        }
+        patches =
+            refine(&patches, &split).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
+        mesh_passes.push(MeshPass { patches: patches.len(), split: split.len() });
+        if options.verbose {
             eprintln!(
-                "form factors: {} rows summed to more than 1 (visibility noise; largest excess {:.2e}) and were \
-                 scaled to 1",
-                clamp.rows, clamp.max_excess
+                "adaptive meshing pass {}: split {} patches where light changes fast -> {} patches (budget {budget})",
+                mesh_passes.len() - 1,
+                split.len(),
+                patches.len()
             );
         }
     }
-    let lighting = PatchLighting::new(&scene, &meshed.patches);
-    Ok(Prepared { scene, patches: meshed.patches, lighting, form_factors, stats, clamp, reciprocity_change })
+}
+
+/// The flags of `from`'s entries carried over to `to`'s entries (an entry `to` has and `from` lacks, a mirror
+/// entry added for reciprocity, takes its mirror's flag; visibility is symmetric).
+fn align_flags(from: &FormFactorMatrix, flags: &[bool], to: &FormFactorMatrix) -> Vec<bool> {
+    let lookup = |i: usize, j: usize| -> Option<bool> {
+        let range = from.row_start[i]..from.row_start[i + 1];
+        from.col[range.clone()].binary_search(&(j as u32)).ok().map(|k| flags[range.start + k])
+    };
+    (0..to.n)
+        .flat_map(|i| to.row(i).map(move |(j, _)| (i, j)).collect::<Vec<_>>())
+        .map(|(i, j)| lookup(i, j).or_else(|| lookup(j, i)).unwrap_or(false))
+        .collect()
+}
+
+fn report_form_factors(stats: &FormFactorStats, reciprocity_change: f64, clamp: &RowClamp) {
+    eprintln!(
+        "form factors: {} patches, {} nonzeros, row sums {:.6}..{:.6}, reciprocity error {:.2e}, {} rays in {:.2} s \
+         ({:.2} Mrays/s)",
+        stats.patches,
+        stats.nonzeros,
+        stats.estimate_row_sum_min,
+        stats.estimate_row_sum_max,
+        stats.reciprocity_error_max,
+        stats.rays_cast,
+        stats.elapsed.as_secs_f64(),
+        stats.rays_per_second / 1e6
+    );
+    match &stats.closure {
+        Some(c) => eprintln!(
+            "form factors: closed scene (none of {} hemisphere rays escaped): {} rows closed by correcting their \
+             {} partly visible entries in proportion to their variance (largest change of an entry {:.2e}, \
+             {} entries zeroed), row sums now {:.12}..{:.12}; {} rows left as estimated (off by up to {:.2e})",
+            stats.escape_rays,
+            c.balance.rows_closed,
+            stats.partly_visible_entries,
+            c.balance.max_entry_change,
+            c.balance.entries_zeroed,
+            stats.row_sum_min,
+            stats.row_sum_max,
+            c.balance.rows_left,
+            c.balance.max_residual_left
+        ),
+        None if stats.escape_rays > 0 => eprintln!(
+            "form factors: open scene ({} of {} hemisphere rays escaped): rows left as estimated",
+            stats.escaped_rays, stats.escape_rays
+        ),
+        None => {}
+    }
+    eprintln!(
+        "form factors: reciprocity enforced (each pair's two estimates averaged; largest relative difference \
+         {reciprocity_change:.2e})"
+    );
+    if clamp.rows > 0 {
+        eprintln!(
+            "form factors: {} rows summed to more than 1 (visibility noise; largest excess {:.2e}) and were scaled \
+             to 1",
+            clamp.rows, clamp.max_excess
+        );
+    }
 }

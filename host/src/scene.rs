@@ -12,7 +12,9 @@
 //!   ```toml
 //!   [meshing]
 //!   max_patch_edge = 100.0   # scene units; largest patch edge after uniform subdivision
-//!   patch_budget = 2000      # most patches the mesh may have
+//!   patch_budget = 2000      # most patches the mesh may have (uniform plus adaptive)
+//!   refine_passes = 3        # adaptive refinement passes after uniform subdivision (0: uniform only)
+//!   refine_tolerance = 0.05  # refine where radiosity changes by more than this times the mean radiosity
 //!
 //!   [[light_group]]
 //!   name = "light"
@@ -235,6 +237,11 @@ pub struct MeshingLimits {
     pub max_patch_edge: Option<f64>,
     /// Most patches the mesh may have.
     pub patch_budget: Option<usize>,
+    /// Adaptive refinement passes after uniform subdivision (0: uniform only); see [`crate::mesh`].
+    pub refine_passes: Option<usize>,
+    /// Smallest radiosity change across a patch, relative to the scene's mean radiosity, that makes the patch a
+    /// candidate for refinement; see [`crate::mesh`].
+    pub refine_tolerance: Option<f64>,
 }
 
 /// A problem in the input that did not stop loading.
@@ -972,6 +979,8 @@ struct TomlScene {
 struct TomlMeshing {
     max_patch_edge: Option<f64>,
     patch_budget: Option<i64>,
+    refine_passes: Option<i64>,
+    refine_tolerance: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -1004,7 +1013,29 @@ fn check_meshing(file: &Path, m: Option<&TomlMeshing>) -> Result<MeshingLimits, 
             _ => return Err(invalid(format!("meshing.patch_budget = {b} must be at least 1"))),
         },
     };
-    Ok(MeshingLimits { max_patch_edge: m.max_patch_edge, patch_budget })
+    let refine_passes = match m.refine_passes {
+        None => None,
+        Some(n) => match usize::try_from(n) {
+            Ok(n) if n <= crate::mesh::MAX_REFINE_PASSES => Some(n),
+            _ => {
+                return Err(invalid(format!(
+                    "meshing.refine_passes = {n} must be between 0 and {}",
+                    crate::mesh::MAX_REFINE_PASSES
+                )))
+            }
+        },
+    };
+    if let Some(t) = m.refine_tolerance {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(invalid(format!("meshing.refine_tolerance = {t} must be finite and positive")));
+        }
+    }
+    Ok(MeshingLimits {
+        max_patch_edge: m.max_patch_edge,
+        patch_budget,
+        refine_passes,
+        refine_tolerance: m.refine_tolerance,
+    })
 }
 
 fn build_light_groups(

@@ -3,7 +3,8 @@
 
 use glam::DVec3;
 use radiosity_host::formfactor::{
-    compute_form_factors, point_to_polygon, FormFactorOptions, FormFactorStats,
+    compute_form_factors, estimate_form_factors, point_to_polygon, ClosureMode, FormFactorOptions,
+    FormFactorStats,
 };
 use radiosity_host::patch::{FormFactorMatrix, Patch};
 
@@ -127,7 +128,12 @@ fn error_falls_as_samples_grow() {
         })
         .collect();
     println!("|error| for 4, 16, 64 samples per patch: {errors:?}");
-    assert!(errors[0] > 10.0 * errors[1] && errors[1] > 10.0 * errors[2], "{errors:?}");
+    // F_PERPENDICULAR has 10 significant digits (within 5e-11 of the true value): an error below 2e-10 is at the
+    // constant's own precision (plus rounding), so it need only stay there. The near-field split (on for this
+    // touching pair) measured 6.5e-8, 1.2e-10, 1.2e-10.
+    let floor = 2e-10;
+    assert!(errors[0] > 10.0 * errors[1].max(floor / 10.0), "{errors:?}");
+    assert!(errors[1] > 10.0 * errors[2] || errors[2] <= floor, "{errors:?}");
 }
 
 /// The inside of the unit cube, each face split into `k x k` patches, all facing inwards.
@@ -159,12 +165,14 @@ fn closed_cube_rows_sum_to_one() {
     let patches = furnace_cube(3);
     let (m, stats) = compute_form_factors(&patches, &defaults()).unwrap();
     assert_eq!(stats.patches, 54);
-    // Nothing occludes inside a convex box, so each sample point's kernels sum to 1 over the 45 patches of the
-    // other faces exactly in exact arithmetic; f64 rounding over a few hundred operations per point leaves far
-    // less than 1e-9. The issue requires 1e-4 (the furnace at rho = 0.99 multiplies row-sum error by 100).
+    // Nothing occludes inside a convex box, so with one set of sample points per patch the kernels would sum to
+    // 1 exactly. Pairs that touch (across the cube's edges) are integrated with their own near-field points, so
+    // a row sums to 1 up to those pairs' quadrature error: at most the 4 x 4 rule's error on the shared-edge pair
+    // (3.8e-7 without the split, see `error_falls_as_samples_grow`) for each of the row's few touching pairs.
+    // The issue requires 1e-4 (the furnace at rho = 0.99 multiplies row-sum error by 100).
     for i in 0..m.n {
         let sum = m.row_sum(i);
-        assert!((sum - 1.0).abs() < 1e-9, "row {i} sums to {sum}");
+        assert!((sum - 1.0).abs() < 4.0 * 3.8e-7, "row {i} sums to {sum}");
     }
     assert!((stats.row_sum_min - 1.0).abs() < 1e-4 && (stats.row_sum_max - 1.0).abs() < 1e-4, "{stats:?}");
     // Coplanar patches of the same face never see each other.
@@ -349,8 +357,10 @@ fn closure_error_of_an_occluded_closed_scene_is_visibility_noise() {
     }
     let closure =
         |stats: &FormFactorStats| (stats.row_sum_min - 1.0).abs().max((stats.row_sum_max - 1.0).abs());
-    let (coarse_matrix, coarse) = compute_form_factors(&patches, &quiet(16, 16, 3)).unwrap();
-    let (_, fine) = compute_form_factors(&patches, &quiet(16, 256, 3)).unwrap();
+    // The raw estimate: closure off.
+    let raw = |samples, rays| FormFactorOptions { closure: ClosureMode::Off, ..quiet(samples, rays, 3) };
+    let (coarse_matrix, coarse) = compute_form_factors(&patches, &raw(16, 16)).unwrap();
+    let (_, fine) = compute_form_factors(&patches, &raw(16, 256)).unwrap();
     println!("16 rays per pair: {coarse:?}");
     println!("256 rays per pair: {fine:?}");
     assert!(
@@ -365,7 +375,7 @@ fn closure_error_of_an_occluded_closed_scene_is_visibility_noise() {
     // And that error is the quadrature error: the rays do not depend on samples_per_patch, so rerunning with the
     // 8 x 8 rule changes each entry by (about) its 4 x 4 quadrature error; reciprocity, a difference of two entries'
     // errors, must stay within the sum of the two largest relative changes.
-    let (finer_quadrature, _) = compute_form_factors(&patches, &quiet(64, 16, 3)).unwrap();
+    let (finer_quadrature, _) = compute_form_factors(&patches, &raw(64, 16)).unwrap();
     let mut worst_change = 0.0f64;
     for i in 0..coarse_matrix.n {
         for (j, f) in coarse_matrix.row(i) {
@@ -379,4 +389,109 @@ fn closure_error_of_an_occluded_closed_scene_is_visibility_noise() {
         coarse.reciprocity_error_max <= 2.0 * worst_change + 1e-12,
         "{coarse:?} vs change {worst_change}"
     );
+}
+
+/// The furnace cube (4 x 4 per face) with a box floating inside: closed, with partly occluded pairs.
+fn cube_with_box() -> Vec<Patch> {
+    let mut patches = furnace_cube(4);
+    let (lo, e) = (0.3, 0.3);
+    let corner = DVec3::splat(lo);
+    let box_faces = [
+        (corner + DVec3::Z * e, DVec3::X * e, DVec3::Y * e),
+        (corner, DVec3::Y * e, DVec3::X * e),
+        (corner, DVec3::Z * e, DVec3::Y * e),
+        (corner + DVec3::X * e, DVec3::Y * e, DVec3::Z * e),
+        (corner, DVec3::X * e, DVec3::Z * e),
+        (corner + DVec3::Y * e, DVec3::Z * e, DVec3::X * e),
+    ];
+    for (f, (o, a, b)) in box_faces.into_iter().enumerate() {
+        patches.push(quad(6 + f, o, a, b));
+    }
+    patches
+}
+
+fn lookup(m: &FormFactorMatrix, i: usize, j: usize) -> f64 {
+    entry(m, i, j)
+}
+
+#[test]
+fn closed_scene_rows_are_closed_reciprocally_and_only_noisy_entries_move() {
+    let patches = cube_with_box();
+    let raw_options = FormFactorOptions { closure: ClosureMode::Off, ..quiet(16, 16, 5) };
+    let raw = estimate_form_factors(&patches, &raw_options).unwrap();
+    let closed = estimate_form_factors(&patches, &quiet(16, 16, 5)).unwrap();
+    let report = closed.stats.closure.expect("no hemisphere ray escapes a closed cube: detected as closed");
+    println!("raw {:?}\nclosed {:?}", raw.stats, closed.stats);
+    assert_eq!(closed.stats.escaped_rays, 0);
+    // The raw estimate is off by visibility noise (see the test above), the closed matrix is not: the correction
+    // solves the row constraints to CG tolerance 1e-14, so the rows it closes sum to 1 within rounding over a row
+    // of ~100 entries (1e-12). Rows with no partly visible entry are left as estimated: exact up to the
+    // quadrature error of touching pairs (bound as in `closed_cube_rows_sum_to_one`). All far inside 1e-4.
+    assert!((raw.stats.row_sum_min - 1.0).abs() > 1e-4 || (raw.stats.row_sum_max - 1.0).abs() > 1e-4);
+    assert!(report.balance.max_residual < 1e-12, "{report:?}");
+    for i in 0..closed.matrix.n {
+        let sum = closed.matrix.row_sum(i);
+        assert!((sum - 1.0).abs() < 4.0 * 3.8e-7, "row {i} sums to {sum}");
+    }
+    // Reciprocal: A_i F_ij = A_j F_ji up to rounding.
+    for i in 0..closed.matrix.n {
+        for (j, f) in closed.matrix.row(i) {
+            let (g, h) = (patches[i].area * f, patches[j].area * lookup(&closed.matrix, j, i));
+            assert!((g - h).abs() <= 1e-12 * g.max(h), "pair {i},{j}: {g} vs {h}");
+        }
+    }
+    // Exact entries (fully visible pairs) keep their reciprocity-averaged estimate: only partly visible ones move.
+    let areas: Vec<f64> = patches.iter().map(|p| p.area).collect();
+    let mut averaged = raw.matrix.clone();
+    averaged.enforce_reciprocity(&areas);
+    let mut k = 0;
+    for i in 0..closed.matrix.n {
+        for (j, f) in closed.matrix.row(i) {
+            if !closed.partly_visible[k] {
+                let before = lookup(&averaged, i, j);
+                assert!((f - before).abs() <= 1e-15 * before.max(1e-300) * 4.0, "exact entry {i},{j} moved");
+            }
+            k += 1;
+        }
+    }
+}
+
+#[test]
+fn open_scene_is_detected_and_never_renormalized() {
+    // The same cube with its top face (z = 1) removed: rays escape, rows must be left exactly as estimated.
+    let patches: Vec<Patch> =
+        cube_with_box().into_iter().filter(|p| !(p.normal.z < -0.5 && p.centroid.z > 0.99)).collect();
+    let raw =
+        estimate_form_factors(&patches, &FormFactorOptions { closure: ClosureMode::Off, ..quiet(16, 16, 5) })
+            .unwrap();
+    let detected = estimate_form_factors(&patches, &quiet(16, 16, 5)).unwrap();
+    assert!(detected.stats.escaped_rays > 0 && detected.stats.closure.is_none(), "{:?}", detected.stats);
+    assert_eq!(raw.matrix, detected.matrix);
+    // A floor patch sees the missing ceiling: its row is far below 1.
+    assert!(detected.stats.row_sum_min < 0.9, "{:?}", detected.stats);
+}
+
+#[test]
+fn near_field_pairs_are_reciprocal() {
+    // A small wall patch (0.1 x 0.1) standing on a unit floor at the middle of its edge x = 0: the floor's 4 x 4
+    // rule alone would sample the kernel towards the small patch, which peaks within 0.1 of the contact, at no
+    // point closer than 0.07, and missed it (tens of % before the near-field split). With the split, each side is
+    // within its quadrature error, estimated as the change to the 16 x 16 rule; reciprocity must hold within twice
+    // the sum of those. The small side's rule sees a smooth kernel (error at rounding level, < 1e-9); the floor's
+    // split pieces bottom out at 1/64 of the floor, still only ~6x smaller than their distance to the wall's far
+    // edge, so its error is a regression bound from measurement (2.1e-3 measured; 2.6e-2 with 3 levels only): 5e-3.
+    let patches = vec![
+        quad(0, DVec3::ZERO, DVec3::X, DVec3::Y),
+        quad(1, DVec3::new(0.0, 0.45, 0.0), DVec3::Y * 0.1, DVec3::Z * 0.1),
+    ];
+    let (m, _) = compute_form_factors(&patches, &defaults()).unwrap();
+    let (fine, _) = compute_form_factors(&patches, &quiet(256, 16, 1)).unwrap();
+    let e_01 = (entry(&m, 0, 1) - entry(&fine, 0, 1)).abs();
+    let e_10 = (entry(&m, 1, 0) - entry(&fine, 1, 0)).abs();
+    let (forward, backward) = (patches[0].area * entry(&m, 0, 1), patches[1].area * entry(&m, 1, 0));
+    println!("A0 F01 {forward} A1 F10 {backward}, errors {e_01} {e_10}");
+    println!("relative errors {} {}", e_01 / entry(&m, 0, 1), e_10 / entry(&m, 1, 0));
+    assert!(e_10 / entry(&m, 1, 0) < 1e-9 && e_01 / entry(&m, 0, 1) < 5e-3, "{e_01} {e_10}");
+    let tolerance = 2.0 * (patches[0].area * e_01 + patches[1].area * e_10) + 64.0 * f64::EPSILON;
+    assert!((forward - backward).abs() <= tolerance, "{forward} vs {backward}, allowed {tolerance}");
 }

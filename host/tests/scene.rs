@@ -109,7 +109,8 @@ fn cornell_box_loads_as_published() {
     assert_eq!((g.name.as_str(), g.dynamic, g.intensity), ("light", true, [1.0; 3]));
     assert_eq!(g.materials.iter().map(|&m| s.materials[m].name.as_str()).collect::<Vec<_>>(), ["light"]);
     assert_eq!(s.meshing.max_patch_edge, Some(100.0));
-    assert_eq!(s.meshing.patch_budget, Some(2000));
+    assert_eq!(s.meshing.patch_budget, Some(1000));
+    assert_eq!((s.meshing.refine_passes, s.meshing.refine_tolerance), (Some(2), Some(0.1)));
     // The red wall (published non-planar by ~3 mm) is split into two triangles with a warning.
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
     let w = &s.warnings[0];
@@ -413,6 +414,12 @@ fn toml_errors() {
         ),
         ("[meshing]\nmax_patch_edge = -1.0\n".to_owned(), "max_patch_edge = -1 must be finite and positive"),
         ("[meshing]\npatch_budget = 0\n".to_owned(), "patch_budget = 0 must be at least 1"),
+        ("[meshing]\nrefine_passes = 7\n".to_owned(), "refine_passes = 7 must be between 0 and 6"),
+        ("[meshing]\nrefine_passes = -1\n".to_owned(), "refine_passes = -1 must be between 0 and 6"),
+        (
+            "[meshing]\nrefine_tolerance = 0.0\n".to_owned(),
+            "refine_tolerance = 0 must be finite and positive",
+        ),
     ];
     for (toml, expect) in &cases {
         let (e, msg, file) = toml_err(toml);
