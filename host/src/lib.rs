@@ -16,5 +16,6 @@ pub mod patch;
 pub mod picture;
 pub mod pipeline;
 pub mod reference;
+pub mod regress;
 pub mod scene;
 pub mod view;

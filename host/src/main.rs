@@ -131,6 +131,16 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
+    /// Quantization regression: recompute every shipped scene's error components (16- and 8-bit codecs) and
+    /// compare them with the checked-in baseline (fails when one exceeds baseline + k * noise);
+    /// `--update` re-measures and rewrites the baseline, printing old and new values side by side.
+    Regress {
+        #[command(flatten)]
+        regress: radiosity_host::regress::RegressArgs,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
 }
 
 /// `render --mode`.
@@ -368,6 +378,22 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             match format {
                 Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
                 _ => write!(out, "{report}")?,
+            }
+        }
+        Command::Regress { regress, format } => {
+            let report = radiosity_host::regress::run(&regress)?;
+            match format {
+                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                _ => write!(out, "{report}")?,
+            }
+            if !report.passed() {
+                out.flush()?;
+                return Err(format!(
+                    "regression: {} values over their limits, {} problems",
+                    report.failures().len(),
+                    report.problems.len()
+                )
+                .into());
             }
         }
     }
