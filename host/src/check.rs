@@ -477,8 +477,9 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
 /// Compared, in order: patch count, material count, dynamic light group count, every patch's area (the table
 /// stores f32, so equal means within `2^-23` relative, twice f32's rounding), every patch's material, every
 /// material's reflectance code (the code the writer makes of the scene's `Kd`), every group's id (FNV-1a of
-/// its name) and member patches, and every patch's static emission (within the emission code's `2^-11`
-/// relative rounding, [`radiosity_core::codec`]).
+/// its name) and member patches, every patch's static emission (within the emission code's `2^-11`
+/// relative rounding, [`radiosity_core::codec`]), and the form factors themselves: more than
+/// [`WRONG_SCENE_FRACTION`] of the transported energy on other receivers is another geometry.
 ///
 /// # Errors
 /// A sentence naming the first difference, the patch, material or group, and both values.
@@ -538,6 +539,21 @@ pub fn match_scene(table: &Table<'_>, p: &Prepared) -> Result<(), String> {
                 mat.name, mat.reflectance
             ));
         }
+    }
+    // Form factors: a table of the same scene differs from this run's matrix by sparsification (at most the
+    // fraction `t` of a row, 1e-3 by default), quantization (< 2^-5 of an entry at 8 bits) and the difference
+    // between two Monte Carlo estimates (a few percent of a row at the default ray counts); another geometry
+    // with the same patch attributes (facing vs perpendicular squares) sends a row's energy to other receivers,
+    // which moves about twice the row sum. Half the transported energy separates the two cases by a factor of
+    // about ten on either side.
+    let fraction = form_factor_distance(table, p);
+    if fraction > WRONG_SCENE_FRACTION {
+        return Err(format!(
+            "the table's form factors differ from the scene's by {:.1}% of the transported energy \
+             (area-weighted sum of |F_table - F_scene| over all rows; a table of this scene differs by a few \
+             percent at most): same patch counts, areas and materials, but other geometry",
+            100.0 * fraction
+        ));
     }
     for (g, &sg) in l.dynamic_groups.iter().enumerate() {
         let name = &p.scene.light_groups[sg].name;
@@ -680,6 +696,33 @@ pub fn device_converged<S: Scalar>(
         }
     }
 }
+
+/// The area-weighted distance between the table's decoded form factors and the scene's:
+/// `sum_i A_i sum_j |F_table_ij - F_scene_ij| / sum_i A_i s_i` (`s_i` the scene's row sums; rows beyond the
+/// shorter of the two are ignored). See [`match_scene`].
+#[must_use]
+pub fn form_factor_distance(table: &Table<'_>, p: &Prepared) -> f64 {
+    let dec = bake::decode_table(table);
+    let (mut moved, mut total) = (0.0, 0.0);
+    for i in 0..p.patches.len().min(dec.rows.n) {
+        let mut row: std::collections::BTreeMap<usize, f64> =
+            p.form_factors.row(i).map(|(j, f)| (j, -f)).collect();
+        for (j, f) in dec.rows.row(i) {
+            *row.entry(j).or_insert(0.0) += f;
+        }
+        moved += p.patches[i].area * row.values().map(|d| d.abs()).sum::<f64>();
+        total += p.patches[i].area * p.form_factors.row_sum(i);
+    }
+    if total > 0.0 {
+        moved / total
+    } else {
+        0.0
+    }
+}
+
+/// A table whose form factors differ from the scene's by more than this fraction of the transported energy
+/// (area-weighted sum of `|F_table - F_scene|` over `sum_i A_i s_i`) belongs to another scene ([`match_scene`]).
+pub const WRONG_SCENE_FRACTION: f64 = 0.5;
 
 /// Component names, as they appear in reports and the regression baseline.
 pub const FORM_FACTOR_ESTIMATION: &str = "form-factor estimation";
