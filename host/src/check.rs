@@ -14,10 +14,19 @@
 //! | component | answer | against |
 //! |---|---|---|
 //! | form-factor estimation | f64 solve, matrix at the chosen samples/rays | f64 solve, matrix at `ff_factor` times both |
+//! | reciprocity | f64 solve, shooting form of the full matrix | f64 solve of the full matrix |
 //! | sparsification | f64 solve, shooting form of the sparsified matrix | f64 solve, shooting form of the full matrix |
 //! | quantization | f64 solve of the decoded table (decoded form factors, reflectances, emission, f32 areas) | the sparsified f64 solve above |
 //! | iteration truncation | device (f32) after `frames` frames of `budget` units, cold start | device (f32) converged, same table |
 //! | arithmetic (f32, fixed) | device converged | f64 solve of the decoded table |
+//!
+//! The components telescope: device minus exact is the sum of the differences of arithmetic, quantization,
+//! sparsification and reciprocity (plus iteration truncation when frames are limited), so by the triangle
+//! inequality the device's error is at most the sum of those components (each relative to its own reference,
+//! which differ from the exact answer by no more than the components themselves).
+//!
+//! A table already baked is checked with [`check_table`] (`radiosity check TABLE.rft --scene SCENE.obj`):
+//! the table is matched to the scene first ([`match_scene`]); see there which components it can separate.
 //!
 //! The shooting form (`F~_ij = A_j F_ji / A_i`, [`bake::shooting_form`]) is what shooting with stored rows
 //! converges to, so the sparsification and quantization components use it on both sides. The arithmetic
@@ -28,7 +37,7 @@
 use std::fmt;
 use std::path::Path;
 
-use radiosity_core::{Buffers, Config, Fixed, Outcome, Scalar, Solver, Table};
+use radiosity_core::{Buffers, Config, FfCodec, Fixed, Outcome, Scalar, Solver, Table};
 use serde::Serialize;
 use thiserror::Error;
 
@@ -37,7 +46,9 @@ use crate::formfactor::compute_form_factors;
 use crate::metrics::{self, ErrorReport};
 use crate::patch::FormFactorMatrix;
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
-use crate::reference::{solve_many, transfer_vectors, LightGroupEmission, Method, RadiositySystem};
+use crate::reference::{
+    solve_many, transfer_vectors, LightGroupEmission, Method, RadiositySystem, TransferVectors,
+};
 
 /// Arithmetic paths of the device solver to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -54,8 +65,11 @@ pub enum Arith {
 /// Settings of a check.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CheckOptions {
-    /// Form-factor code width, 16 or 8 ([`codec_for_bits`]).
+    /// Form-factor code width, 16 or 8 ([`codec_for_bits`]); ignored when [`CheckOptions::codec`] is set.
     pub bits: u32,
+    /// A codec to bake with in place of the one `bits` selects (any valid [`FfCodec`], e.g.
+    /// [`FfCodec::LINEAR8`]; the quantization regression uses this to degrade a codec on purpose).
+    pub codec: Option<FfCodec>,
     /// Sparsification threshold ([`BakeOptions::threshold`]).
     pub threshold: f64,
     /// Work units per frame.
@@ -79,6 +93,7 @@ impl Default for CheckOptions {
     fn default() -> Self {
         CheckOptions {
             bits: 16,
+            codec: None,
             threshold: bake::DEFAULT_THRESHOLD,
             budget: 20_000,
             frames: None,
@@ -127,6 +142,32 @@ pub enum CheckError {
     /// Bad options.
     #[error("bad option: {0}")]
     Options(String),
+    /// The table file could not be read.
+    #[error("reading table {path}: {message}")]
+    ReadTable {
+        /// The table file.
+        path: std::path::PathBuf,
+        /// The operating system's message.
+        message: String,
+    },
+    /// The table does not parse (damaged, truncated, another format version).
+    #[error("table {path}: {error}")]
+    BadTable {
+        /// The table file.
+        path: std::path::PathBuf,
+        /// Core's parser error.
+        error: radiosity_core::TableError,
+    },
+    /// The table was not baked from this scene (or with other meshing options).
+    #[error("table {table} does not belong to scene {scene}: {detail}")]
+    WrongScene {
+        /// The table file.
+        table: std::path::PathBuf,
+        /// The scene file.
+        scene: std::path::PathBuf,
+        /// The first difference found ([`match_scene`]).
+        detail: String,
+    },
 }
 
 /// One component of the error decomposition.
@@ -226,6 +267,61 @@ pub fn check_scene(
     check(&p, prepare_options, options)
 }
 
+fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
+    if options.budget == 0 {
+        return Err(CheckError::Options("--budget must be at least 1 work unit".into()));
+    }
+    if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
+        return Err(CheckError::Options(format!("tolerance {} not in (0, 1)", options.tolerance)));
+    }
+    if options.frames == Some(0) {
+        return Err(CheckError::Options("--frames must be at least 1".into()));
+    }
+    Ok(())
+}
+
+/// The scene-side answers every check compares with.
+struct SceneAnswers {
+    area: Vec<f64>,
+    method: Method,
+    row_sum_tolerance: f64,
+    e_default: Vec<[f64; 3]>,
+    tv: TransferVectors,
+}
+
+impl SceneAnswers {
+    fn new(p: &Prepared, options: &CheckOptions) -> Result<SceneAnswers, CheckError> {
+        let l = &p.lighting;
+        let method = Method::for_size(p.patches.len());
+        let lights = LightGroupEmission {
+            static_emission: &l.static_emission,
+            unit_emission: &l.unit_emission,
+            group: &l.group,
+            group_count: l.dynamic_groups.len(),
+        };
+        let tv = transfer_vectors(RadiositySystem::new(&l.rho, &p.form_factors)?, &lights, &method)?;
+        Ok(SceneAnswers {
+            area: p.patches.iter().map(|q| q.area).collect(),
+            method,
+            row_sum_tolerance: options.row_sum_tolerance,
+            e_default: l.default_emission(),
+            tv,
+        })
+    }
+
+    /// f64 solve of `B = E + R F B`.
+    fn solve(
+        &self,
+        rho: &[[f64; 3]],
+        ff: &FormFactorMatrix,
+        e: &[[f64; 3]],
+    ) -> Result<Radiosity, CheckError> {
+        let system = RadiositySystem::with_row_sum_tolerance(rho, ff, self.row_sum_tolerance)?;
+        let mut s = solve_many(system, &[e], &self.method)?;
+        Ok(s.pop().map(|s| s.b).unwrap_or_default())
+    }
+}
+
 /// Bakes a prepared scene, runs the device on it and decomposes the error (see the module docs).
 ///
 /// `prepare_options` must be those `p` was prepared with: its form-factor options, scaled by
@@ -238,43 +334,27 @@ pub fn check(
     prepare_options: &PrepareOptions,
     options: &CheckOptions,
 ) -> Result<CheckReport, CheckError> {
-    if options.budget == 0 {
-        return Err(CheckError::Options("--budget must be at least 1 work unit".into()));
-    }
-    if !(options.tolerance > 0.0 && options.tolerance < 1.0) {
-        return Err(CheckError::Options(format!("tolerance {} not in (0, 1)", options.tolerance)));
-    }
+    check_options(options)?;
     let l = &p.lighting;
-    let n = p.patches.len();
-    let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
+    let codec = match options.codec {
+        Some(c) => c,
+        None => codec_for_bits(options.bits)?,
+    };
     let bake_options = BakeOptions {
         threshold: options.threshold,
-        codec: codec_for_bits(options.bits)?,
+        codec,
         row_sum_tolerance: options.row_sum_tolerance,
         ..BakeOptions::default()
     };
     let baked = bake(&BakeInput::from_scene(&p.scene, &p.patches, l, &p.form_factors), &bake_options)?;
     let table = Table::parse(&baked.table).map_err(CheckError::Table)?;
-    let method = Method::for_size(n);
-    let e_default = l.default_emission();
-    let solve =
-        |rho: &[[f64; 3]], ff: &FormFactorMatrix, e: &[[f64; 3]]| -> Result<Vec<[f64; 3]>, CheckError> {
-            let system = RadiositySystem::with_row_sum_tolerance(rho, ff, bake_options.row_sum_tolerance)?;
-            let mut s = solve_many(system, &[e], &method)?;
-            Ok(s.pop().map(|s| s.b).unwrap_or_default())
-        };
-
-    // Exact answer per light setting: transfer vectors of the scene's own matrix.
-    let lights = LightGroupEmission {
-        static_emission: &l.static_emission,
-        unit_emission: &l.unit_emission,
-        group: &l.group,
-        group_count: l.dynamic_groups.len(),
-    };
-    let tv = transfer_vectors(RadiositySystem::new(&l.rho, &p.form_factors)?, &lights, &method)?;
+    let answers = SceneAnswers::new(p, options)?;
+    let area = &answers.area;
+    let e_default = &answers.e_default;
 
     let mut components = Vec::new();
     // 1. Form-factor estimation.
+    let b_full = answers.solve(&l.rho, &p.form_factors, e_default)?;
     if options.ff_factor > 1 {
         let mut ffo = prepare_options.form_factors.clone();
         ffo.samples_per_patch *= options.ff_factor;
@@ -282,11 +362,11 @@ pub fn check(
         ffo.progress = false;
         let (mut hi, _) = compute_form_factors(&p.patches, &ffo)
             .map_err(|e| CheckError::FormFactors(options.ff_factor, e.to_string()))?;
+        hi.enforce_reciprocity(area);
         hi.clamp_rows_to_one();
-        let b_lo = solve(&l.rho, &p.form_factors, &e_default)?;
-        let b_hi = solve(&l.rho, &hi, &e_default)?;
+        let b_hi = answers.solve(&l.rho, &hi, e_default)?;
         components.push(Component {
-            name: "form-factor estimation".into(),
+            name: FORM_FACTOR_ESTIMATION.into(),
             compares: format!(
                 "f64, matrix at {} samples/{} rays vs at {} samples/{} rays",
                 prepare_options.form_factors.samples_per_patch,
@@ -294,27 +374,229 @@ pub fn check(
                 ffo.samples_per_patch,
                 ffo.rays_per_pair
             ),
-            error: metrics::compare(&b_lo, &b_hi, &area)?,
+            error: metrics::compare(&b_full, &b_hi, area)?,
         });
     }
-    // 2. Sparsification.
-    let b_full = solve(&l.rho, &bake::shooting_form(&p.form_factors, &area), &e_default)?;
-    let b_sparse = solve(&l.rho, &bake::shooting_form(&baked.sparse.matrix, &area), &e_default)?;
+    // 2. Reciprocity: what shooting with stored rows converges to, against the scene's matrix.
+    let b_full_shoot = answers.solve(&l.rho, &bake::shooting_form(&p.form_factors, area), e_default)?;
     components.push(Component {
-        name: "sparsification".into(),
+        name: RECIPROCITY.into(),
+        compares: "f64, shooting form A_j F_ji / A_i of the full matrix vs the full matrix".into(),
+        error: metrics::compare(&b_full_shoot, &b_full, area)?,
+    });
+    // 3. Sparsification.
+    let b_sparse = answers.solve(&l.rho, &bake::shooting_form(&baked.sparse.matrix, area), e_default)?;
+    components.push(Component {
+        name: SPARSIFICATION.into(),
         compares: format!("f64, sparsified (threshold {}) vs full matrix, shooting form", options.threshold),
-        error: metrics::compare(&b_sparse, &b_full, &area)?,
+        error: metrics::compare(&b_sparse, &b_full_shoot, area)?,
     });
-    // 3. Quantization.
+    // 4. Quantization.
     let dec = crate::bake::decode_table(&table);
-    let b_dec = solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.emission)?;
+    let b_dec = answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.emission)?;
     components.push(Component {
-        name: "quantization".into(),
+        name: QUANTIZATION.into(),
         compares: format!("f64, decoded {} table vs sparsified f64 matrix", bake::codec_name(table.codec())),
-        error: metrics::compare(&b_dec, &b_sparse, &area)?,
+        error: metrics::compare(&b_dec, &b_sparse, area)?,
     });
+    device_part(p, &table, baked.table.len(), &answers, &dec, &b_dec, options, components)
+}
 
-    // Device runs.
+/// Reads the table at `table_path`, prepares the scene at `scene_path` and checks the table against it (see
+/// [`check_table`]).
+///
+/// # Errors
+/// [`CheckError::ReadTable`] if the file cannot be read, [`CheckError::BadTable`] if it does not parse, and
+/// everything [`check_table`] returns.
+pub fn check_table_file(
+    table_path: &Path,
+    scene_path: &Path,
+    prepare_options: &PrepareOptions,
+    options: &CheckOptions,
+) -> Result<CheckReport, CheckError> {
+    let bytes = std::fs::read(table_path)
+        .map_err(|e| CheckError::ReadTable { path: table_path.into(), message: e.to_string() })?;
+    // Parse first: a damaged table is reported before the (slower) scene preparation.
+    Table::parse(&bytes).map_err(|error| CheckError::BadTable { path: table_path.into(), error })?;
+    let p = prepare(scene_path, prepare_options)?;
+    check_table(&bytes, &p, options).map_err(|e| match e {
+        CheckError::WrongScene { detail, .. } => {
+            CheckError::WrongScene { table: table_path.into(), scene: scene_path.into(), detail }
+        }
+        e => e,
+    })
+}
+
+/// Checks an existing table (bytes of an `.rft`) against the prepared scene it was baked from.
+///
+/// The table is first matched with the scene ([`match_scene`]); a table baked from another scene, or with other
+/// meshing options, is a [`CheckError::WrongScene`]. The decomposition then has the components that the table
+/// alone allows plus one that needs the scene's matrix:
+///
+/// | component | answer | against |
+/// |---|---|---|
+/// | table vs scene matrix | f64 solve of the decoded table | f64 solve of the scene's matrix (this run's estimate) |
+/// | iteration truncation | as [`check`] | |
+/// | arithmetic (f32, fixed) | as [`check`] | |
+///
+/// The first one holds sparsification, quantization, reciprocity and the difference between the bake's
+/// form-factor estimate and this run's (equal when the sample counts and seed match the bake's); separating
+/// them needs the bake's unsparsified f64 matrix, which the table does not keep, so for the separate
+/// components bake again (`radiosity check SCENE`). [`CheckOptions::bits`], `codec` and `threshold` are the
+/// table's own here and ignored; `ff_factor` is not used.
+///
+/// # Errors
+/// [`CheckError::BadTable`] for bytes that do not parse, [`CheckError::WrongScene`] for a table of another
+/// scene, and the errors of [`check`].
+pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result<CheckReport, CheckError> {
+    check_options(options)?;
+    let table =
+        Table::parse(bytes).map_err(|error| CheckError::BadTable { path: "<bytes>".into(), error })?;
+    match_scene(&table, p).map_err(|detail| CheckError::WrongScene {
+        table: "<table>".into(),
+        scene: p.scene.path.clone(),
+        detail,
+    })?;
+    let answers = SceneAnswers::new(p, options)?;
+    let dec = crate::bake::decode_table(&table);
+    let b_dec = answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.emission)?;
+    let b_full = answers.solve(&p.lighting.rho, &p.form_factors, &answers.e_default)?;
+    let components = vec![Component {
+        name: TABLE_VS_SCENE.into(),
+        compares:
+            "f64, decoded table vs the scene's f64 matrix (sparsification + quantization + reciprocity \
+                   + estimate differences)"
+                .into(),
+        error: metrics::compare(&b_dec, &b_full, &answers.area)?,
+    }];
+    device_part(p, &table, bytes.len(), &answers, &dec, &b_dec, options, components)
+}
+
+/// Whether `table` was baked from the patches of `p`; on a mismatch, the first difference found.
+///
+/// Compared, in order: patch count, material count, dynamic light group count, every patch's area (the table
+/// stores f32, so equal means within `2^-23` relative, twice f32's rounding), every patch's material, every
+/// material's reflectance code (the code the writer makes of the scene's `Kd`), every group's id (FNV-1a of
+/// its name) and member patches, every patch's static emission (within the emission code's `2^-11`
+/// relative rounding, [`radiosity_core::codec`]), and the form factors themselves: more than
+/// [`WRONG_SCENE_FRACTION`] of the transported energy on other receivers is another geometry.
+///
+/// # Errors
+/// A sentence naming the first difference, the patch, material or group, and both values.
+pub fn match_scene(table: &Table<'_>, p: &Prepared) -> Result<(), String> {
+    use radiosity_core::codec::{decode_emission_f32, encode_reflectance};
+    let l = &p.lighting;
+    let (n_t, n_s) = (table.patch_count() as usize, p.patches.len());
+    if n_t != n_s {
+        return Err(format!(
+            "the table has {n_t} patches, the scene meshes into {n_s} (a different scene, or meshing options \
+             other than the bake's: --no-subdivide, --max-patch-edge, --max-patches)"
+        ));
+    }
+    let (m_t, m_s) = (table.material_count() as usize, p.scene.materials.len());
+    if m_t != m_s {
+        return Err(format!("the table has {m_t} materials, the scene {m_s}"));
+    }
+    let (g_t, g_s) = (table.group_count() as usize, l.dynamic_groups.len());
+    if g_t != g_s {
+        return Err(format!("the table has {g_t} dynamic light groups, the scene {g_s}"));
+    }
+    for (i, q) in p.patches.iter().enumerate() {
+        let a = f64::from(table.area(i as u32).unwrap_or(f32::NAN));
+        let within = (a - q.area).abs() <= q.area * f64::from(f32::EPSILON);
+        if !within {
+            return Err(format!(
+                "patch {i} (face {}): area {a} in the table, {} in the scene",
+                q.face, q.area
+            ));
+        }
+        let m = table.material(i as u32).map_or(usize::MAX, |m| m as usize);
+        if m != q.material {
+            return Err(format!(
+                "patch {i} (face {}): material {m} in the table, {} (`{}`) in the scene",
+                q.face, q.material, p.scene.materials[q.material].name
+            ));
+        }
+        let e_t = table.base_emission(i as u32).unwrap_or([u16::MAX; 3]).map(decode_emission_f32);
+        for (c, (&t, &s)) in e_t.iter().zip(&l.static_emission[i]).enumerate() {
+            let t = f64::from(t);
+            let within = (t - s).abs() <= s * 2f64.powi(-11) + 2f64.powi(-41);
+            if !within {
+                return Err(format!(
+                    "patch {i} (face {}): static emission {t} in the table, {s} in the scene (channel {c})",
+                    q.face
+                ));
+            }
+        }
+    }
+    for (k, mat) in p.scene.materials.iter().enumerate() {
+        let want = mat.reflectance.map(|r| encode_reflectance(r as f32));
+        let got = table.reflectance(k as u32).unwrap_or([u16::MAX; 3]);
+        if want != got {
+            let dec = got.map(|c| f64::from(c) / 65536.0);
+            return Err(format!(
+                "material {k} (`{}`): reflectance {dec:?} in the table, {:?} in the scene",
+                mat.name, mat.reflectance
+            ));
+        }
+    }
+    // Form factors: a table of the same scene differs from this run's matrix by sparsification (at most the
+    // fraction `t` of a row, 1e-3 by default), quantization (< 2^-5 of an entry at 8 bits) and the difference
+    // between two Monte Carlo estimates (a few percent of a row at the default ray counts); another geometry
+    // with the same patch attributes (facing vs perpendicular squares) sends a row's energy to other receivers,
+    // which moves about twice the row sum. Half the transported energy separates the two cases by a factor of
+    // about ten on either side.
+    let fraction = form_factor_distance(table, p);
+    if fraction > WRONG_SCENE_FRACTION {
+        return Err(format!(
+            "the table's form factors differ from the scene's by {:.1}% of the transported energy \
+             (area-weighted sum of |F_table - F_scene| over all rows; a table of this scene differs by a few \
+             percent at most): same patch counts, areas and materials, but other geometry",
+            100.0 * fraction
+        ));
+    }
+    for (g, &sg) in l.dynamic_groups.iter().enumerate() {
+        let name = &p.scene.light_groups[sg].name;
+        let id = table.group_id(g as u32).unwrap_or(0);
+        if id != bake::group_id(name) {
+            return Err(format!(
+                "dynamic light group {g}: id {id:#010x} in the table, {:#010x} (`{name}`) in the scene",
+                bake::group_id(name)
+            ));
+        }
+        let members: Vec<u32> = table
+            .group_members(g as u32)
+            .unwrap_or(0..0)
+            .filter_map(|k| table.member(k).map(|m| m.patch))
+            .collect();
+        let want: Vec<u32> = (0..n_s).filter(|&i| l.group[i] == Some(g)).map(|i| i as u32).collect();
+        if members != want {
+            return Err(format!(
+                "dynamic light group {g} (`{name}`): {} member patches in the table, {} in the scene",
+                members.len(),
+                want.len()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Runs the device paths on `table` and finishes the report (iteration truncation and arithmetic components).
+#[allow(clippy::too_many_arguments)]
+fn device_part(
+    p: &Prepared,
+    table: &Table<'_>,
+    table_bytes: usize,
+    answers: &SceneAnswers,
+    dec: &bake::Decoded,
+    b_dec: &Radiosity,
+    options: &CheckOptions,
+    mut components: Vec<Component>,
+) -> Result<CheckReport, CheckError> {
+    let l = &p.lighting;
+    let n = p.patches.len();
+    let area = &answers.area;
+    let caps = Capacities::of_table(table, table_bytes);
     let max_power = (0..3)
         .map(|c| dec.emission.iter().zip(&dec.area).map(|(e, a)| e[c] * a).sum::<f64>())
         .fold(0.0, f64::max);
@@ -327,15 +609,9 @@ pub fn check(
         schedule.push(default.clone());
         schedule.push(default.iter().map(|&d| scale(d, [1.0, 0.2, 0.2])).collect());
     }
-    let exact: Vec<Vec<[f64; 3]>> = schedule.iter().map(|s| tv.relight(s)).collect::<Result<_, _>>()?;
-    let run = Run {
-        table: &table,
-        caps: &baked.capacities,
-        area: &area,
-        schedule: &schedule,
-        exact: &exact,
-        options,
-    };
+    let exact: Vec<Vec<[f64; 3]>> =
+        schedule.iter().map(|s| answers.tv.relight(s)).collect::<Result<_, _>>()?;
+    let run = Run { table, caps: &caps, area, schedule: &schedule, exact: &exact, options };
     let mut settings = Vec::new();
     let mut frames = Vec::new();
     let paths: &[&'static str] = match options.arith {
@@ -351,7 +627,7 @@ pub fn check(
         };
         if path == "f32" {
             components.push(Component {
-                name: "iteration truncation".into(),
+                name: ITERATION_TRUNCATION.into(),
                 compares: match options.frames {
                     Some(f) => format!(
                         "f32 after {f} frames of {} units vs f32 converged, same table",
@@ -361,19 +637,19 @@ pub fn check(
                         "f32 run to convergence in frames vs f32 converged in one step, same table".into()
                     }
                 },
-                error: metrics::compare(&truncated, &converged, &area)?,
+                error: metrics::compare(&truncated, &converged, area)?,
             });
         }
         components.push(Component {
             name: format!("arithmetic ({path})"),
             compares: format!("{path} converged vs f64 solve of the decoded table"),
-            error: metrics::compare(&converged, &b_dec, &area)?,
+            error: metrics::compare(&converged, b_dec, area)?,
         });
     }
     Ok(CheckReport {
         patches: n,
         entries: table.entry_count() as usize,
-        table_bytes: baked.table.len(),
+        table_bytes,
         codec: bake::codec_name(table.codec()),
         budget: options.budget,
         frames_per_setting: options.frames,
@@ -384,8 +660,85 @@ pub fn check(
     })
 }
 
+/// Converged device radiosity of `table` from a cold start at its default intensities, on arithmetic `S`, with
+/// solver tolerance `tolerance` (power units, [`Config::tolerance`]); `None` with the reason if the solver
+/// stops without converging ([`Outcome::NoProgress`], e.g. a saturated fixed-point value).
+///
+/// # Errors
+/// [`CheckError::Solver`] if the solver rejects the table.
+pub fn device_converged<S: Scalar>(
+    table: &Table<'_>,
+    tolerance: f64,
+) -> Result<Result<Radiosity, radiosity_core::NoProgressReason>, CheckError> {
+    let caps = Capacities::of_table(table, 0);
+    let n = table.patch_count() as usize;
+    let zero = S::from_f32(0.0);
+    let (mut p, mut u, mut h) =
+        (vec![[zero; 3]; caps.power], vec![[zero; 3]; caps.unshot], vec![[zero; 3]; caps.incident]);
+    let (mut t, mut i, mut r) =
+        (vec![0u32; caps.tree], vec![[zero; 3]; caps.intensity], vec![[0u16; 3]; caps.reflectance]);
+    let buffers = Buffers {
+        power: &mut p,
+        unshot: &mut u,
+        incident: &mut h,
+        tree: &mut t,
+        intensity: &mut i,
+        reflectance: &mut r,
+    };
+    let config = Config { tolerance: S::from_f32(tolerance as f32), overshoot: 0 };
+    let mut solver =
+        Solver::new(table, buffers, config).map_err(|error| CheckError::Solver { arith: "device", error })?;
+    loop {
+        match solver.step(table, u32::MAX) {
+            Outcome::BudgetSpent { .. } => {}
+            Outcome::Converged { .. } => return Ok(Ok(radiosity(&solver, table, n))),
+            Outcome::NoProgress { reason, .. } => return Ok(Err(reason)),
+        }
+    }
+}
+
+/// The area-weighted distance between the table's decoded form factors and the scene's:
+/// `sum_i A_i sum_j |F_table_ij - F_scene_ij| / sum_i A_i s_i` (`s_i` the scene's row sums; rows beyond the
+/// shorter of the two are ignored). See [`match_scene`].
+#[must_use]
+pub fn form_factor_distance(table: &Table<'_>, p: &Prepared) -> f64 {
+    let dec = bake::decode_table(table);
+    let (mut moved, mut total) = (0.0, 0.0);
+    for i in 0..p.patches.len().min(dec.rows.n) {
+        let mut row: std::collections::BTreeMap<usize, f64> =
+            p.form_factors.row(i).map(|(j, f)| (j, -f)).collect();
+        for (j, f) in dec.rows.row(i) {
+            *row.entry(j).or_insert(0.0) += f;
+        }
+        moved += p.patches[i].area * row.values().map(|d| d.abs()).sum::<f64>();
+        total += p.patches[i].area * p.form_factors.row_sum(i);
+    }
+    if total > 0.0 {
+        moved / total
+    } else {
+        0.0
+    }
+}
+
+/// A table whose form factors differ from the scene's by more than this fraction of the transported energy
+/// (area-weighted sum of `|F_table - F_scene|` over `sum_i A_i s_i`) belongs to another scene ([`match_scene`]).
+pub const WRONG_SCENE_FRACTION: f64 = 0.5;
+
+/// Component names, as they appear in reports and the regression baseline.
+pub const FORM_FACTOR_ESTIMATION: &str = "form-factor estimation";
+/// See [`FORM_FACTOR_ESTIMATION`].
+pub const RECIPROCITY: &str = "reciprocity";
+/// See [`FORM_FACTOR_ESTIMATION`].
+pub const SPARSIFICATION: &str = "sparsification";
+/// See [`FORM_FACTOR_ESTIMATION`].
+pub const QUANTIZATION: &str = "quantization";
+/// See [`FORM_FACTOR_ESTIMATION`].
+pub const ITERATION_TRUNCATION: &str = "iteration truncation";
+/// See [`FORM_FACTOR_ESTIMATION`] (table input only).
+pub const TABLE_VS_SCENE: &str = "table vs scene matrix";
+
 /// Per-patch RGB radiosity.
-type Radiosity = Vec<[f64; 3]>;
+pub type Radiosity = Vec<[f64; 3]>;
 
 struct Run<'r> {
     table: &'r Table<'r>,
@@ -640,6 +993,7 @@ impl CheckArgs {
     pub fn options(&self) -> CheckOptions {
         CheckOptions {
             bits: self.bits,
+            codec: None,
             threshold: self.threshold,
             budget: self.budget,
             frames: self.frames,

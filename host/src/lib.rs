@@ -16,6 +16,7 @@ pub mod patch;
 pub mod picture;
 pub mod pipeline;
 pub mod reference;
+pub mod regress;
 pub mod relight;
 pub mod scene;
 pub mod view;

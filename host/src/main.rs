@@ -162,11 +162,28 @@ enum Command {
     },
     /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
     /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
+    ///
+    /// `radiosity check TABLE.rft --scene SCENE.obj` checks an existing table instead: it must have been baked
+    /// from SCENE with the same meshing options (else a clear error naming the first difference).
     Check {
+        /// The scene's OBJ file, or a table (.rft) together with `--scene`.
         #[command(flatten)]
         scene: SceneArgs,
+        /// With a table as the first argument: the scene it was baked from.
+        #[arg(long = "scene", id = "table_scene", value_name = "SCENE")]
+        table_scene: Option<PathBuf>,
         #[command(flatten)]
         check: radiosity_host::check::CheckArgs,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Quantization regression: recompute every shipped scene's error components (16- and 8-bit codecs) and
+    /// compare them with the checked-in baseline (fails when one exceeds baseline + k * noise);
+    /// `--update` re-measures and rewrites the baseline, printing old and new values side by side.
+    Regress {
+        #[command(flatten)]
+        regress: radiosity_host::regress::RegressArgs,
         /// Output format (`text` or `json`).
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
@@ -430,12 +447,46 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 writeln!(out, "{}", path.display())?;
             }
         }
-        Command::Check { scene, check, format } => {
-            let report =
-                radiosity_host::check::check_scene(&scene.scene, &scene.prepare_options(), &check.options())?;
+        Command::Check { scene, table_scene, check, format } => {
+            if table_scene.is_none() && scene.scene.extension().is_some_and(|e| e == "rft") {
+                return Err(format!(
+                    "{} is a table: give the scene it was baked from with --scene SCENE.obj",
+                    scene.scene.display()
+                )
+                .into());
+            }
+            let report = match table_scene {
+                Some(obj) => radiosity_host::check::check_table_file(
+                    &scene.scene,
+                    &obj,
+                    &scene.prepare_options(),
+                    &check.options(),
+                )?,
+                None => radiosity_host::check::check_scene(
+                    &scene.scene,
+                    &scene.prepare_options(),
+                    &check.options(),
+                )?,
+            };
             match format {
                 Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
                 _ => write!(out, "{report}")?,
+            }
+        }
+        Command::Regress { regress, format } => {
+            let report = radiosity_host::regress::run(&regress)?;
+            match format {
+                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                _ => write!(out, "{report}")?,
+            }
+            if !report.passed() {
+                out.flush()?;
+                return Err(format!(
+                    "regression: {} values over their limits, {} problems",
+                    report.failures().len(),
+                    report.problems.len()
+                )
+                .into());
             }
         }
     }

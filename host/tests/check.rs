@@ -1,0 +1,195 @@
+//! `radiosity check` on the Cornell box (bake path and table path), wrong-scene tables, and the quantization
+//! regression against the checked-in baseline (including a codec degraded on purpose).
+
+use std::path::PathBuf;
+
+use radiosity_core::{FfCodec, Table};
+use radiosity_host::bake::{bake, BakeInput, BakeOptions};
+use radiosity_host::check::{
+    check, check_table, form_factor_distance, CheckError, CheckOptions, CheckReport, QUANTIZATION,
+    RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE, WRONG_SCENE_FRACTION,
+};
+use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
+use radiosity_host::regress::{self, CheckSelection};
+
+fn scene(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name)
+}
+
+/// Small, fast settings: the scene's default meshing, 4 samples and 4 rays per pair.
+fn options(seed: u64) -> PrepareOptions {
+    PrepareOptions {
+        no_subdivide: false,
+        max_patch_edge: None,
+        max_patches: None,
+        form_factors: FormFactorOptions {
+            samples_per_patch: 4,
+            rays_per_pair: 4,
+            seed,
+            progress: false,
+            ..FormFactorOptions::default()
+        },
+        verbose: false,
+    }
+}
+
+fn component(r: &CheckReport, name: &str) -> f64 {
+    r.components.iter().find(|c| c.name == name).unwrap_or_else(|| panic!("no component {name}")).error.rel_l2
+}
+
+fn bake_bytes(p: &Prepared, codec: FfCodec) -> Vec<u8> {
+    let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
+    bake(&input, &BakeOptions { codec, ..BakeOptions::default() }).expect("bake").table
+}
+
+/// The Cornell box's decomposition: every component finite, 8-bit quantization coarser than 16-bit, 16-bit
+/// quantization within the codec's bound, and the device error within the sum of its components.
+#[test]
+fn cornell_decomposition_is_consistent() {
+    let po = options(1);
+    let p = prepare(&scene("cornell-box.obj"), &po).expect("prepare");
+    let opts = CheckOptions { ff_factor: 2, ..CheckOptions::default() };
+    let r16 = check(&p, &po, &opts).expect("check 16");
+    let r8 =
+        check(&p, &po, &CheckOptions { bits: 8, row_sum_tolerance: 1e-4 + 2f64.powi(-5), ..opts.clone() })
+            .expect("check 8");
+    for r in [&r16, &r8] {
+        for c in &r.components {
+            assert!(c.error.rel_l2.is_finite() && c.error.rel_l2 >= 0.0, "{}: {}", c.name, c.error.rel_l2);
+            assert!(c.error.max_rel.is_finite(), "{}: {}", c.name, c.error.max_rel);
+        }
+    }
+    // Expected order: a 5-bit mantissa quantizes coarser than a 12-bit one.
+    let (q16, q8) = (component(&r16, QUANTIZATION), component(&r8, QUANTIZATION));
+    assert!(q8 > q16, "quantization 8-bit {q8} not above 16-bit {q16}");
+    // Bound of the 16-bit component: emission codes round to 2^-11 relative, reflectance codes to 2^-17
+    // absolute, form-factor codes to < 2^-12 relative (core's codec docs); a relative perturbation d of R F
+    // moves B by at most d * rho_max / (1 - rho_max) relative (Neumann series of (I - R F)^-1).
+    let rho_max = p.lighting.rho.iter().flatten().copied().fold(0.0, f64::max);
+    let rho_min = p.lighting.rho.iter().flatten().copied().filter(|&r| r > 0.0).fold(1.0, f64::min);
+    let d = 2f64.powi(-12) + 2f64.powi(-17) / rho_min;
+    let bound = 2f64.powi(-11) + d * rho_max / (1.0 - rho_max);
+    assert!(q16 <= bound, "16-bit quantization {q16} above its bound {bound}");
+    // Device (converged, so no truncation) minus exact telescopes into arithmetic + quantization +
+    // sparsification + reciprocity; each component is relative to its own reference, whose norm is within a
+    // factor (1 + S) of the exact one (S = sum of the components), hence the slack S (1 + S), plus the f64
+    // solves' rounding (8 n eps).
+    for (arith, setting) in r16.settings.iter().map(|s| (s.arith, s)) {
+        let s = component(&r16, &format!("arithmetic ({arith})"))
+            + component(&r16, QUANTIZATION)
+            + component(&r16, SPARSIFICATION)
+            + component(&r16, RECIPROCITY);
+        let allowed = s * (1.0 + s) + 8.0 * r16.patches as f64 * f64::EPSILON;
+        assert!(setting.converged, "{arith} did not converge");
+        assert!(
+            setting.error.rel_l2 <= allowed,
+            "{arith}: device error {} above the sum of its components {allowed}",
+            setting.error.rel_l2
+        );
+    }
+}
+
+/// `check TABLE --scene SCENE`: the table baked from the scene checks with the same device answers as the
+/// bake path, and its table-vs-scene component is within the sum of the components it merges.
+#[test]
+fn table_input_matches_bake_path() {
+    let po = options(1);
+    let p = prepare(&scene("cornell-box.obj"), &po).expect("prepare");
+    let opts = CheckOptions { ff_factor: 1, ..CheckOptions::default() };
+    let from_scene = check(&p, &po, &opts).expect("check scene");
+    let bytes = bake_bytes(&p, FfCodec::FLOAT16);
+    let from_table = check_table(&bytes, &p, &opts).expect("check table");
+    // Same table bytes, same solver: identical device answers.
+    for name in ["arithmetic (f32)", "arithmetic (fixed)"] {
+        assert_eq!(component(&from_scene, name), component(&from_table, name), "{name}");
+    }
+    let merged = component(&from_scene, QUANTIZATION)
+        + component(&from_scene, SPARSIFICATION)
+        + component(&from_scene, RECIPROCITY);
+    let t = component(&from_table, TABLE_VS_SCENE);
+    assert!(t <= merged * (1.0 + merged) + 8.0 * p.patches.len() as f64 * f64::EPSILON, "{t} > {merged}");
+    // A different seed for the scene's matrix is still the same scene.
+    let p2 = prepare(&scene("cornell-box.obj"), &options(2)).expect("prepare seed 2");
+    let table = Table::parse(&bytes).expect("parse");
+    let same = form_factor_distance(&table, &p2);
+    println!("form-factor distance, same scene, other seed: {same:.3e}");
+    assert!(same < WRONG_SCENE_FRACTION, "{same}");
+    check_table(&bytes, &p2, &opts).expect("same scene, other seed");
+}
+
+/// Tables of another scene are rejected with a message naming the difference: a different patch count, and
+/// the same patch attributes with other geometry (facing vs perpendicular squares).
+#[test]
+fn wrong_scene_tables_are_rejected() {
+    let po = options(1);
+    let cornell = prepare(&scene("cornell-box.obj"), &po).expect("prepare");
+    let closed = prepare(&scene("cornell-box-closed.obj"), &po).expect("prepare");
+    let opts = CheckOptions { ff_factor: 1, ..CheckOptions::default() };
+    match check_table(&bake_bytes(&cornell, FfCodec::FLOAT16), &closed, &opts) {
+        Err(CheckError::WrongScene { detail, .. }) => assert!(detail.contains("patches"), "{detail}"),
+        other => panic!("expected a wrong-scene error, got {other:?}"),
+    }
+    let facing = prepare(&scene("facing-squares.obj"), &po).expect("prepare");
+    let perpendicular = prepare(&scene("perpendicular-squares.obj"), &po).expect("prepare");
+    assert_eq!(facing.patches.len(), perpendicular.patches.len());
+    match check_table(&bake_bytes(&facing, FfCodec::FLOAT16), &perpendicular, &opts) {
+        Err(e @ CheckError::WrongScene { .. }) => {
+            let msg = e.to_string();
+            println!("{msg}");
+            assert!(msg.contains("form factors differ"), "{msg}");
+        }
+        other => panic!("expected a wrong-scene error, got {other:?}"),
+    }
+    // Damaged bytes are a parse error, not a wrong scene.
+    let mut bytes = bake_bytes(&facing, FfCodec::FLOAT16);
+    bytes.truncate(bytes.len() / 2);
+    assert!(matches!(check_table(&bytes, &facing, &opts), Err(CheckError::BadTable { .. })));
+}
+
+fn baseline() -> regress::Baseline {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/baseline/quantization.json");
+    regress::read_baseline(&path).expect("baseline (regenerate: radiosity regress --update)")
+}
+
+/// The quantization regression: every shipped scene and codec within baseline + k * noise + floor, and every
+/// shipped scene in the baseline. Prints the table (`cargo test -- --nocapture`).
+#[test]
+fn quantization_regression() {
+    let b = baseline();
+    let report =
+        regress::check_baseline(&b, &scene(""), &CheckSelection::default()).expect("regression runs");
+    println!("{report}");
+    assert!(!report.rows.is_empty());
+    assert!(report.passed(), "regression failed:\n{report}");
+}
+
+/// Degrading a codec on purpose (LINEAR8 in place of FLOAT16) is caught by the regression check, on the
+/// quantization component.
+#[test]
+fn degraded_codec_is_caught() {
+    let b = baseline();
+    let selection = CheckSelection {
+        scene: Some("cornell-box.obj".into()),
+        bits: Some(16),
+        codec: Some(FfCodec::LINEAR8),
+    };
+    let report = regress::check_baseline(&b, &scene(""), &selection).expect("regression runs");
+    println!("{report}");
+    assert!(!report.passed(), "LINEAR8 in place of FLOAT16 passed:\n{report}");
+    assert!(
+        report.failures().iter().any(|r| r.component == QUANTIZATION),
+        "quantization not among the failures:\n{report}"
+    );
+    // The same selection with the baseline's own codec passes (the failure is the codec's doing).
+    let honest = CheckSelection { codec: None, ..selection };
+    assert!(regress::check_baseline(&b, &scene(""), &honest).expect("runs").passed());
+}
+
+/// The noise multiplier is the derived prediction-interval factor.
+#[test]
+fn noise_multiplier_is_derived() {
+    let k = regress::noise_multiplier(5).expect("5 seeds");
+    assert!((k - 4.604 * 1.2f64.sqrt()).abs() < 1e-12, "{k}");
+    assert!(regress::noise_multiplier(1).is_none());
+}
