@@ -2,7 +2,7 @@
 SHELL := /bin/bash
 CARGO ?= cargo
 
-.PHONY: deps demo test fmt-check clippy unit-tests embedded-builds
+.PHONY: deps demo test bench fmt-check clippy unit-tests embedded-builds
 
 deps:
 	@bash scripts/deps.sh
@@ -12,3 +12,8 @@ demo: deps
 
 test: deps
 	@bash scripts/test.sh
+
+# The full benchmark (release build): bench/REPORT.md, CSV files and plots. `cargo bench -p radiosity-host` runs the
+# criterion benchmarks of the hot loops.
+bench: deps
+	$(CARGO) run --release -p radiosity-host --bin radiosity -- bench --out bench

@@ -4,6 +4,7 @@
 //! writing, checks and reports. The physics conventions are those of `radiosity-core`.
 
 pub mod bake;
+pub mod bench;
 pub mod check;
 pub mod embree;
 pub mod formfactor;

@@ -188,6 +188,10 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
+    /// Measure speed against error for every relighting method (core shooting, Gauss-Seidel, Jacobi, warm and
+    /// cold relighting, f64 dense LU and Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
+    /// CSV files and plots into the output folder. Run it from a release build.
+    Bench(radiosity_host::bench::BenchArgs),
 }
 
 /// `render --mode`.
@@ -330,6 +334,10 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
         }
         Command::Demo { out: dir } => demo(&dir, &mut out)?,
+        Command::Bench(args) => {
+            radiosity_host::bench::run(&args.options())?;
+            writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
+        }
         Command::Solve { scene, format } => {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let l = &p.lighting;

@@ -1,0 +1,63 @@
+//! Criterion benchmarks of core's hot loops on a baked Cornell box table (about 250 patches, 16-bit codes):
+//! a shooting step, a Gauss-Seidel sweep, table parsing, and a decode pass over every entry. Run with
+//! `cargo bench -p radiosity-host`; they are not part of `make test`.
+//!
+//! The transfer-basis relight is not benchmarked: the transfer basis is not in this branch's core yet.
+
+use std::hint::black_box;
+
+use criterion::{criterion_main, Criterion, Throughput};
+use radiosity_core::{Config, Table};
+use radiosity_host::bench::{cornell_table, device::Owned, roofline::stream_pass};
+
+fn hot_loops(c: &mut Criterion) {
+    let baked = cornell_table(250, 16).expect("bake the Cornell box");
+    let table = Table::parse(&baked.table).expect("baked table parses");
+    let caps = &baked.capacities;
+    let entries = u64::from(table.entry_count());
+    let patches = table.patch_count();
+    let config = Config { tolerance: 0.0f32, overshoot: 0 };
+
+    let mut g = c.benchmark_group("core");
+    // One budget of 20,000 work units of shooting from the cold start (reset is O(patches) and included).
+    g.throughput(Throughput::Elements(20_000));
+    g.bench_function("shot (20k units, f32)", |b| {
+        let mut owned = Owned::<f32>::new(caps);
+        let (buffers, _) = owned.split();
+        let mut solver = radiosity_core::Solver::new(&table, buffers, config).expect("solver");
+        b.iter(|| {
+            solver.reset(&table);
+            black_box(solver.step(&table, 20_000))
+        });
+    });
+    // One whole Gauss-Seidel sweep (rows + entries + end scan) from the cold start.
+    let sweep = u32::try_from(entries + 2 * u64::from(patches)).unwrap_or(u32::MAX);
+    g.throughput(Throughput::Elements(entries));
+    g.bench_function("sweep (Gauss-Seidel, f32)", |b| {
+        let mut owned = Owned::<f32>::new(caps);
+        let (buffers, _) = owned.split();
+        let mut solver = radiosity_core::Solver::new(&table, buffers, config).expect("solver");
+        b.iter(|| {
+            solver.reset(&table);
+            black_box(solver.step_gauss_seidel(&table, sweep))
+        });
+    });
+    g.throughput(Throughput::Bytes(baked.table.len() as u64));
+    g.bench_function("parse", |b| b.iter(|| black_box(Table::parse(black_box(&baked.table)).is_ok())));
+    g.throughput(Throughput::Elements(entries));
+    g.bench_function("decode (stream pass, f32)", |b| {
+        let mut acc = vec![[0.0f32; 3]; patches as usize];
+        b.iter(|| {
+            stream_pass(black_box(&table), black_box([1.0f32, 0.5, 0.25]), &mut acc);
+            black_box(&acc);
+        });
+    });
+    g.finish();
+}
+
+// The macro defines an undocumented `benches` function.
+#[allow(missing_docs)]
+mod group {
+    criterion::criterion_group!(benches, super::hot_loops);
+}
+criterion_main!(group::benches);

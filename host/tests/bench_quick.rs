@@ -1,0 +1,96 @@
+//! `radiosity bench --quick` produces a well-formed report: every section, the CSV columns, finite numbers, and
+//! errors that fall as work grows. No wall-clock number is asserted (only that times are finite and >= 0).
+
+use std::path::PathBuf;
+
+use radiosity_host::bench::{report::CSV_HEADER, run, BenchOptions};
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("radiosity-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+#[test]
+fn quick_bench_writes_a_well_formed_report() {
+    let out = temp_dir("bench-quick");
+    let results = run(&BenchOptions::new(true, out.clone())).expect("quick bench runs");
+
+    // REPORT.md has every section.
+    let md = std::fs::read_to_string(out.join("REPORT.md")).expect("REPORT.md written");
+    for section in [
+        "## Machine",
+        "## Method",
+        "## Scene cornell-100",
+        "## Scene furnace-rho90",
+        "Roofline (f32)",
+        "## Transfer basis",
+        "## Bake throughput",
+        "## Growth with the patch count",
+        "Fitted exponents",
+        "## Conclusions",
+    ] {
+        assert!(md.contains(section), "REPORT.md lacks {section:?}");
+    }
+    assert!(!md.contains("NaN") && !md.contains("inf"), "REPORT.md has a non-finite number:\n{md}");
+
+    // curves.csv: the header, and every row has all columns with finite numbers where numbers belong.
+    let csv = std::fs::read_to_string(out.join("curves.csv")).expect("curves.csv written");
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some(CSV_HEADER));
+    let columns = CSV_HEADER.split(',').count();
+    let mut rows = 0;
+    for line in lines {
+        let cells: Vec<&str> = line.split(',').collect();
+        assert_eq!(cells.len(), columns, "row {line:?}");
+        for (k, cell) in cells.iter().enumerate().skip(5) {
+            // work units and model instructions are empty for the host's f64 methods.
+            if cell.is_empty() && (k == 5 || k == 6) && cells[2] == "f64" {
+                continue;
+            }
+            let v: f64 = cell.parse().unwrap_or_else(|_| panic!("column {k} of {line:?} is not a number"));
+            assert!(v.is_finite() && v >= 0.0, "column {k} of {line:?}");
+        }
+        rows += 1;
+    }
+    assert!(rows > 0);
+    for scene in ["cornell-100", "furnace-rho90"] {
+        for key in ["work", "instructions", "wall"] {
+            assert!(out.join(format!("{scene}-{key}.svg")).exists(), "{scene}-{key}.svg");
+            assert!(out.join(format!("{scene}-{key}.png")).exists(), "{scene}-{key}.png");
+        }
+    }
+
+    // Every device curve: work strictly increasing; the error after the last checkpoint is below the first
+    // one's (a solver from a cold start gains accuracy with work), and f32 shooting on the 16-bit table reaches
+    // 10% error on every scene (the table's quantization floor is far below: relative 2^-12 per form factor).
+    for c in results.curves.iter().filter(|c| c.is_device()) {
+        let works: Vec<u64> = c.points.iter().filter_map(|p| p.work).collect();
+        assert_eq!(works.len(), c.points.len(), "{}", c.label());
+        assert!(works.windows(2).all(|w| w[0] < w[1]), "{}: work not increasing {works:?}", c.label());
+        let (first, last) = (c.points.first().unwrap(), c.points.last().unwrap());
+        if c.points.len() > 1 {
+            assert!(last.rel_l2 < first.rel_l2, "{}: error {} -> {}", c.label(), first.rel_l2, last.rel_l2);
+        }
+    }
+    for s in &results.scenes {
+        let shoot = results
+            .curves
+            .iter()
+            .find(|c| {
+                c.scene == s.name
+                    && c.method == "shooting"
+                    && c.arith == "f32"
+                    && c.codec == "16"
+                    && !c.overshoot
+            })
+            .expect("f32 shooting curve");
+        assert!(shoot.reach(0.1).is_some(), "{}: f32 shooting never reached 10%", s.name);
+        for (_, r) in &s.roofline {
+            assert!(r.shooting_entries > 0 && r.shooting_entries_per_s.is_finite());
+        }
+    }
+    if std::env::var_os("RADIOSITY_KEEP_BENCH").is_none() {
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}
