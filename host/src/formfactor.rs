@@ -492,14 +492,18 @@ fn validate(patches: &[Patch], options: &FormFactorOptions) -> Result<(), FormFa
     Ok(())
 }
 
-/// The patches' polygons, fan-triangulated, as one Embree mesh.
-fn occluder_scene(patches: &[Patch], robust: bool) -> Result<TriangleScene, FormFactorError> {
+/// The patches' polygons, fan-triangulated, as one Embree mesh: the occluders the estimator's visibility rays
+/// are tested against (public so benchmarks can cast raw rays against exactly the same scene).
+///
+/// # Errors
+/// If Embree fails to build the scene.
+pub fn occluder_scene(patches: &[Patch], robust: bool) -> Result<TriangleScene, FormFactorError> {
     let mut vertices = Vec::new();
     let mut triangles = Vec::new();
     for p in patches {
         let base = vertices.len() as u32;
         vertices.extend(p.vertices.iter().map(|v| v.as_vec3()));
-        for k in 1..p.vertices.len() as u32 - 1 {
+        for k in 1..p.vertices.len().saturating_sub(1) as u32 {
             triangles.push([base, base + k, base + k + 1]);
         }
     }

@@ -14,27 +14,16 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::BenchError;
-use crate::embree::{Device, Ray, SceneOptions, TriangleScene};
+use crate::embree::{Ray, TriangleScene};
+use crate::formfactor;
 use crate::patch::{FormFactorMatrix, Patch};
 
-/// The occluder scene of `patches`: one triangle fan per patch (as the form-factor estimator builds it).
+/// The occluder scene of `patches`, built by the form-factor estimator's own [`formfactor::occluder_scene`].
 ///
 /// # Errors
 /// If Embree fails.
 pub fn occluder_scene(patches: &[Patch], robust: bool) -> Result<TriangleScene, BenchError> {
-    let mut vertices = Vec::new();
-    let mut triangles = Vec::new();
-    for p in patches {
-        let base = vertices.len() as u32;
-        vertices.extend(p.vertices.iter().map(|v| v.as_vec3()));
-        for k in 1..p.vertices.len().saturating_sub(1) as u32 {
-            triangles.push([base, base + k, base + k + 1]);
-        }
-    }
-    let device = Device::new().map_err(|e| BenchError::Embree(e.to_string()))?;
-    device
-        .triangle_scene(&vertices, &triangles, SceneOptions { robust })
-        .map_err(|e| BenchError::Embree(e.to_string()))
+    formfactor::occluder_scene(patches, robust).map_err(|e| BenchError::Embree(e.to_string()))
 }
 
 /// A small deterministic generator (SplitMix64, Steele, Lea, Flood, "Fast splittable pseudorandom number
