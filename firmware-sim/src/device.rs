@@ -285,7 +285,8 @@ pub fn run_script<S: Bits, M: Meter>(
     mut on_frame: impl FnMut(&FrameRecord<S>, &Solver<'_, S>),
 ) -> Result<u32, RunError> {
     let tolerance = S::from_f32(script.tolerance * unit_light_power(table));
-    let mut solver = Solver::new(table, buffers, Config { tolerance, overshoot: 0 })
+    let overshoot = Config::<S>::RECOMMENDED_OVERSHOOT;
+    let mut solver = Solver::new(table, buffers, Config { tolerance, overshoot })
         .map_err(|error| RunError::Buffers { error })?;
     let solver = &mut solver;
     let boot_units = boot(solver, table, script)?;

@@ -685,7 +685,8 @@ pub fn device_converged<S: Scalar>(
         intensity: &mut i,
         reflectance: &mut r,
     };
-    let config = Config { tolerance: S::from_f32(tolerance as f32), overshoot: 0 };
+    let config =
+        Config { tolerance: S::from_f32(tolerance as f32), overshoot: Config::<S>::RECOMMENDED_OVERSHOOT };
     let mut solver =
         Solver::new(table, buffers, config).map_err(|error| CheckError::Solver { arith: "device", error })?;
     loop {
@@ -788,7 +789,10 @@ impl Run<'_> {
                 vec![[0u16; 3]; caps.reflectance],
             )
         };
-        let config = Config { tolerance: S::from_f32(tolerance as f32), overshoot: 0 };
+        let config = Config {
+            tolerance: S::from_f32(tolerance as f32),
+            overshoot: Config::<S>::RECOMMENDED_OVERSHOOT,
+        };
 
         // Converged reference of this arithmetic: one unbounded step sequence, cold start.
         let converged = {

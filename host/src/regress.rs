@@ -193,8 +193,8 @@ pub enum RegressError {
         bits: u32,
         /// Seed.
         seed: u64,
-        /// The check's error.
-        source: CheckError,
+        /// The check's error (boxed: it is large).
+        source: Box<CheckError>,
     },
     /// The scenes folder or the baseline could not be read or written.
     #[error("{path}: {message}")]
@@ -252,7 +252,12 @@ pub fn measure(
     seed: u64,
 ) -> Result<(usize, Measured), RegressError> {
     let name = scene.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let wrap = |source: CheckError| RegressError::Check { scene: name.clone(), bits, seed, source };
+    let wrap = |source: CheckError| RegressError::Check {
+        scene: name.clone(),
+        bits,
+        seed,
+        source: Box::new(source),
+    };
     let po = settings.prepare_options(seed);
     let p = prepare(scene, &po).map_err(|e| wrap(e.into()))?;
     // Shooting with decoded rows converges to the shooting form `A_j F_ji / A_i` of the decoded table; an

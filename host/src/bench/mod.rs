@@ -337,8 +337,8 @@ pub fn instructions_per_unit(cost_md: &str) -> Result<(f64, f64), BenchError> {
 /// The cost model as built in.
 const COST_MD: &str = include_str!("../../../firmware-sim/COST.md");
 
-/// Overshoot of the "with overshooting" curves: `64 / 256`, a relaxation factor of 1.25.
-pub const OVERSHOOT: u8 = 64;
+/// Overshoot of the "with overshooting" curves: core's recommended `64 / 256`, a relaxation factor of 1.25.
+pub const OVERSHOOT: u8 = radiosity_core::Config::<f32>::RECOMMENDED_OVERSHOOT;
 
 /// Error levels the report states work and time for.
 pub const LEVELS: [f64; 3] = [0.1, 0.01, 0.001];
@@ -484,6 +484,83 @@ impl SceneRun<'_> {
                 curve.points.len(),
                 curve.floor(),
                 t0.elapsed().as_secs_f64()
+            ),
+        );
+        self.curves.push(curve);
+        Ok(())
+    }
+}
+
+impl SceneRun<'_> {
+    /// The precomputed transfer basis: the same bake with the quantized response vectors `T_g` stored in the
+    /// table, relit once by core's `relight_transfer` (f32 and fixed point) at the default intensities. One
+    /// point per curve: its work is `patches x (groups + 1)` units, its error the quantization of `B_static` and
+    /// `T_g` (no iteration), its bytes the table with the transfer section.
+    fn transfer(
+        &mut self,
+        p: &Prepared,
+        bake_options: &BakeOptions,
+        bits: u32,
+        exact: &[[f64; 3]],
+        area: &[f64],
+    ) -> Result<(), BenchError> {
+        let options = BakeOptions { transfer: true, ..*bake_options };
+        let baked =
+            bake(&BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors), &options)?;
+        let table = Table::parse(&baked.table).map_err(|e| BenchError::Solver(format!("table: {e:?}")))?;
+        let intensity: Vec<[f64; 3]> = p.lighting.default_intensity.clone();
+        self.transfer_curve::<f32>(&table, baked.table.len(), bits, &intensity, exact, area)?;
+        self.transfer_curve::<Fixed>(&table, baked.table.len(), bits, &intensity, exact, area)
+    }
+
+    fn transfer_curve<S: Scalar>(
+        &mut self,
+        table: &Table<'_>,
+        table_bytes: usize,
+        bits: u32,
+        intensity: &[[f64; 3]],
+        exact: &[[f64; 3]],
+        area: &[f64],
+    ) -> Result<(), BenchError> {
+        let arith = if core::any::type_name::<S>().contains("Fixed") { "fixed" } else { "f32" };
+        let per_unit = if arith == "f32" { self.instr.0 } else { self.instr.1 };
+        let intensity: Vec<[S; 3]> = intensity.iter().map(|v| v.map(|x| S::from_f32(x as f32))).collect();
+        let mut out = vec![[S::ZERO; 3]; table.patch_count() as usize];
+        let mut times = Vec::new();
+        let mut work = 0;
+        for _ in 0..self.options.reps.max(1) {
+            let t0 = Instant::now();
+            work = radiosity_core::transfer::relight_transfer(table, &intensity, &mut out)
+                .map_err(|e| BenchError::Solver(format!("transfer relight: {e:?}")))?;
+            times.push(t0.elapsed().as_secs_f64());
+        }
+        times.sort_by(f64::total_cmp);
+        let b: Vec<[f64; 3]> = out.iter().map(|v| v.map(|x| f64::from(x.to_f32()))).collect();
+        let e = metrics::compare(&b, exact, area)?;
+        let curve = Curve {
+            scene: self.name.to_string(),
+            method: "transfer basis".into(),
+            arith: arith.into(),
+            codec: bits.to_string(),
+            overshoot: false,
+            table_bytes,
+            points: vec![CurvePoint {
+                work: Some(u64::from(work)),
+                instructions: Some(f64::from(work) * per_unit),
+                seconds: times[times.len() / 2],
+                rel_l2: e.rel_l2,
+                max_rel: e.max_rel,
+            }],
+        };
+        log(
+            self.options,
+            &format!(
+                "{}: {} -> {} units, error {:.2e}, table {} bytes",
+                self.name,
+                curve.label(),
+                work,
+                e.rel_l2,
+                table_bytes
             ),
         );
         self.curves.push(curve);
@@ -718,6 +795,7 @@ fn run_scene(
                 &s,
             )?;
         }
+        run.transfer(&p, &bake_options, bits, ex, &area)?;
         let tr = Instant::now();
         let roof = roofline::measure::<f32>(&table, &baked.capacities, 1e-3 * max_power, options.reps)?;
         log(

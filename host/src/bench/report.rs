@@ -480,7 +480,12 @@ pub fn conclusions(r: &BenchResults) -> Vec<String> {
             let device: Vec<&Curve> = r
                 .curves
                 .iter()
-                .filter(|c| c.scene == *sc && c.is_device() && !c.method.contains("relight"))
+                .filter(|c| {
+                    c.scene == *sc
+                        && c.is_device()
+                        && !c.method.contains("relight")
+                        && c.method != "transfer basis"
+                })
                 .collect();
             if let Some((c, _)) = best(&device, level, |p| p.instructions) {
                 match wins.iter_mut().find(|w| w.0 == c.label()) {
@@ -557,6 +562,35 @@ pub fn conclusions(r: &BenchResults) -> Vec<String> {
             ratio(over, plain),
             ratio(fixed, plain),
             ratio(gs, plain)
+        ));
+    }
+    // Transfer basis against iterating (16-bit, f32): one relight's work and error, against the shooting work
+    // to reach the same error, and the table bytes each needs.
+    for sc in &r.scenes {
+        let Some(t) = r.curves.iter().find(|c| {
+            c.scene == sc.name && c.method == "transfer basis" && c.arith == "f32" && c.codec == "16"
+        }) else {
+            continue;
+        };
+        let Some(tp) = t.points.first() else { continue };
+        let shoot = work_to(
+            &r.curves,
+            &sc.name,
+            |c| c.method == "shooting" && c.arith == "f32" && c.codec == "16" && c.overshoot,
+            tp.rel_l2.max(1e-3),
+        );
+        let bytes16 = sc.table_bytes.iter().find(|b| b.0 == 16).map_or(0, |b| b.1);
+        out.push(format!(
+            "{}: transfer basis (f32, 16-bit) relights in {} model instructions to error {} with a {} byte table ({:.0}% of \
+             the shooting table); shooting +overshoot needs {} instructions to reach {}. Use the basis when \
+             reflectances are fixed and groups are few; shooting otherwise.",
+            sc.name,
+            tp.instructions.map_or("n/a".into(), |w| format!("{w:.0}")),
+            sci(tp.rel_l2),
+            t.table_bytes,
+            100.0 * t.table_bytes as f64 / bytes16.max(1) as f64,
+            shoot.map_or("more than the run's".into(), |w| format!("{w:.0}")),
+            sci(tp.rel_l2.max(1e-3))
         ));
     }
     // Roofline.
