@@ -1,8 +1,6 @@
-//! Criterion benchmarks of core's hot loops on a baked Cornell box table (about 250 patches, 16-bit codes):
-//! a shooting step, a Gauss-Seidel sweep, table parsing, and a decode pass over every entry. Run with
-//! `cargo bench -p radiosity-host`; they are not part of `make test`.
-//!
-//! The transfer-basis relight is not benchmarked: the transfer basis is not in this branch's core yet.
+//! Criterion benchmarks of core's hot loops on a baked Cornell box table (about 250 patches, 16-bit codes, with
+//! the transfer section): a shooting step, a Gauss-Seidel sweep, table parsing, a decode pass over every entry,
+//! and a transfer-basis relight. Run with `cargo bench -p radiosity-host`; they are not part of `make test`.
 
 use std::hint::black_box;
 
@@ -11,7 +9,7 @@ use radiosity_core::{Config, Table};
 use radiosity_host::bench::{cornell_table, device::Owned, roofline::stream_pass};
 
 fn hot_loops(c: &mut Criterion) {
-    let baked = cornell_table(250, 16).expect("bake the Cornell box");
+    let baked = cornell_table(250, 16, true).expect("bake the Cornell box");
     let table = Table::parse(&baked.table).expect("baked table parses");
     let caps = &baked.capacities;
     let entries = u64::from(table.entry_count());
@@ -51,6 +49,13 @@ fn hot_loops(c: &mut Criterion) {
             stream_pass(black_box(&table), black_box([1.0f32, 0.5, 0.25]), &mut acc);
             black_box(&acc);
         });
+    });
+    // One relight from the transfer basis at a new intensity of every group (patches x (groups + 1) units).
+    g.throughput(Throughput::Elements(u64::from(radiosity_core::transfer_cost(&table))));
+    g.bench_function("transfer relight (f32)", |b| {
+        let intensity = vec![[1.0f32, 0.5, 0.25]; table.group_count() as usize];
+        let mut out = vec![[0.0f32; 3]; patches as usize];
+        b.iter(|| black_box(radiosity_core::relight_transfer(&table, black_box(&intensity), &mut out)));
     });
     g.finish();
 }

@@ -132,7 +132,7 @@ pub enum CheckError {
     #[error("baked table does not parse: {0:?}")]
     Table(radiosity_core::TableError),
     /// The device solver rejected the table or a light change.
-    #[error("device solver ({arith}): {error:?}")]
+    #[error("device solver ({arith}): {error}")]
     Solver {
         /// Arithmetic path.
         arith: &'static str,
@@ -248,6 +248,41 @@ pub struct CheckReport {
     pub settings: Vec<Setting>,
     /// Every frame.
     pub frames: Vec<Frame>,
+}
+
+impl CheckReport {
+    /// The error decomposition as stacked bars: one bar per arithmetic path (`f32`, `fixed`), one segment per
+    /// component (relative L2 of `B`, area-weighted), the path's own arithmetic component on top. The shared
+    /// components (form-factor estimation, sparsification, quantization, ...) appear in every bar.
+    #[must_use]
+    pub fn decomposition_plot(&self, title: &str) -> crate::picture::plot::Plot {
+        let arith: Vec<String> = self
+            .components
+            .iter()
+            .filter_map(|c| c.name.strip_prefix("arithmetic (").and_then(|r| r.strip_suffix(')')))
+            .map(str::to_string)
+            .collect();
+        let mut components: Vec<(String, Vec<f64>)> = self
+            .components
+            .iter()
+            .filter(|c| !c.name.starts_with("arithmetic ("))
+            .map(|c| (c.name.clone(), vec![c.error.rel_l2; arith.len()]))
+            .collect();
+        let own: Vec<f64> = arith
+            .iter()
+            .map(|a| {
+                let name = format!("arithmetic ({a})");
+                self.components.iter().find(|c| c.name == name).map_or(0.0, |c| c.error.rel_l2)
+            })
+            .collect();
+        components.push(("arithmetic".into(), own));
+        crate::picture::plot::Plot::StackedBars {
+            title: title.into(),
+            y_label: "relative L2 error of B (area-weighted)".into(),
+            categories: arith,
+            components,
+        }
+    }
 }
 
 fn scale(v: [f64; 3], s: [f64; 3]) -> [f64; 3] {

@@ -72,8 +72,10 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
-    /// Run the main job on the bundled Cornell box: bake it, validate the table, print what it costs, and render it
-    /// (out/cornell-box.png and a light-map atlas).
+    /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
+    /// render it (view, light-map atlas, device error map, mesh histogram), then bake a table within 400 patches
+    /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
+    /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
     Demo {
         /// Folder for the outputs.
         #[arg(long, default_value = "out")]
@@ -174,6 +176,9 @@ enum Command {
         table_scene: Option<PathBuf>,
         #[command(flatten)]
         check: radiosity_host::check::CheckArgs,
+        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png.
+        #[arg(long, value_name = "STEM")]
+        plot: Option<PathBuf>,
         /// Output format (`text` or `json`).
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
@@ -188,8 +193,9 @@ enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
-    /// Measure speed against error for every relighting method (core shooting, Gauss-Seidel, Jacobi, warm and
-    /// cold relighting, f64 dense LU and Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
+    /// Measure speed against error for every relighting method (core shooting with and without overshooting,
+    /// Gauss-Seidel, Jacobi, warm and cold relighting, the precomputed transfer basis, f64 dense LU and
+    /// Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
     /// CSV files and plots into the output folder. Run it from a release build.
     Bench(radiosity_host::bench::BenchArgs),
 }
@@ -455,7 +461,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 writeln!(out, "{}", path.display())?;
             }
         }
-        Command::Check { scene, table_scene, check, format } => {
+        Command::Check { scene, table_scene, check, plot, format } => {
             if table_scene.is_none() && scene.scene.extension().is_some_and(|e| e == "rft") {
                 return Err(format!(
                     "{} is a table: give the scene it was baked from with --scene SCENE.obj",
@@ -479,6 +485,12 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             match format {
                 Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
                 _ => write!(out, "{report}")?,
+            }
+            if let Some(stem) = plot {
+                let title =
+                    format!("Error decomposition: {} ({} patches)", scene.scene.display(), report.patches);
+                let (svg, png) = report.decomposition_plot(&title).write(&stem, 800, 500)?;
+                writeln!(out, "{}\n{}", svg.display(), png.display())?;
             }
         }
         Command::Regress { regress, format } => {

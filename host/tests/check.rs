@@ -62,6 +62,18 @@ fn cornell_decomposition_is_consistent() {
             assert!(c.error.max_rel.is_finite(), "{}: {}", c.name, c.error.max_rel);
         }
     }
+    // The decomposition plot: one bar per arithmetic path, each stacking every shared component and its own
+    // arithmetic, and it draws.
+    let plot = r16.decomposition_plot("Cornell box");
+    let radiosity_host::picture::plot::Plot::StackedBars { categories, components, .. } = &plot else {
+        panic!("not bars")
+    };
+    assert_eq!(categories, &["f32", "fixed"]);
+    let total: f64 = components.iter().map(|(_, v)| v[1]).sum();
+    let expected: f64 =
+        r16.components.iter().filter(|c| c.name != "arithmetic (f32)").map(|c| c.error.rel_l2).sum();
+    assert!((total - expected).abs() <= 1e-12 * expected, "{total} vs {expected}");
+    assert!(plot.to_svg(400, 300).expect("svg").contains("<svg"));
     // Expected order: a 5-bit mantissa quantizes coarser than a 12-bit one.
     let (q16, q8) = (component(&r16, QUANTIZATION), component(&r8, QUANTIZATION));
     assert!(q8 > q16, "quantization 8-bit {q8} not above 16-bit {q16}");

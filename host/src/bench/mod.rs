@@ -393,11 +393,13 @@ fn prepare_at(
     rho: Option<f64>,
 ) -> Result<Prepared, BenchError> {
     let scene = Scene::load(path)?;
-    let (edge, _) = edge_for_patches(&scene, target)?;
+    let (edge, count) = edge_for_patches(&scene, target)?;
+    // A patch budget equal to the uniform mesh's count: adaptive refinement has nothing left to spend, so the
+    // mesh is the uniform one of about `target` patches (the sizes the report compares).
     let options = PrepareOptions {
         no_subdivide: false,
         max_patch_edge: Some(edge),
-        max_patches: Some(target * 4 + 64),
+        max_patches: Some(count),
         form_factors: ff.clone(),
         verbose: false,
     };
@@ -667,11 +669,11 @@ fn host_curves(
 }
 
 /// The Cornell box meshed to about `target` patches (form factors at 4 samples and 4 rays), baked with `bits`-bit
-/// codes: the table the criterion benchmarks run on.
+/// codes, with the transfer section if `transfer`: the table the criterion benchmarks run on.
 ///
 /// # Errors
 /// If preparing or baking fails.
-pub fn cornell_table(target: usize, bits: u32) -> Result<bake::Baked, BenchError> {
+pub fn cornell_table(target: usize, bits: u32, transfer: bool) -> Result<bake::Baked, BenchError> {
     let ff = FormFactorOptions {
         samples_per_patch: 4,
         rays_per_pair: 4,
@@ -679,8 +681,12 @@ pub fn cornell_table(target: usize, bits: u32) -> Result<bake::Baked, BenchError
         ..FormFactorOptions::default()
     };
     let p = prepare_at(&default_scenes_dir().join("cornell-box.obj"), target, &ff, None)?;
-    let options =
-        BakeOptions { codec: codec_for_bits(bits)?, row_sum_tolerance: 1e-2, ..BakeOptions::default() };
+    let options = BakeOptions {
+        codec: codec_for_bits(bits)?,
+        row_sum_tolerance: 1e-2,
+        transfer,
+        ..BakeOptions::default()
+    };
     Ok(bake(&BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors), &options)?)
 }
 
