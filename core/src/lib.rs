@@ -237,7 +237,7 @@ pub mod write;
 
 pub use codec::{FfCodec, Frac};
 pub use scalar::{Fixed, Scalar};
-pub use solver::{Buffers, Config, NoProgressReason, Outcome, Solver, SolverError};
+pub use solver::{convergence_floor, Buffers, Config, NoProgressReason, Outcome, Solver, SolverError};
 pub use table::{Table, TableError, FORMAT_VERSION, MAGIC};
 pub use transfer::{relight_transfer, static_radiosity, transfer_cost, TransferError};
 pub use write::{

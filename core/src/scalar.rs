@@ -48,6 +48,11 @@ pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
     /// Whether the value is usable: finite for f32, not saturated for fixed point.
     #[must_use]
     fn is_usable(self) -> bool;
+    /// The smallest solver tolerance that is guaranteed to be reachable, given `units` = `6 L / (1 - rho_max)`
+    /// rounded up (module docs): `units` resolution steps for fixed point; zero for `f32`, whose rounding is
+    /// relative and does not leave an absolute floor of unshot power.
+    #[must_use]
+    fn convergence_floor(units: u64) -> Self;
 }
 
 impl Scalar for f32 {
@@ -85,6 +90,9 @@ impl Scalar for f32 {
     }
     fn is_usable(self) -> bool {
         self.is_finite()
+    }
+    fn convergence_floor(_units: u64) -> f32 {
+        0.0
     }
 }
 
@@ -186,6 +194,9 @@ impl Scalar for Fixed {
     }
     fn is_usable(self) -> bool {
         self.0 != i64::MAX && self.0 != i64::MIN
+    }
+    fn convergence_floor(units: u64) -> Fixed {
+        Fixed(i64::try_from(units).unwrap_or(i64::MAX))
     }
 }
 

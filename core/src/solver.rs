@@ -33,6 +33,9 @@ pub struct Buffers<'b, S> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config<S> {
     /// Converged when every patch's unshot power magnitude (`|r| + |g| + |b|`, power units) is at most this.
+    /// [`Solver::new`] refuses a tolerance below the arithmetic's convergence floor for the table
+    /// ([`SolverError::ToleranceBelowFloor`]; zero for f32). Reflectances raised later with `set_reflectance`
+    /// raise the floor without a check.
     pub tolerance: S,
     /// Overshooting: a shot sends `(1 + overshoot / 256)` times the unshot power and leaves the excess as
     /// negative unshot power (0 = plain progressive refinement). Shooting only.
@@ -105,7 +108,7 @@ pub enum NoProgressReason {
 }
 
 /// Why the solver cannot be created or a change cannot be applied.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum SolverError {
     /// A buffer is shorter than the table needs.
@@ -141,6 +144,36 @@ pub enum SolverError {
         /// Patches in the table.
         patches: u32,
     },
+    /// The tolerance is below the arithmetic's convergence floor for this table ([`Scalar::convergence_floor`]:
+    /// fixed point rounds every receipt to its resolution, so unshot power cannot be driven below about
+    /// `6 L 2^-32 / (1 - rho_max)`; the solver would shoot forever). Raise the tolerance or scale the units.
+    ToleranceBelowFloor {
+        /// The tolerance asked for, as f32.
+        tolerance: f32,
+        /// The floor, as f32.
+        floor: f32,
+    },
+}
+
+/// The smallest tolerance [`Solver::new`] accepts for `table` on arithmetic `S`: [`Scalar::convergence_floor`]
+/// of `ceil(6 L / (1 - rho_max))`, `L` the longest row and `rho_max` the largest reflectance of any material and
+/// channel (the convergence condition in the `scalar` module docs). Zero for f32. O(patches + materials).
+#[must_use]
+pub fn convergence_floor<S: Scalar>(table: &Table<'_>) -> S {
+    S::convergence_floor(convergence_units(table))
+}
+
+/// `ceil(6 L / (1 - rho_max))` in integer arithmetic (`1 - rho_max >= 2^-16`).
+fn convergence_units(table: &Table<'_>) -> u64 {
+    let longest =
+        (0..table.patch_count()).filter_map(|i| table.row(i)).map(|r| r.len() as u64).max().unwrap_or(0);
+    let code_max = (0..table.material_count())
+        .filter_map(|m| table.reflectance(m))
+        .flat_map(|r| r.into_iter())
+        .max()
+        .map_or(0, u64::from);
+    // 1 - rho_max = (65536 - code_max) / 65536, with code_max <= 65535.
+    (6 * longest * 65536).div_ceil(65536 - code_max.min(65535))
 }
 
 /// Largest patch count the solver accepts (tree positions `< 2n` must fit in a `u32`).
@@ -162,6 +195,11 @@ impl fmt::Display for SolverError {
             SolverError::TooManyPatches { patches } => {
                 write!(f, "{patches} patches: more than the solver supports ({MAX_PATCHES})")
             }
+            SolverError::ToleranceBelowFloor { tolerance, floor } => write!(
+                f,
+                "tolerance {tolerance:e} power units is below this arithmetic's convergence floor {floor:e} for \
+                 this table (longest row and largest reflectance): it could never be reached"
+            ),
         }
     }
 }
@@ -273,6 +311,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
             if got < needed as usize {
                 return Err(SolverError::BufferTooSmall { buffer, needed, got });
             }
+        }
+        let floor = convergence_floor::<S>(table);
+        if config.tolerance < floor {
+            return Err(SolverError::ToleranceBelowFloor {
+                tolerance: config.tolerance.to_f32(),
+                floor: floor.to_f32(),
+            });
         }
         let mut s = Solver {
             buf: buffers,

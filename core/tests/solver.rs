@@ -21,8 +21,6 @@ trait Arith: Scalar {
     fn arith(b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32;
     /// Representation error of an input value (`from_f32`).
     fn input(v: f32) -> f32;
-    /// Smallest tolerance with guaranteed convergence (see `radiosity_core::scalar`), `l` the longest row.
-    fn min_tolerance(l: u32, rho_max: f32) -> f32;
 }
 
 impl Arith for f32 {
@@ -30,9 +28,6 @@ impl Arith for f32 {
         3.0 * f32::EPSILON / 2.0 * (shots as f32 + 1.0 / (1.0 - rho_max)) * b.abs()
     }
     fn input(_v: f32) -> f32 {
-        0.0
-    }
-    fn min_tolerance(_l: u32, _rho_max: f32) -> f32 {
         0.0
     }
 }
@@ -43,9 +38,6 @@ impl Arith for Fixed {
     }
     fn input(_v: f32) -> f32 {
         FIXED_EPS / 2.0
-    }
-    fn min_tolerance(l: u32, rho_max: f32) -> f32 {
-        6.0 * l as f32 * FIXED_EPS / (1.0 - rho_max)
     }
 }
 
@@ -101,7 +93,9 @@ fn two_patch_scaled<S: Arith>(scale: f32) {
     s.groups = vec![(7, [scale; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
     let bytes = s.write();
     let t = Table::parse(&bytes).unwrap();
-    let tol = (TOL * scale).max(S::min_tolerance(1, 0.8));
+    // At least the smallest tolerance with guaranteed convergence (`radiosity_core::scalar`), which the solver
+    // enforces: `6 L 2^-32 / (1 - rho_max)` for fixed point, from the table's reflectance codes.
+    let tol = (TOL * scale).max(radiosity_core::convergence_floor::<S>(&t).to_f32());
     let mut store = Store::<S>::for_table(&t);
     let mut solver = store.solver(&t, Config { tolerance: S::from_f32(tol), overshoot: 0 });
     converge(&mut solver, &t, 100, 1_000_000);
@@ -499,11 +493,42 @@ fn empty_table_converges() {
     let bytes = Scene::new(0).write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<f32>::for_table(&t);
-    let mut solver = store.solver(&t, Config { tolerance: -1.0, overshoot: 0 });
+    let mut solver = store.solver(&t, Config { tolerance: 0.0, overshoot: 0 });
     let mut scratch: Vec<[f32; 3]> = Vec::new();
     assert_eq!(solver.step(&t, 10), Outcome::Converged { used: 0 });
     assert_eq!(solver.step_gauss_seidel(&t, 10), Outcome::Converged { used: 0 });
     assert_eq!(solver.step_jacobi(&t, &mut scratch, 10), Outcome::Converged { used: 0 });
+}
+
+/// A tolerance the arithmetic could never reach is refused when the solver is made, not discovered by a solver
+/// that shoots forever: below fixed point's floor `ceil(6 L / (1 - rho_max))` resolution steps (two patches,
+/// rows of one entry, rho_max code 52429: 6 * 65536 / 13107 = 30.0002, so 31 steps), and negative for f32.
+#[test]
+fn unreachable_tolerances_are_refused() {
+    let mut s = Scene::new(2);
+    s.patches[1].area = 2.0;
+    s.patches[1].material = 1;
+    s.materials = vec![[0.5; 3], [0.8; 3]];
+    s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
+    s.groups = vec![(7, [1.0; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
+    let bytes = s.write();
+    let t = Table::parse(&bytes).unwrap();
+    let floor = radiosity_core::convergence_floor::<Fixed>(&t);
+    assert_eq!(floor.to_f32(), 31.0 * FIXED_EPS);
+    assert_eq!(radiosity_core::convergence_floor::<f32>(&t), 0.0);
+    let below = Fixed::from_f32(30.0 * FIXED_EPS);
+    let mut fixed = Store::<Fixed>::for_table(&t);
+    match radiosity_core::Solver::new(&t, fixed.buffers(), Config { tolerance: below, overshoot: 0 }) {
+        Err(SolverError::ToleranceBelowFloor { tolerance, floor: f }) => {
+            assert_eq!((tolerance, f), (below.to_f32(), floor.to_f32()));
+        }
+        other => panic!("expected ToleranceBelowFloor, got {other:?}"),
+    }
+    let mut solver = fixed.solver(&t, Config { tolerance: floor, overshoot: 0 });
+    converge(&mut solver, &t, 100, 1_000_000);
+    let mut f = Store::<f32>::for_table(&t);
+    let refused = radiosity_core::Solver::new(&t, f.buffers(), Config { tolerance: -1e-30, overshoot: 0 });
+    assert!(matches!(refused, Err(SolverError::ToleranceBelowFloor { .. })), "{refused:?}");
 }
 
 // ---- property test: budgets are never exceeded, and any warm-start history ends at the cold solve -------

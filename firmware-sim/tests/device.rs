@@ -83,9 +83,11 @@ fn boot_and_compare<S: Scalar + device::Bits>() -> f64 {
     let mut memory = DeviceMemory::<S>::for_table(&table);
     let initial = [[1.0f32; 3]];
     let frames = [Frame { budget: 1, intensity: &initial }];
-    // Relative tolerance 1e-7 of the light's power: the truncation error is far below the quantization error.
+    // Relative tolerance 1e-6 of the light's power: the truncation error is far below the quantization error,
+    // and the tolerance is above fixed point's convergence floor for this table (4.9e-7 power units, 3.8e-7 of
+    // the light's power; the solver refuses anything below it).
     let script =
-        Script { name: "boot", tolerance: 1e-7, initial: &initial, boot_budget: 10_000_000, frames: &frames };
+        Script { name: "boot", tolerance: 1e-6, initial: &initial, boot_budget: 10_000_000, frames: &frames };
     let mut worst = 0.0f64;
     device::run_script(&table, memory.buffers(), &script, &mut NoMeter, |_, solver| {
         for (i, ex) in exact.iter().enumerate() {

@@ -102,16 +102,19 @@ impl<S: Scalar> Store<S> {
         }
     }
 
-    pub fn solver<'b>(&'b mut self, t: &Table<'_>, config: Config<S>) -> Solver<'b, S> {
-        let b = Buffers {
+    pub fn buffers(&mut self) -> Buffers<'_, S> {
+        Buffers {
             power: &mut self.power,
             unshot: &mut self.unshot,
             incident: &mut self.incident,
             tree: &mut self.tree,
             intensity: &mut self.intensity,
             reflectance: &mut self.reflectance,
-        };
-        Solver::new(t, b, config).expect("buffers sized from the table")
+        }
+    }
+
+    pub fn solver<'b>(&'b mut self, t: &Table<'_>, config: Config<S>) -> Solver<'b, S> {
+        Solver::new(t, self.buffers(), config).expect("buffers sized from the table")
     }
 }
 
