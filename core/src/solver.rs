@@ -195,10 +195,12 @@ impl fmt::Display for SolverError {
             SolverError::TooManyPatches { patches } => {
                 write!(f, "{patches} patches: more than the solver supports ({MAX_PATCHES})")
             }
-            SolverError::ToleranceBelowFloor { tolerance, floor } => write!(
+            // No numbers: formatting floats would pull float formatting code (~20 KiB) into firmware that
+            // prints its errors; the values are in the variant's fields.
+            SolverError::ToleranceBelowFloor { .. } => write!(
                 f,
-                "tolerance {tolerance:e} power units is below this arithmetic's convergence floor {floor:e} for \
-                 this table (longest row and largest reflectance): it could never be reached"
+                "tolerance below this arithmetic's convergence floor for this table (longest row and largest \
+                 reflectance; `convergence_floor`): it could never be reached"
             ),
         }
     }
