@@ -51,16 +51,22 @@ fn config<S: Scalar>() -> Config<S> {
     Config { tolerance: S::from_f32(TOL), overshoot: 0 }
 }
 
-/// Two patches, areas 1 and 2, `F_12 = 0.4`, `F_21 = 0.2` (reciprocity), rho 0.5 and 0.8, `E_1 = 1` from a
-/// light group. By hand: `B_1 = 1 / (1 - rho_1 rho_2 F_12 F_21)`, `B_2 = rho_2 F_21 B_1`.
-fn two_patch<S: Arith>() {
+/// Two patches, areas 1 and 2, `F_12 = 0.4`, `F_21 = 0.2`, rho 0.5 and 0.8, patch 1 a light group member with
+/// unit emission at default intensity `intensity`.
+fn two_patch_scene(intensity: f32) -> Scene {
     let mut s = Scene::new(2);
     s.patches[1].area = 2.0;
     s.patches[1].material = 1;
     s.materials = vec![[0.5; 3], [0.8; 3]];
     s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
-    s.groups = vec![(7, [1.0; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
-    let bytes = s.write();
+    s.groups = vec![(7, [intensity; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
+    s
+}
+
+/// Two patches, areas 1 and 2, `F_12 = 0.4`, `F_21 = 0.2` (reciprocity), rho 0.5 and 0.8, `E_1 = 1` from a
+/// light group. By hand: `B_1 = 1 / (1 - rho_1 rho_2 F_12 F_21)`, `B_2 = rho_2 F_21 B_1`.
+fn two_patch<S: Arith>() {
+    let bytes = two_patch_scene(1.0).write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
     let mut solver = store.solver(&t, config());
@@ -85,13 +91,7 @@ fn two_patch<S: Arith>() {
 /// must handle), cold start: the answer scales linearly. Tolerances as in `two_patch`, with the convergence tolerance scaled
 /// too (but not below the fixed-point convergence floor) and the intensity's representation error.
 fn two_patch_scaled<S: Arith>(scale: f32) {
-    let mut s = Scene::new(2);
-    s.patches[1].area = 2.0;
-    s.patches[1].material = 1;
-    s.materials = vec![[0.5; 3], [0.8; 3]];
-    s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
-    s.groups = vec![(7, [scale; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
-    let bytes = s.write();
+    let bytes = two_patch_scene(scale).write();
     let t = Table::parse(&bytes).unwrap();
     // At least the smallest tolerance with guaranteed convergence (`radiosity_core::scalar`), which the solver
     // enforces: `6 L 2^-32 / (1 - rho_max)` for fixed point, from the table's reflectance codes.
@@ -505,13 +505,7 @@ fn empty_table_converges() {
 /// rows of one entry, rho_max code 52429: 6 * 65536 / 13107 = 30.0002, so 31 steps), and negative for f32.
 #[test]
 fn unreachable_tolerances_are_refused() {
-    let mut s = Scene::new(2);
-    s.patches[1].area = 2.0;
-    s.patches[1].material = 1;
-    s.materials = vec![[0.5; 3], [0.8; 3]];
-    s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
-    s.groups = vec![(7, [1.0; 3], vec![MemberSpec { patch: 0, emission: [1.0; 3] }])];
-    let bytes = s.write();
+    let bytes = two_patch_scene(1.0).write();
     let t = Table::parse(&bytes).unwrap();
     let floor = radiosity_core::convergence_floor::<Fixed>(&t);
     assert_eq!(floor.to_f32(), 31.0 * FIXED_EPS);

@@ -654,6 +654,18 @@ fn device_part(
         Arith::Fixed => &["fixed"],
         Arith::Both => &["f32", "fixed"],
     };
+    if paths.contains(&"fixed") {
+        let floor = f64::from(radiosity_core::convergence_floor::<Fixed>(table).to_f32());
+        if tolerance < floor {
+            return Err(CheckError::Options(format!(
+                "--tolerance {} ({tolerance:.3e} power units) is below fixed point's convergence floor for this \
+                 table ({floor:.3e} power units: Q32.32 rounds every receipt, see core's `convergence_floor`); use \
+                 --tolerance {:.1e} or more, or --arith f32",
+                options.tolerance,
+                (floor / max_power * 1.01).max(f64::MIN_POSITIVE)
+            )));
+        }
+    }
     for &path in paths {
         let (converged, truncated) = if path == "f32" {
             run.device::<f32>(path, tolerance, &mut settings, &mut frames)?

@@ -168,7 +168,10 @@ pub fn run_curve<S: Scalar>(
         Step::Shooting(o) => o,
         _ => 0,
     };
-    let config = Config { tolerance: S::from_f32(case.tolerance as f32), overshoot };
+    // At least the arithmetic's convergence floor (fixed point at rho = 0.99 cannot reach 1e-6 of the power).
+    let floor = radiosity_core::convergence_floor::<S>(table);
+    let tolerance = S::from_f32(case.tolerance as f32);
+    let config = Config { tolerance: if tolerance < floor { floor } else { tolerance }, overshoot };
     let mut budgets: Vec<(u32, bool)> = Vec::new();
     let mut points: Vec<Point> = Vec::new();
     let mut times: Vec<Vec<f64>> = Vec::new();

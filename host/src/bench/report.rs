@@ -227,7 +227,8 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
          shooting without and with overshooting (`overshoot = 64`: 1.25x); Gauss-Seidel; Jacobi. Warm relight: \
          converged at the default, then every light group set to (1, 0.2, 0.2) x default (the change's work \
          counts); cold relight: the same setting solved from scratch. Converged = every unshot magnitude below \
-         1e-6 of the emitted power. Curves stop below 3e-4 error, at a plateau (< 5% better over several \
+         1e-6 of the emitted power, or fixed point's convergence floor where that is higher (core's \
+         `convergence_floor`; the solver refuses tolerances below it). Curves stop below 3e-4 error, at a plateau (< 5% better over several \
          checkpoints), or at a work cap. Transfer basis: one point per table, the same bake with the basis \
          stored, relit once (see its section). Shooting with overshooting is the device's default (core's \
          `Config::RECOMMENDED_OVERSHOOT`, from these curves)."
@@ -501,7 +502,7 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
         fit(&|g| Some(g.table_bytes as f64)),
         fit(&|g| g.work_to_1pct.map(|w| w as f64)),
     );
-    let _ = writeln!(s, "Size limit: {}.\n", r.growth_limit_note);
+    let _ = writeln!(s, "Sizes: {}.\n", r.growth_limit_note);
 
     let _ = writeln!(s, "## Conclusions (computed from the numbers above)\n");
     for line in conclusions(r) {
