@@ -836,6 +836,7 @@ impl RowContext<'_> {
         let patch_i = &self.patches[i];
         let mut clipped = Vec::new();
         let mut front = Vec::new();
+        let mut strips = Vec::new();
         let mut row = Vec::new();
         for (j, patch_j) in self.patches.iter().enumerate() {
             if j == i || !may_see(patch_i, patch_j) {
@@ -851,12 +852,40 @@ impl RowContext<'_> {
             } else {
                 &patch_i.vertices
             };
-            let (center_j, radius_j) = bounding_sphere(&patch_j.vertices);
-            let u: f64 = if near(domain, center_j, radius_j) {
+            let receiver = Receiver::new(patch_j);
+            let u: f64 = if near(domain, receiver.center, receiver.radius)
+                && sliver_strips(domain, &mut strips)
+            {
+                // Near field of a sliver sender: the kernel varies on the scale of the sliver's width (its points
+                // are that close to j) along its whole length, and near j's edges along it too; integrate over
+                // short pieces of it.
+                strips
+                    .iter()
+                    .map(|piece| {
+                        near_field_integral(
+                            piece,
+                            &receiver,
+                            self.rule,
+                            patch_i.normal,
+                            0,
+                            SLIVER_DEPTH,
+                            &mut kernel,
+                        )
+                    })
+                    .sum::<f64>()
+                    / patch_i.area
+            } else if near(domain, receiver.center, receiver.radius) {
                 // Near field: j is closer to (part of) i than i's own size, so the kernel varies on a scale the
                 // fixed rule cannot resolve; split the domain towards j.
-                near_field_integral(domain, center_j, radius_j, self.rule, NEAR_FIELD_MAX_DEPTH, &mut kernel)
-                    / patch_i.area
+                near_field_integral(
+                    domain,
+                    &receiver,
+                    self.rule,
+                    patch_i.normal,
+                    NEAR_FIELD_MAX_DEPTH,
+                    SLIVER_DEPTH,
+                    &mut kernel,
+                ) / patch_i.area
             } else if domain.len() == patch_i.vertices.len() && std::ptr::eq(domain, &patch_i.vertices[..]) {
                 let Quadrature { points, weights } = &self.quadratures[i];
                 points.iter().zip(weights).map(|(x, w)| w * kernel(x)).sum()
@@ -986,15 +1015,124 @@ fn near(domain: &[DVec3], center: DVec3, radius: f64) -> bool {
     c.distance(center) - radius - r < 2.0 * r
 }
 
+/// Extra levels of splitting of the near-field quadrature towards a sliver receiver ([`Receiver::sliver_width`]),
+/// beyond [`NEAR_FIELD_MAX_DEPTH`]: pieces down to `2^-(NEAR_FIELD_MAX_DEPTH + SLIVER_DEPTH)` of the sender's size.
+pub const SLIVER_DEPTH: usize = 10;
+
+/// If `polygon` is a sliver quadrilateral (`2 A / P`, its width, below an eighth of its bounding radius), cuts it
+/// across its length into pieces about twice as long as it is wide (at most `2^SLIVER_DEPTH`), writes them to
+/// `pieces` and returns true; returns false for anything else.
+fn sliver_strips(polygon: &[DVec3], pieces: &mut Vec<Vec<DVec3>>) -> bool {
+    let [a, b, c, d] = match polygon {
+        &[a, b, c, d] => [a, b, c, d],
+        _ => return false,
+    };
+    let area = polygon_area(polygon);
+    let perimeter = a.distance(b) + b.distance(c) + c.distance(d) + d.distance(a);
+    let width = 2.0 * area / perimeter;
+    let (_, radius) = bounding_sphere(polygon);
+    if !(width > 0.0 && width < radius / 8.0) {
+        return false;
+    }
+    // The long sides: a -> b with d -> c, or b -> c with a -> d.
+    let (p0, p1, q0, q1) = if a.distance(b) + d.distance(c) >= b.distance(c) + a.distance(d) {
+        (a, b, d, c)
+    } else {
+        (b, c, a, d)
+    };
+    let length = 0.5 * (p0.distance(p1) + q0.distance(q1));
+    let count = ((length / (2.0 * width)).ceil() as usize).clamp(1, 1 << SLIVER_DEPTH);
+    pieces.clear();
+    for k in 0..count {
+        let (t0, t1) = (k as f64 / count as f64, (k + 1) as f64 / count as f64);
+        pieces.push(vec![p0.lerp(p1, t0), p0.lerp(p1, t1), q0.lerp(q1, t1), q0.lerp(q1, t0)]);
+    }
+    true
+}
+
+/// `cos 25°`: a receiver whose plane is within this of the sender's is nearly parallel to it (see
+/// [`near_field_integral`]).
+const PARALLEL_COSINE: f64 = 0.906;
+
+/// A receiving patch as the near-field quadrature sees it.
+struct Receiver<'a> {
+    /// Bounding sphere: centroid of the vertices and the largest distance from it to a vertex.
+    center: DVec3,
+    radius: f64,
+    vertices: &'a [DVec3],
+    normal: DVec3,
+    /// `2 A / P` (area over half the perimeter: the width of a long strip) if that is less than an eighth of the
+    /// bounding radius, i.e. the receiver is a sliver (a strip longer than 16 times its width); `None` otherwise.
+    sliver_width: Option<f64>,
+}
+
+impl<'a> Receiver<'a> {
+    fn new(patch: &'a Patch) -> Self {
+        let (center, radius) = bounding_sphere(&patch.vertices);
+        let perimeter: f64 = patch
+            .vertices
+            .iter()
+            .zip(patch.vertices.iter().cycle().skip(1))
+            .map(|(a, b)| a.distance(*b))
+            .sum();
+        let width = 2.0 * patch.area / perimeter;
+        let sliver_width = (width < radius / 8.0).then_some(width);
+        Receiver { center, radius, vertices: &patch.vertices, normal: patch.normal, sliver_width }
+    }
+
+    /// Distance from `x` to the (convex, planar) receiver polygon.
+    fn distance(&self, x: DVec3) -> f64 {
+        let height = self.normal.dot(x - self.vertices[0]);
+        let p = x - height * self.normal;
+        let n = self.vertices.len();
+        let side = |k: usize| {
+            let (a, b) = (self.vertices[k], self.vertices[(k + 1) % n]);
+            (b - a).cross(p - a).dot(self.normal)
+        };
+        // Either winding: inside if on the same side of every edge.
+        let inside = (0..n).all(|k| side(k) >= 0.0) || (0..n).all(|k| side(k) <= 0.0);
+        if inside {
+            return height.abs();
+        }
+        self.boundary_distance(x)
+    }
+
+    /// Distance from `x` to the receiver's boundary (its edges).
+    fn boundary_distance(&self, x: DVec3) -> f64 {
+        let n = self.vertices.len();
+        (0..n)
+            .map(|k| {
+                let (a, b) = (self.vertices[k], self.vertices[(k + 1) % n]);
+                let ab = b - a;
+                let t = ((x - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0);
+                x.distance(a + t * ab)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
 /// `∫_domain kernel dA`, splitting the domain (4 children for triangles and quadrilaterals, a centroid fan
 /// otherwise) wherever it is [`near`] the receiver, up to `depth` levels, and applying the product rule on each
 /// piece. Pieces far from the receiver keep the plain rule, so the cost stays small.
+///
+/// A sliver receiver (a strip of width `w` much less than its length, [`Receiver::sliver_width`]) makes the
+/// kernel vary on the scale `w` next to it, whatever its bounding sphere says: a floor under a 1 mm high side
+/// of a 1 m slab sees that side only from within a few mm of the edge (`F(x) ~ (1 - x / sqrt(x² + w²)) / 2` at
+/// distance `x`, whose integral is `w / 2` per unit of edge). Pieces larger than `w` whose centre is within
+/// three radii of the sliver itself (the true distance to its polygon) are therefore split further, up to
+/// `sliver_depth` more levels; only the pieces along the sliver split, so the cost grows like `1 / w`, not
+/// `1 / w²`. Likewise a nearly parallel receiver at a gap `g` much smaller than a piece (a floor 1 mm under a
+/// ceiling) makes the kernel fall from 1 to 1/2 within a few `g` of the receiver's edges: pieces more than twice
+/// their gap across and within their size of those edges are split further, within the same extra levels.
+/// Ordinary receivers are unaffected: a perpendicular one touching the piece is at about the piece's own size
+/// from its centre.
 fn near_field_integral(
     domain: &[DVec3],
-    center: DVec3,
-    radius: f64,
+    receiver: &Receiver,
     rule: &[(f64, f64)],
+    sender_normal: DVec3,
     depth: usize,
+    sliver_depth: usize,
     kernel: &mut impl FnMut(&DVec3) -> f64,
 ) -> f64 {
     let area = polygon_area(domain);
@@ -1005,14 +1143,25 @@ fn near_field_integral(
     }
     // Split near pieces for NEAR_FIELD_DEPTH levels, and further (up to NEAR_FIELD_MAX_DEPTH) while a piece is
     // still larger than the receiver (a small patch next to a large one).
-    let larger = bounding_sphere(domain).1 > radius;
-    if depth == 0
-        || !near(domain, center, radius)
-        || (depth <= NEAR_FIELD_MAX_DEPTH - NEAR_FIELD_DEPTH && !larger)
-    {
+    let (center, radius) = bounding_sphere(domain);
+    let larger = radius > receiver.radius;
+    let split = depth > 0
+        && near(domain, receiver.center, receiver.radius)
+        && (depth > NEAR_FIELD_MAX_DEPTH - NEAR_FIELD_DEPTH || larger);
+    // Then towards a sliver, while a piece is wider than it and near it; and towards the edges of a nearly
+    // parallel receiver closer than half the piece's size.
+    let split_sliver = !split && sliver_depth > 0 && {
+        let gap = receiver.distance(center);
+        receiver.sliver_width.is_some_and(|w| radius > w && gap - radius < 2.0 * radius)
+            || (2.0 * gap < radius
+                && receiver.normal.dot(sender_normal).abs() > PARALLEL_COSINE
+                && receiver.boundary_distance(center) < radius + gap)
+    };
+    if !(split || split_sliver) {
         let q = Quadrature::new(domain, rule);
         return area * q.points.iter().zip(&q.weights).map(|(x, w)| w * kernel(x)).sum::<f64>();
     }
+    let (depth, sliver_depth) = if split { (depth - 1, sliver_depth) } else { (0, sliver_depth - 1) };
     let v = domain;
     let mid = |a: DVec3, b: DVec3| 0.5 * (a + b);
     let pieces: Vec<Vec<DVec3>> = match v.len() {
@@ -1030,7 +1179,10 @@ fn near_field_integral(
             (0..n).map(|k| vec![c, v[k], v[(k + 1) % n]]).collect()
         }
     };
-    pieces.iter().map(|p| near_field_integral(p, center, radius, rule, depth - 1, kernel)).sum()
+    pieces
+        .iter()
+        .map(|p| near_field_integral(p, receiver, rule, sender_normal, depth, sliver_depth, kernel))
+        .sum()
 }
 
 /// Area of a planar polygon.
