@@ -1059,8 +1059,8 @@ fn sliver_strips(polygon: &[DVec3], pieces: &mut Vec<Vec<DVec3>>) -> bool {
     true
 }
 
-/// `cos 25°`: a receiver whose plane is within this of the sender's is nearly parallel to it (see
-/// [`near_field_integral`]).
+/// `cos 25°`: a receiver whose normal is within 25° of the opposite of the sender's faces it, nearly parallel
+/// (see [`near_field_integral`]; nearly coplanar neighbours, normals alike, are not meant).
 const PARALLEL_COSINE: f64 = 0.906;
 
 /// A receiving patch as the near-field quadrature sees it.
@@ -1130,9 +1130,10 @@ impl<'a> Receiver<'a> {
 /// distance `x`, whose integral is `w / 2` per unit of edge). Pieces larger than `w` whose centre is within
 /// three radii of the sliver itself (the true distance to its polygon) are therefore split further, up to
 /// `sliver_depth` more levels; only the pieces along the sliver split, so the cost grows like `1 / w`, not
-/// `1 / w²`. Likewise a nearly parallel receiver at a gap `g` much smaller than a piece (a floor 1 mm under a
-/// ceiling) makes the kernel fall from 1 to 1/2 within a few `g` of the receiver's edges: pieces more than twice
-/// their gap across and within their size of those edges are split further, within the same extra levels.
+/// `1 / w²`. Likewise a nearly parallel receiver facing the piece at a gap `g` much smaller than a piece (a
+/// floor 1 mm under a ceiling) makes the kernel fall from 1 to 1/2 within a few `g` of the receiver's edges:
+/// pieces more than twice their gap across and within their size of those edges are split further, within the
+/// same extra levels.
 /// Ordinary receivers are unaffected: a perpendicular one touching the piece is at about the piece's own size
 /// from its centre.
 fn near_field_integral(
@@ -1158,12 +1159,12 @@ fn near_field_integral(
         && near(domain, receiver.center, receiver.radius)
         && (depth > NEAR_FIELD_MAX_DEPTH - NEAR_FIELD_DEPTH || larger);
     // Then towards a sliver, while a piece is wider than it and near it; and towards the edges of a nearly
-    // parallel receiver closer than half the piece's size.
+    // parallel receiver facing the piece, closer than half the piece's size.
     let split_sliver = !split && sliver_depth > 0 && {
         let gap = receiver.distance(center);
         receiver.sliver_width.is_some_and(|w| radius > w && gap - radius < 2.0 * radius)
             || (2.0 * gap < radius
-                && receiver.normal.dot(sender_normal).abs() > PARALLEL_COSINE
+                && receiver.normal.dot(sender_normal) < -PARALLEL_COSINE
                 && receiver.boundary_distance(center) < radius + gap)
     };
     if !(split || split_sliver) {
