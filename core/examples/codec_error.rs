@@ -130,6 +130,7 @@ fn main() {
             base_solved: false,
             fingerprint: 0,
             transfer: None,
+            state: None,
         };
         let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
         write_table(&spec, &mut bytes).unwrap();
@@ -173,7 +174,7 @@ fn main() {
         while !matches!(solver.step(&t, 100_000), Outcome::Converged { .. }) {}
         let (mut num, mut den) = (0.0f32, 0.0f32);
         for (i, r) in reference.iter().enumerate() {
-            let p = solver.power(i as u32).unwrap()[0];
+            let p = solver.power(&t, i as u32).unwrap()[0];
             num += (p - r) * (p - r);
             den += r * r;
         }

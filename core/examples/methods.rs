@@ -77,6 +77,7 @@ fn table_bytes(as_group: bool) -> (Vec<u8>, usize) {
         base_solved: false,
         fingerprint: 0,
         transfer: None,
+        state: None,
     };
     let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
     write_table(&spec, &mut bytes).unwrap();

@@ -11,7 +11,8 @@
 //!    constructor: after it succeeds no accessor panics) and [`write_table`] (used by the host).
 //! 2. **Codecs** ([`codec`]): form-factor, reflectance and emission codes and their error bounds.
 //! 3. **Solver state** ([`Solver`], [`Buffers`], arithmetic in [`scalar`]): power, unshot power, incident
-//!    power per patch, light-group intensities and material reflectances, all in caller-supplied buffers.
+//!    power per patch with run-time state, light-group intensities and material reflectances, all in
+//!    caller-supplied buffers.
 //! 4. **Steps** ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]): at most `budget`
 //!    work units each, reporting an [`Outcome`].
 //! 5. **Relighting** ([`Solver::set_light`], [`Solver::set_reflectance`]): changes injected as unshot power into
@@ -42,6 +43,24 @@
 //! no work at run time, and a reflectance edit still sees the static light through `H`. If not, `G_s` should be
 //! zero and the static power starts as unshot power and is shot by the device.
 //!
+//! # Run-time state
+//! Patches that no dynamic light can reach carry no run-time state. A table lists the patches that do, its
+//! **slots**: `state_count` (`s <= n`) patches, slot `k` being the `k`-th of them in ascending patch order
+//! ([`Table::slot_patch`], [`Table::slot_of`]). Only slots have form-factor rows, entries name receiver
+//! *slots*, and the solver's buffers and selection tree are sized by `s`: the shooting loop indexes them by
+//! slot directly, with the slot's material read from a slot-ordered section (no map lookup per entry). A patch
+//! without state shows its static base `E_s + rho G_s` ([`static_radiosity`]), so leaving patches out requires
+//! a solved base (`base_solved`); the writer refuses otherwise ([`WriteError::StateNeedsSolvedBase`]) and a
+//! table with an unsolved base must give every patch state. Every light-group member has state.
+//!
+//! The host gives a patch state if it is a member of a dynamic light group, or if it reflects (nonzero
+//! reflectance in some channel) and receives a stored entry from a patch with state. So a row of a slot
+//! loses only entries to stateless receivers black in every channel, which reflect nothing: the answer is
+//! unchanged for the table's reflectances. A reflectance edit ([`Solver::set_reflectance`]) acts on the
+//! patches with state; a stateless patch shows `E_s + rho' G_s` with the new reflectance (its reflection of
+//! the static light) and nothing more. When every patch has state (`s = n`) the map sections are absent:
+//! slot = patch, and the format costs one header varint more than without the feature.
+//!
 //! # Transfer basis
 //! With reflectances fixed, radiosity is linear in the light-group intensities: `B = B_static + sum_g I_g T_g`
 //! (crate docs above, "Linearity"). A table may carry the quantized responses `T_g` (W/m^2 per unit intensity,
@@ -63,14 +82,16 @@
 //! the arithmetic terms in [`transfer`]). The basis holds for the table's reflectances only: after
 //! [`Solver::set_reflectance`], or with many groups (the section grows as `patches x groups`), shoot.
 //!
-//! # Table layout (format version 2)
+//! # Table layout (format version 3)
 //! `header | payload | crc32`. The header is postcard (varint integers) with the fields, in order:
-//! `magic: [u8; 4] = "RFT\x1a"`, `version: u16`, `patch_count n: u32`, `material_count m: u32`,
+//! `magic: [u8; 4] = "RFT\x1a"`, `version: u16`, `patch_count n: u32`, `state_count s: u32` (patches with
+//! run-time state, `s <= n`; see "Run-time state"), `material_count m: u32`,
 //! `group_count g: u32`, `member_count M: u32`, `entry_count nnz: u32`, `ff_bits: u8` (8 or 16),
 //! `ff_exponent_bits: u8` (0..=4), `index_bytes: u8` (2 if `n <= 65536`, else 4), `base_solved: bool`,
 //! `fingerprint: u64` (the host's scene fingerprint, [`Table::fingerprint`]; not interpreted by core),
 //! `transfer: bool` (the transfer sections are present). Version 1 had neither of the last two fields nor
-//! the transfer sections.
+//! the transfer sections; version 2 had no `state_count` and no state sections, and its rows were indexed by
+//! patch.
 //! A reader decodes `(magic, version)` first, so an old or new blob gets "unsupported table format version N,
 //! expected M". The payload is these little-endian sections, back to back, unaligned (read bytewise):
 //!
@@ -86,16 +107,20 @@
 //! | group member start | `u32` | `g + 1` |
 //! | member patch | index (`index_bytes`) | `M` |
 //! | member emission at unit intensity | emission code `u16` x 3 | `M` |
-//! | row start | `u32` | `n + 1` |
-//! | row exponent | `u8` | `n` |
-//! | entry receiver | index (`index_bytes`) | `nnz` |
+//! | state map: patch of each slot, strictly increasing (only if `s < n`) | index (`index_bytes`) | `s` |
+//! | state material: material of each slot's patch (only if `s < n`) | `u16` | `s` |
+//! | row start (per slot) | `u32` | `s + 1` |
+//! | row exponent (per slot) | `u8` | `s` |
+//! | entry receiver (a slot) | index (`index_bytes`) | `nnz` |
 //! | entry form-factor code | `ff_bits / 8` bytes | `nnz` |
 //! | transfer scale exponent `K` (only if `transfer`) | `i8` x 3 | `g` |
 //! | transfer response code (FLOAT16, only if `transfer`), patch-major: patch `i`, group `g` at `i * g_count + g` | `u16` x 3 | `n * g` |
 //!
 //! The trailing CRC-32 (IEEE, `u32` LE) covers header and payload. [`Table::parse`] checks magic, version,
-//! header, quantization parameters, length, CRC, then content: areas finite and positive, offsets starting at 0,
-//! monotone and ending at their counts, every index in range, receivers strictly increasing within a row, row
+//! header, quantization parameters, `s <= n`, length, CRC, then content: areas finite and positive; with
+//! `s < n`: the base is solved, the state map strictly increasing and `< n`, each slot's material that of its
+//! patch; offsets starting at 0, monotone and ending at their counts, every index in range (receivers `< s`),
+//! every member a patch with state, receivers strictly increasing within a row, row
 //! exponents `<= 64`, every row's decoded sum `<= 1` (summed exactly in integers), intensities finite, and
 //! with a transfer section: the base is solved and every step exponent is in
 //! [`transfer::TRANSFER_MIN_EXPONENT`]`..=`[`transfer::TRANSFER_MAX_EXPONENT`].
@@ -105,9 +130,9 @@
 //! incident power), one tournament-tree node recomputed (one comparison of two unshot-power magnitudes), one
 //! row visit or patch visit of a sweep. Each is a small constant number of instructions on any platform, so
 //! instructions are linear in units. The counts do not depend on the platform or the arithmetic path.
-//! - Shooting ([`Solver::step`]): selection is the root of a tournament tree (a max-tree over the patches'
-//!   unshot magnitudes `|r| + |g| + |b|`, in the caller's `tree` buffer, ties to the lower index). Rebuilding
-//!   it costs `n - 1` units (done inside step budgets, resumable). A shot costs 1 unit plus the shooter's
+//! - Shooting ([`Solver::step`]): selection is the root of a tournament tree (a max-tree over the slots'
+//!   unshot magnitudes `|r| + |g| + |b|`, in the caller's `tree` buffer, ties to the lower slot). Below, `n` is
+//!   the state count `s` (every patch count here counts slots only). Rebuilding it costs `n - 1` units (done inside step budgets, resumable). A shot costs 1 unit plus the shooter's
 //!   leaf-to-root path; each entry costs 1 unit plus the receiver's path, stopping early where the winner does
 //!   not change; a path is at most `depth = floor(log2(2n - 1))` nodes. An action starts only if its worst case
 //!   fits in what is left of the budget, and a shot longer than the budget is split: the next step resumes the
@@ -115,7 +140,7 @@
 //! - Gauss-Seidel and Jacobi sweeps: 1 unit per row visit, 1 per entry, 1 per patch in the end-of-sweep scan
 //!   (plus 1 per patch to clear Jacobi's scratch buffer).
 //! - Outside the budget, reported as return values where they depend on the scene: [`Solver::set_light`]
-//!   (members plus their paths), [`Solver::set_reflectance`] (patches scanned plus paths); and
+//!   (members plus their paths), [`Solver::set_reflectance`] (slots scanned plus paths); and
 //!   [`Solver::new`], [`Solver::reset`], [`Solver::ambient`], which are `O(patches + members)`.
 //! - Transfer relight ([`relight_transfer`]): `patches x (groups + 1)` units, outside any budget, not
 //!   resumable (its cost is known from the counts).
@@ -200,6 +225,8 @@
 //!     base_solved: false,
 //!     fingerprint: 0,
 //!     transfer: None,
+//!     // Every patch keeps run-time state (the base is not solved).
+//!     state: None,
 //! };
 //! let mut blob = vec![0u8; required_len(&spec)?];
 //! let written = write_table(&spec, &mut blob)?;

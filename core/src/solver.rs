@@ -12,16 +12,19 @@ use crate::scalar::Scalar;
 use crate::table::Table;
 
 /// Caller-supplied buffers. Every slice must hold at least the count named (extra elements are unused).
+///
+/// Per-patch state exists only for the patches with run-time state, the table's slots
+/// ([`Table::state_count`], crate docs "Run-time state"); the other patches show their static base.
 #[derive(Debug)]
 pub struct Buffers<'b, S> {
-    /// Power `Phi_i = B_i A_i` (RGB) per patch: patch count.
+    /// Power `Phi_i = B_i A_i` (RGB) per slot: state count.
     pub power: &'b mut [[S; 3]],
-    /// Unshot power (RGB) per patch: patch count.
+    /// Unshot power (RGB) per slot: state count.
     pub unshot: &'b mut [[S; 3]],
-    /// Incident power `H_i = sum_j F_ji Phi_j` received so far (RGB) per patch, before reflection: patch count.
+    /// Incident power `H_i = sum_j F_ji Phi_j` received so far (RGB) per slot, before reflection: state count.
     /// Reflectance edits need it.
     pub incident: &'b mut [[S; 3]],
-    /// Tournament tree over unshot power: patch count.
+    /// Tournament tree over unshot power: state count.
     pub tree: &'b mut [u32],
     /// Current intensity (RGB) per light group: light group count.
     pub intensity: &'b mut [[S; 3]],
@@ -103,7 +106,7 @@ pub enum NoProgressReason {
     WrongTable,
     /// A Jacobi sweep is half done: finish it with [`Solver::step_jacobi`] before shooting or Gauss-Seidel.
     JacobiInProgress,
-    /// The Jacobi scratch buffer is shorter than the patch count.
+    /// The Jacobi scratch buffer is shorter than the state count.
     ScratchTooSmall,
 }
 
@@ -139,9 +142,9 @@ pub enum SolverError {
     WrongTable,
     /// A Jacobi sweep is half done; changes would be lost by its end-of-sweep copy.
     JacobiInProgress,
-    /// More patches than the solver's tree indexing supports ([`MAX_PATCHES`]).
+    /// More patches with state than the solver's tree indexing supports ([`MAX_PATCHES`]).
     TooManyPatches {
-        /// Patches in the table.
+        /// Patches with state in the table.
         patches: u32,
     },
     /// The tolerance is below the arithmetic's convergence floor for this table ([`Scalar::convergence_floor`]:
@@ -166,7 +169,7 @@ pub fn convergence_floor<S: Scalar>(table: &Table<'_>) -> S {
 /// `ceil(6 L / (1 - rho_max))` in integer arithmetic (`1 - rho_max >= 2^-16`).
 fn convergence_units(table: &Table<'_>) -> u64 {
     let longest =
-        (0..table.patch_count()).filter_map(|i| table.row(i)).map(|r| r.len() as u64).max().unwrap_or(0);
+        (0..table.state_count()).filter_map(|i| table.row(i)).map(|r| r.len() as u64).max().unwrap_or(0);
     let code_max = (0..table.material_count())
         .filter_map(|m| table.reflectance(m))
         .flat_map(|r| r.into_iter())
@@ -176,7 +179,7 @@ fn convergence_units(table: &Table<'_>) -> u64 {
     (6 * longest * 65536).div_ceil(65536 - code_max.min(65535))
 }
 
-/// Largest patch count the solver accepts (tree positions `< 2n` must fit in a `u32`).
+/// Largest state count the solver accepts (tree positions `< 2n` must fit in a `u32`).
 pub const MAX_PATCHES: u32 = 1 << 30;
 
 impl fmt::Display for SolverError {
@@ -245,7 +248,9 @@ struct Sweep<S> {
 #[derive(Debug)]
 pub struct Solver<'b, S> {
     buf: Buffers<'b, S>,
-    n: u32,
+    /// Slots: patches with run-time state (the table's state count); buffers and tree are indexed by slot.
+    slots: u32,
+    patches: u32,
     groups: u32,
     materials: u32,
     table_crc: u32,
@@ -297,7 +302,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// # Errors
     /// [`SolverError::BufferTooSmall`] naming the buffer.
     pub fn new(table: &Table<'_>, buffers: Buffers<'b, S>, config: Config<S>) -> Result<Self, SolverError> {
-        let n = table.patch_count();
+        let n = table.state_count();
         if n > MAX_PATCHES {
             return Err(SolverError::TooManyPatches { patches: n });
         }
@@ -323,7 +328,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
         }
         let mut s = Solver {
             buf: buffers,
-            n,
+            slots: n,
+            patches: table.patch_count(),
             groups: table.group_count(),
             materials: table.material_count(),
             table_crc: table.crc(),
@@ -339,7 +345,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
 
     fn same_table(&self, table: &Table<'_>) -> bool {
         table.crc() == self.table_crc
-            && table.patch_count() == self.n
+            && table.state_count() == self.slots
+            && table.patch_count() == self.patches
             && table.group_count() == self.groups
             && table.material_count() == self.materials
     }
@@ -385,10 +392,11 @@ impl<'b, S: Scalar> Solver<'b, S> {
 
     fn cold_state(&mut self, table: &Table<'_>) {
         let solved = table.base_solved();
-        for i in 0..self.n {
-            let a: S = area(table, i);
-            let e = table.base_emission(i).unwrap_or([0; 3]);
-            let g = table.base_irradiance(i).unwrap_or([0; 3]);
+        for i in 0..self.slots {
+            let patch = table.slot_patch(i).unwrap_or(u32::MAX);
+            let a: S = area(table, patch);
+            let e = table.base_emission(patch).unwrap_or([0; 3]);
+            let g = table.base_irradiance(patch).unwrap_or([0; 3]);
             let rho = self.rho(table, i);
             let mut p = [S::ZERO; 3];
             let mut h = [S::ZERO; 3];
@@ -413,7 +421,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         self.shot = None;
         self.sweep = None;
         self.shots = 0;
-        self.tree = TreeState::Rebuilding(self.n.saturating_sub(1));
+        self.tree = TreeState::Rebuilding(self.slots.saturating_sub(1));
     }
 
     /// Adds `scale` times group `g`'s unit emission (times area) to power and unshot power; returns members.
@@ -422,27 +430,48 @@ impl<'b, S: Scalar> Solver<'b, S> {
         let count = members.end.saturating_sub(members.start);
         for k in members {
             let Some(m) = table.member(k) else { continue };
+            // Every member has a slot (checked by parse).
+            let Some(slot) = table.slot_of(m.patch) else { continue };
             let a: S = area(table, m.patch);
             let mut d = [S::ZERO; 3];
             for c in 0..3 {
                 d[c] = scale[c].mul(emission::<S>(m.emission[c])).mul(a);
             }
-            add3(self.buf.power, m.patch, d);
-            add3(self.buf.unshot, m.patch, d);
+            add3(self.buf.power, slot, d);
+            add3(self.buf.unshot, slot, d);
         }
         count
     }
 
-    fn rho(&self, table: &Table<'_>, patch: u32) -> [Frac; 3] {
-        let m = table.material(patch).unwrap_or(0);
+    /// Current reflectance of `slot` (read through the table's slot-ordered materials: no map lookup, this is
+    /// on the per-entry path).
+    fn rho(&self, table: &Table<'_>, slot: u32) -> [Frac; 3] {
+        self.rho_of_material(table.slot_material(slot).unwrap_or(0))
+    }
+
+    fn rho_of_material(&self, m: u32) -> [Frac; 3] {
         let r = self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]);
         [decode_reflectance(r[0]), decode_reflectance(r[1]), decode_reflectance(r[2])]
     }
 
-    /// Number of patches.
+    /// The radiosity of a patch without state: its static base `E_s + rho G_s` with the current reflectance.
+    fn stateless_radiosity(&self, table: &Table<'_>, patch: u32) -> Option<[S; 3]> {
+        let e = table.base_emission(patch)?;
+        let g = table.base_irradiance(patch)?;
+        let rho = self.rho_of_material(table.material(patch)?);
+        Some([0, 1, 2].map(|c| emission::<S>(e[c]).add(emission::<S>(g[c]).mul_frac(rho[c]))))
+    }
+
+    /// Number of patches (with or without state).
     #[must_use]
     pub fn patch_count(&self) -> u32 {
-        self.n
+        self.patches
+    }
+
+    /// Number of patches with run-time state (the table's [`Table::state_count`]): the buffers' length.
+    #[must_use]
+    pub fn state_count(&self) -> u32 {
+        self.slots
     }
 
     /// Rows started (shots, or row visits of a sweep) since the last reset; saturates at `u32::MAX`.
@@ -451,27 +480,54 @@ impl<'b, S: Scalar> Solver<'b, S> {
         self.shots
     }
 
-    /// Power `Phi_i = B_i A_i` of `patch` (RGB), or `None` out of range.
+    /// Power `Phi_i = B_i A_i` of `patch` (RGB), or `None` out of range or for another table. A patch without
+    /// state has its static power `(E_s + rho G_s) A` (current reflectance).
     #[must_use]
-    pub fn power(&self, patch: u32) -> Option<[S; 3]> {
-        self.buf.power.get(patch as usize).copied().filter(|_| patch < self.n)
+    pub fn power(&self, table: &Table<'_>, patch: u32) -> Option<[S; 3]> {
+        if !self.same_table(table) {
+            return None;
+        }
+        match table.slot_of(patch) {
+            Some(slot) => self.buf.power.get(slot as usize).copied(),
+            None => {
+                let b = self.stateless_radiosity(table, patch)?;
+                let a: S = area(table, patch);
+                Some(b.map(|x| x.mul(a)))
+            }
+        }
     }
 
-    /// Unshot power of `patch` (RGB), or `None` out of range. Excludes a shot in flight.
+    /// Unshot power of `patch` (RGB), or `None` out of range or for another table. Excludes a shot in flight.
+    /// Zero for a patch without state.
     #[must_use]
-    pub fn unshot(&self, patch: u32) -> Option<[S; 3]> {
-        self.buf.unshot.get(patch as usize).copied().filter(|_| patch < self.n)
+    pub fn unshot(&self, table: &Table<'_>, patch: u32) -> Option<[S; 3]> {
+        if !self.same_table(table) || patch >= self.patches {
+            return None;
+        }
+        match table.slot_of(patch) {
+            Some(slot) => self.buf.unshot.get(slot as usize).copied(),
+            None => Some([S::ZERO; 3]),
+        }
     }
 
     /// Radiosity `B_i = Phi_i / A_i` (W/m^2, RGB) of `patch`, or `None` out of range or for another table.
+    ///
+    /// A patch without run-time state shows its static base `E_s + rho G_s` (crate docs, "Run-time state"),
+    /// `rho` its material's current reflectance; patches with state are read from the power buffer. The
+    /// lookup of a patch's slot is a binary search when some patches have no state (`O(log state_count)`).
     #[must_use]
     pub fn radiosity(&self, table: &Table<'_>, patch: u32) -> Option<[S; 3]> {
         if !self.same_table(table) {
             return None;
         }
-        let p = self.power(patch)?;
-        let a: S = area(table, patch);
-        Some([p[0].div(a), p[1].div(a), p[2].div(a)])
+        match table.slot_of(patch) {
+            Some(slot) => {
+                let p = self.buf.power.get(slot as usize).copied()?;
+                let a: S = area(table, patch);
+                Some([p[0].div(a), p[1].div(a), p[2].div(a)])
+            }
+            None => self.stateless_radiosity(table, patch),
+        }
     }
 
     /// Current intensity of light `group`.
@@ -494,7 +550,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
                 }
             }
         }
-        for u in self.buf.unshot.iter().take(self.n as usize) {
+        for u in self.buf.unshot.iter().take(self.slots as usize) {
             for c in 0..3 {
                 t[c] = t[c].add(u[c]);
             }
@@ -506,7 +562,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// refinement approach to fast radiosity image generation", SIGGRAPH 1988, section 3):
     /// `ambient = (sum of unshot power / total area) / (1 - rho_avg)`, `rho_avg` the area-weighted mean
     /// reflectance. Display `B_i + rho_i * ambient` ([`Solver::radiosity_with_ambient`]). Meant for closed
-    /// scenes. Cost `O(patches)`, outside any budget.
+    /// scenes. Only patches with state take part (total area and mean reflectance are over them): unshot power
+    /// never reaches the others. Cost `O(state count)`, outside any budget.
     #[must_use]
     pub fn ambient(&self, table: &Table<'_>) -> [S; 3] {
         if !self.same_table(table) {
@@ -515,8 +572,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
         let unshot = self.total_unshot(table);
         let mut area_sum = S::ZERO;
         let mut rho_area = [S::ZERO; 3];
-        for i in 0..self.n {
-            let a: S = area(table, i);
+        for i in 0..self.slots {
+            let a: S = area(table, table.slot_patch(i).unwrap_or(u32::MAX));
             area_sum = area_sum.add(a);
             let rho = self.rho(table, i);
             for c in 0..3 {
@@ -532,11 +589,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
         out
     }
 
-    /// `B_i + rho_i * ambient` for `patch` (see [`Solver::ambient`]).
+    /// `B_i + rho_i * ambient` for `patch` (see [`Solver::ambient`]); a patch without state gets no ambient
+    /// term (unshot power never reaches it).
     #[must_use]
     pub fn radiosity_with_ambient(&self, table: &Table<'_>, patch: u32, ambient: [S; 3]) -> Option<[S; 3]> {
         let b = self.radiosity(table, patch)?;
-        let rho = self.rho(table, patch);
+        let Some(slot) = table.slot_of(patch) else { return Some(b) };
+        let rho = self.rho(table, slot);
         Some([0, 1, 2].map(|c| b[c].add(ambient[c].mul_frac(rho[c]))))
     }
 
@@ -548,8 +607,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
 
     /// Winner of tree position `k` (internal node or leaf).
     fn winner_at(&self, k: u32) -> u32 {
-        if k >= self.n {
-            k - self.n
+        if k >= self.slots {
+            k - self.slots
         } else {
             self.buf.tree.get(k as usize).copied().unwrap_or(0)
         }
@@ -573,18 +632,18 @@ impl<'b, S: Scalar> Solver<'b, S> {
         w
     }
 
-    /// Updates the path of `patch`'s leaf after its key changed; returns nodes visited (work units).
-    fn update_leaf(&mut self, patch: u32) -> u32 {
+    /// Updates the path of `slot`'s leaf after its key changed; returns nodes visited (work units).
+    fn update_leaf(&mut self, slot: u32) -> u32 {
         if self.tree != TreeState::Valid {
             return 0;
         }
-        let mut k = (self.n + patch) / 2;
+        let mut k = (self.slots + slot) / 2;
         let mut visited = 0;
         while k >= 1 {
             let old = self.winner_at(k);
             let new = self.recompute(k);
             visited += 1;
-            if new == old && old != patch {
+            if new == old && old != slot {
                 break;
             }
             k /= 2;
@@ -593,7 +652,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
     }
 
     fn root(&self) -> u32 {
-        if self.n <= 1 {
+        if self.slots <= 1 {
             0
         } else {
             self.winner_at(1)
@@ -663,7 +722,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
 
     /// Worst-case units of one shooting entry: the entry plus a full leaf-to-root path.
     fn shooting_entry_cost(&self) -> u32 {
-        1 + tree_depth(self.n)
+        1 + tree_depth(self.slots)
     }
 
     /// Progressive-refinement shooting (Southwell iteration; Cohen et al. 1988) for at most `budget` work
@@ -709,7 +768,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
             if !key.is_usable() {
                 return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
             }
-            if key <= self.config.tolerance || self.n == 0 {
+            if key <= self.config.tolerance || self.slots == 0 {
                 return Outcome::Converged { used };
             }
             if budget - used < per_entry {
@@ -737,14 +796,14 @@ impl<'b, S: Scalar> Solver<'b, S> {
     }
 
     /// Jacobi sweeps for at most `budget` work units, in residual form: each sweep shoots every patch's unshot
-    /// power as it was at the start of the sweep, collecting what is received in `scratch` (patch count
+    /// power as it was at the start of the sweep, collecting what is received in `scratch` (state count
     /// elements, the same buffer on every call of a sweep), which becomes the unshot power at the end of the
     /// sweep: `B_{k+1} = E + R F B_k`.
     ///
     /// Cost: 1 unit per patch to clear `scratch`, 1 per row visited, 1 per entry, 1 per patch in the
     /// end-of-sweep copy and convergence scan.
     pub fn step_jacobi(&mut self, table: &Table<'_>, scratch: &mut [[S; 3]], budget: u32) -> Outcome {
-        if scratch.len() < self.n as usize {
+        if scratch.len() < self.slots as usize {
             return Outcome::NoProgress { used: 0, reason: NoProgressReason::ScratchTooSmall };
         }
         self.sweep_step(table, Some(scratch), budget)
@@ -755,7 +814,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if !self.same_table(table) {
             return Outcome::NoProgress { used, reason: NoProgressReason::WrongTable };
         }
-        if self.n == 0 {
+        if self.slots == 0 {
             // Nothing to sweep (and an empty sweep would cost no units, so it must not loop).
             return Outcome::Converged { used };
         }
@@ -768,7 +827,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
             _ => {
                 // Coming from shooting or a half-done Gauss-Seidel sweep: finish the row in flight into the
                 // unshot buffer (the tree is not maintained from here on), then start a fresh sweep.
-                self.tree = TreeState::Rebuilding(self.n.saturating_sub(1));
+                self.tree = TreeState::Rebuilding(self.slots.saturating_sub(1));
                 if !self.apply_shot(table, budget, &mut used, None, 1) {
                     return self.spent(used, 1);
                 }
@@ -786,7 +845,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
                 return self.spent(used, 1);
             }
             match sweep.phase {
-                Phase::Clear(i) if i < self.n => {
+                Phase::Clear(i) if i < self.slots => {
                     if let Some(s) = scratch.as_deref_mut().and_then(|s| s.get_mut(i as usize)) {
                         *s = [S::ZERO; 3];
                     }
@@ -794,7 +853,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
                     sweep.phase = Phase::Clear(i + 1);
                 }
                 Phase::Clear(_) => sweep.phase = Phase::Rows(0),
-                Phase::Rows(j) if j < self.n => {
+                Phase::Rows(j) if j < self.slots => {
                     if self.shot.is_none() {
                         // Row visit: take the shooter's residual (Jacobi keeps it until the end-of-sweep copy).
                         let u = get3(self.buf.unshot, j);
@@ -818,7 +877,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
                     sweep.phase = Phase::Scan(0);
                     sweep.max = S::ZERO;
                 }
-                Phase::Scan(i) if i < self.n => {
+                Phase::Scan(i) if i < self.slots => {
                     if let Some(s) = scratch.as_deref_mut().and_then(|s| s.get_mut(i as usize)) {
                         if let Some(v) = self.buf.unshot.get_mut(i as usize) {
                             *v = *s;
@@ -891,17 +950,24 @@ impl<'b, S: Scalar> Solver<'b, S> {
         }
         let mut units = self.add_group_emission(table, group, delta);
         for k in table.group_members(group).unwrap_or(0..0) {
-            if let Some(m) = table.member(k) {
-                units = units.saturating_add(self.update_leaf(m.patch));
+            if let Some(slot) = table.member(k).and_then(|m| table.slot_of(m.patch)) {
+                units = units.saturating_add(self.update_leaf(slot));
             }
         }
         Ok(units)
     }
 
     /// Sets the reflectance of `material` to `rgb` (each in `[0, 1)`, quantized by the reflectance codec):
-    /// for every patch `i` of the material, `(rho_new - rho_old) H_i` (its incident power so far) is added to
-    /// its power and injected as unshot power, so the solve converges to the cold solve of the edited scene.
-    /// Returns the work done (one unit per patch scanned plus tree paths), outside any step budget.
+    /// for every patch `i` of the material with state, `(rho_new - rho_old) H_i` (its incident power so far)
+    /// is added to its power and injected as unshot power, so the solve converges to the cold solve of the
+    /// edited scene restricted to the patches with state. Returns the work done (one unit per slot scanned
+    /// plus tree paths), outside any step budget.
+    ///
+    /// Patches without state (crate docs, "Run-time state") show `E_s + rho_new G_s`: their own reflection of
+    /// the static light changes, but nothing is propagated (what they reflect reaches no state), and the
+    /// dynamic light they would have received is not there. The bake decides state with the table's
+    /// reflectances: a receiver black in every channel gets no state, so making it reflect at run time shows
+    /// only the static light on it; bake it with a nonzero reflectance if it must respond to dynamic lights.
     ///
     /// # Errors
     /// [`SolverError::NoSuchMaterial`], [`SolverError::BadValue`], [`SolverError::WrongTable`],
@@ -927,9 +993,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
             *r = new_codes;
         }
         let mut units = 0u32;
-        for i in 0..self.n {
+        for i in 0..self.slots {
             units = units.saturating_add(1);
-            if table.material(i) != Some(material) {
+            if table.slot_material(i) != Some(material) {
                 continue;
             }
             let h = get3(self.buf.incident, i);

@@ -16,7 +16,7 @@ use crate::transfer::{decode_transfer, TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPON
 pub const MAGIC: [u8; 4] = *b"RFT\x1a";
 
 /// The format version this crate reads and writes.
-pub const FORMAT_VERSION: u16 = 2;
+pub const FORMAT_VERSION: u16 = 3;
 
 /// The postcard-encoded header (the part before the payload).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -24,6 +24,7 @@ pub(crate) struct Header {
     pub magic: [u8; 4],
     pub version: u16,
     pub patch_count: u32,
+    pub state_count: u32,
     pub material_count: u32,
     pub group_count: u32,
     pub member_count: u32,
@@ -44,7 +45,7 @@ struct Prefix {
 }
 
 /// Largest postcard header, in bytes (4 magic + varints: 3 for u16, 5 per u32, 10 per u64, 1 per u8/bool).
-pub(crate) const MAX_HEADER_LEN: usize = 4 + 3 + 5 * 5 + 4 + 10 + 1;
+pub(crate) const MAX_HEADER_LEN: usize = 4 + 3 + 6 * 5 + 4 + 10 + 1;
 
 /// Byte ranges of the payload sections, in payload order.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -59,6 +60,8 @@ pub(crate) struct Layout {
     pub group_start: usize,
     pub member_patch: usize,
     pub member_emission: usize,
+    pub state_patch: usize,
+    pub state_material: usize,
     pub row_start: usize,
     pub row_exponent: usize,
     pub entry_receiver: usize,
@@ -73,6 +76,9 @@ impl Layout {
     /// Section offsets relative to the payload start, or `None` on arithmetic overflow.
     pub(crate) fn new(h: &Header) -> Option<Layout> {
         let n = h.patch_count as usize;
+        let s = h.state_count as usize;
+        // The state map is present only when some patch has no state (identity otherwise).
+        let sm = if h.state_count < h.patch_count { s } else { 0 };
         let m = h.material_count as usize;
         let g = h.group_count as usize;
         let mc = h.member_count as usize;
@@ -98,8 +104,10 @@ impl Layout {
             group_start: next(g.checked_add(1)?.checked_mul(4))?,
             member_patch: next(mc.checked_mul(ib))?,
             member_emission: next(mc.checked_mul(6))?,
-            row_start: next(n.checked_add(1)?.checked_mul(4))?,
-            row_exponent: next(Some(n))?,
+            state_patch: next(sm.checked_mul(ib))?,
+            state_material: next(sm.checked_mul(2))?,
+            row_start: next(s.checked_add(1)?.checked_mul(4))?,
+            row_exponent: next(Some(s))?,
             entry_receiver: next(nnz.checked_mul(ib))?,
             entry_code: next(nnz.checked_mul(cb))?,
             transfer_exponent: next(tg.checked_mul(3))?,
@@ -202,6 +210,33 @@ pub enum TableError {
     /// The table has a transfer basis but its static base is not solved: the basis relights as
     /// `B = B_static + sum_g I_g T_g` and needs `B_static` (see the crate docs, "Transfer basis").
     TransferWithoutSolvedBase,
+    /// The state count exceeds the patch count.
+    StateCountExceedsPatches {
+        /// Patches with run-time state in the header.
+        state_count: u32,
+        /// Patches in the header.
+        patch_count: u32,
+    },
+    /// Some patches have no run-time state but the static base is not solved: a patch without state shows its
+    /// static base, which must then be the static solution (see the crate docs, "Run-time state").
+    StateWithoutSolvedBase,
+    /// The state map (slot -> patch) is not strictly increasing.
+    UnsortedStateMap {
+        /// The first slot whose patch is not above the previous slot's.
+        slot: u32,
+    },
+    /// A slot's material differs from the material of its patch.
+    StateMaterialMismatch {
+        /// The slot.
+        slot: u32,
+    },
+    /// A light-group member is a patch without run-time state (a dynamic emitter always has state).
+    MemberWithoutState {
+        /// Position in the member array.
+        position: u32,
+        /// The member's patch.
+        patch: u32,
+    },
 }
 
 /// The quantization parameter a [`TableError::BadQuantParams`] refers to.
@@ -235,8 +270,10 @@ pub enum IndexArray {
     PatchMaterial,
     /// Light-group member patches.
     MemberPatch,
-    /// Form-factor receivers.
+    /// Form-factor receivers (slots, bound: the state count).
     EntryReceiver,
+    /// The state map: patch of each slot.
+    StatePatch,
 }
 
 impl fmt::Display for TableError {
@@ -285,6 +322,21 @@ impl fmt::Display for TableError {
             TableError::TransferWithoutSolvedBase => {
                 write!(f, "transfer basis present but the static base is not solved")
             }
+            TableError::StateCountExceedsPatches { state_count, patch_count } => {
+                write!(f, "state count {state_count} exceeds the patch count {patch_count}")
+            }
+            TableError::StateWithoutSolvedBase => {
+                write!(f, "some patches have no run-time state but the static base is not solved")
+            }
+            TableError::UnsortedStateMap { slot } => {
+                write!(f, "state map: patch of slot {slot} not above the previous slot's")
+            }
+            TableError::StateMaterialMismatch { slot } => {
+                write!(f, "state map: material of slot {slot} differs from its patch's")
+            }
+            TableError::MemberWithoutState { position, patch } => {
+                write!(f, "light-group member {position}: patch {patch} has no run-time state")
+            }
         }
     }
 }
@@ -328,6 +380,10 @@ pub struct Table<'a> {
     group_start: &'a [u8],
     member_patch: &'a [u8],
     member_emission: &'a [u8],
+    /// Patch of each slot (empty when every patch has state: slot = patch).
+    state_patch: &'a [u8],
+    /// Material of each slot (the patch material section when every patch has state).
+    state_material: &'a [u8],
     row_start: &'a [u8],
     row_exponent: &'a [u8],
     entry_receiver: &'a [u8],
@@ -350,8 +406,9 @@ impl<'a> Table<'a> {
     ///
     /// # Errors
     /// The first problem found, as a [`TableError`]. Checks run in this order: magic, version, header,
-    /// quantization parameters, length, CRC, then content (areas, offsets, indices, sorted rows, row
-    /// exponents, row sums, intensities).
+    /// quantization parameters, state count, length, CRC, then content (areas, materials, the state map,
+    /// member offsets, member patches with state, intensities, row offsets, receivers, sorted rows, row
+    /// exponents, row sums, the transfer section).
     pub fn parse(bytes: &'a [u8]) -> Result<Table<'a>, TableError> {
         let mut found = [0u8; 4];
         for (d, s) in found.iter_mut().zip(bytes) {
@@ -392,6 +449,12 @@ impl<'a> Table<'a> {
         if header.index_bytes == 2 && header.patch_count > 0x1_0000 {
             return Err(TableError::CountsTooLarge);
         }
+        if header.state_count > header.patch_count {
+            return Err(TableError::StateCountExceedsPatches {
+                state_count: header.state_count,
+                patch_count: header.patch_count,
+            });
+        }
         if header.material_count > 0x1_0000 {
             return Err(TableError::CountsTooLarge);
         }
@@ -415,12 +478,14 @@ impl<'a> Table<'a> {
         }
         let payload = body.get(header_len..).unwrap_or(&[]);
         let sec = |a: usize, b: usize| payload.get(a..b).unwrap_or(&[]);
+        let material = sec(layout.material, layout.base_emission);
+        let identity = header.state_count == header.patch_count;
         let table = Table {
             header,
             codec,
             crc: computed,
             area: sec(layout.area, layout.material),
-            material: sec(layout.material, layout.base_emission),
+            material,
             base_emission: sec(layout.base_emission, layout.base_irradiance),
             base_irradiance: sec(layout.base_irradiance, layout.reflectance),
             reflectance: sec(layout.reflectance, layout.group_id),
@@ -428,7 +493,9 @@ impl<'a> Table<'a> {
             group_intensity: sec(layout.group_intensity, layout.group_start),
             group_start: sec(layout.group_start, layout.member_patch),
             member_patch: sec(layout.member_patch, layout.member_emission),
-            member_emission: sec(layout.member_emission, layout.row_start),
+            member_emission: sec(layout.member_emission, layout.state_patch),
+            state_patch: sec(layout.state_patch, layout.state_material),
+            state_material: if identity { material } else { sec(layout.state_material, layout.row_start) },
             row_start: sec(layout.row_start, layout.row_exponent),
             row_exponent: sec(layout.row_exponent, layout.entry_receiver),
             entry_receiver: sec(layout.entry_receiver, layout.entry_code),
@@ -442,6 +509,7 @@ impl<'a> Table<'a> {
 
     fn validate(&self) -> Result<(), TableError> {
         let n = self.header.patch_count;
+        let slots = self.header.state_count;
         for p in 0..n {
             let a = le_f32(self.area, p as usize);
             if !(a.is_finite() && a > 0.0) {
@@ -455,6 +523,30 @@ impl<'a> Table<'a> {
                     index: mat,
                     bound: self.header.material_count,
                 });
+            }
+        }
+        if slots < n {
+            if !self.header.base_solved {
+                return Err(TableError::StateWithoutSolvedBase);
+            }
+            let mut prev: Option<u32> = None;
+            for slot in 0..slots {
+                let p = self.index(self.state_patch, slot);
+                if p >= n {
+                    return Err(TableError::IndexOutOfRange {
+                        array: IndexArray::StatePatch,
+                        position: slot,
+                        index: p,
+                        bound: n,
+                    });
+                }
+                if prev.is_some_and(|q| q >= p) {
+                    return Err(TableError::UnsortedStateMap { slot });
+                }
+                prev = Some(p);
+                if le_u16(self.state_material, slot as usize) != le_u16(self.material, p as usize) {
+                    return Err(TableError::StateMaterialMismatch { slot });
+                }
             }
         }
         check_offsets(
@@ -473,6 +565,9 @@ impl<'a> Table<'a> {
                     bound: n,
                 });
             }
+            if self.slot_of(p).is_none() {
+                return Err(TableError::MemberWithoutState { position: k, patch: p });
+            }
         }
         for g in 0..self.header.group_count {
             for c in 0..3 {
@@ -481,8 +576,8 @@ impl<'a> Table<'a> {
                 }
             }
         }
-        check_offsets(self.row_start, n, self.header.entry_count, OffsetArray::RowStart)?;
-        for row in 0..n {
+        check_offsets(self.row_start, slots, self.header.entry_count, OffsetArray::RowStart)?;
+        for row in 0..slots {
             let e = self.row_exponent.get(row as usize).copied().unwrap_or(0);
             if e > MAX_ROW_EXPONENT {
                 return Err(TableError::BadQuantParams { param: QuantParam::RowExponent, value: row });
@@ -493,12 +588,12 @@ impl<'a> Table<'a> {
             let mut prev: Option<u32> = None;
             for k in start..end {
                 let r = self.index(self.entry_receiver, k);
-                if r >= n {
+                if r >= slots {
                     return Err(TableError::IndexOutOfRange {
                         array: IndexArray::EntryReceiver,
                         position: k,
                         index: r,
-                        bound: n,
+                        bound: slots,
                     });
                 }
                 if prev.is_some_and(|p| p >= r) {
@@ -550,6 +645,65 @@ impl<'a> Table<'a> {
     #[must_use]
     pub fn patch_count(&self) -> u32 {
         self.header.patch_count
+    }
+
+    /// Number of patches with run-time state, the slots `0..state_count` (see the crate docs, "Run-time
+    /// state"); equal to [`Table::patch_count`] when every patch has state.
+    #[must_use]
+    pub fn state_count(&self) -> u32 {
+        self.header.state_count
+    }
+
+    /// Whether every patch has run-time state (slot `s` is patch `s`).
+    #[must_use]
+    pub fn every_patch_has_state(&self) -> bool {
+        self.header.state_count == self.header.patch_count
+    }
+
+    /// The patch of `slot`, or `None` if `slot >= state_count`.
+    #[must_use]
+    pub fn slot_patch(&self, slot: u32) -> Option<u32> {
+        if slot >= self.state_count() {
+            None
+        } else if self.every_patch_has_state() {
+            Some(slot)
+        } else {
+            Some(self.index(self.state_patch, slot))
+        }
+    }
+
+    /// The slot of `patch`, or `None` if the patch has no run-time state or is out of range. A binary search
+    /// over the state map (`O(log state_count)`) when some patch has no state, else the identity.
+    #[must_use]
+    pub fn slot_of(&self, patch: u32) -> Option<u32> {
+        if patch >= self.patch_count() {
+            return None;
+        }
+        if self.every_patch_has_state() {
+            return Some(patch);
+        }
+        // The map is strictly increasing (checked by parse), so bisection finds the patch if present.
+        let (mut lo, mut hi) = (0u32, self.state_count());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            let p = self.index(self.state_patch, mid);
+            if p == patch {
+                return Some(mid);
+            }
+            if p < patch {
+                lo = mid + 1;
+            } else {
+                hi = mid;
+            }
+        }
+        None
+    }
+
+    /// Material of the patch of `slot` (read from the slot-ordered section: no map lookup), or `None` out of
+    /// range.
+    #[must_use]
+    pub fn slot_material(&self, slot: u32) -> Option<u32> {
+        (slot < self.state_count()).then(|| u32::from(le_u16(self.state_material, slot as usize)))
     }
 
     /// Number of materials.
@@ -701,39 +855,40 @@ impl<'a> Table<'a> {
         })
     }
 
-    /// Range of entry positions of the row of shooter `patch` (for [`Table::entry`]).
+    /// Range of entry positions of the row of shooter `slot` (for [`Table::entry`]); `None` if
+    /// `slot >= state_count`. Only patches with state have rows (see [`Table::slot_of`]).
     #[must_use]
-    pub fn row(&self, patch: u32) -> Option<core::ops::Range<u32>> {
-        (patch < self.patch_count())
-            .then(|| le_u32(self.row_start, patch as usize)..le_u32(self.row_start, patch as usize + 1))
+    pub fn row(&self, slot: u32) -> Option<core::ops::Range<u32>> {
+        (slot < self.state_count())
+            .then(|| le_u32(self.row_start, slot as usize)..le_u32(self.row_start, slot as usize + 1))
     }
 
-    /// Row exponent of the row of shooter `patch`.
+    /// Row exponent of the row of shooter `slot`.
     #[must_use]
-    pub fn row_exponent(&self, patch: u32) -> Option<u8> {
-        (patch < self.patch_count()).then(|| self.row_exponent.get(patch as usize).copied().unwrap_or(0))
+    pub fn row_exponent(&self, slot: u32) -> Option<u8> {
+        (slot < self.state_count()).then(|| self.row_exponent.get(slot as usize).copied().unwrap_or(0))
     }
 
-    /// Receiver and raw code of entry `position`.
+    /// Receiver slot and raw code of entry `position`.
     #[must_use]
     pub fn entry_code(&self, position: u32) -> Option<(u32, u16)> {
         (position < self.entry_count())
             .then(|| (self.index(self.entry_receiver, position), self.code(position)))
     }
 
-    /// Receiver and decoded form factor of entry `position` in the row of shooter `patch`.
+    /// Receiver slot and decoded form factor of entry `position` in the row of shooter `slot`.
     #[must_use]
-    pub fn entry(&self, patch: u32, position: u32) -> Option<(u32, Frac)> {
-        let e = self.row_exponent(patch)?;
+    pub fn entry(&self, slot: u32, position: u32) -> Option<(u32, Frac)> {
+        let e = self.row_exponent(slot)?;
         let (r, c) = self.entry_code(position)?;
         Some((r, self.codec.decode(c, e)))
     }
 
-    /// Decoded sum of the row of shooter `patch` as f32 (for reports).
+    /// Decoded sum of the row of shooter `slot` as f32 (for reports).
     #[must_use]
-    pub fn row_sum(&self, patch: u32) -> Option<f32> {
-        let range = self.row(patch)?;
-        Some(range.filter_map(|k| self.entry(patch, k)).map(|(_, f)| f.to_f32()).sum())
+    pub fn row_sum(&self, slot: u32) -> Option<f32> {
+        let range = self.row(slot)?;
+        Some(range.filter_map(|k| self.entry(slot, k)).map(|(_, f)| f.to_f32()).sum())
     }
 }
 

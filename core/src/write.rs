@@ -45,12 +45,13 @@ pub struct GroupSpec<'a> {
     pub members: &'a [MemberSpec],
 }
 
-/// Form factors as compressed sparse shooter rows: row `j` holds the receivers `i` with `F_ji`.
+/// Form factors as compressed sparse shooter rows over the slots (the patches with run-time state, see
+/// [`TableSpec::state`]; slot = patch when every patch has state): row `j` holds the receivers `i` with `F_ji`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RowsSpec<'a> {
-    /// `row_start[j]..row_start[j + 1]` index the entries of row `j`; length patch count + 1.
+    /// `row_start[j]..row_start[j + 1]` index the entries of row `j`; length state count + 1.
     pub row_start: &'a [u32],
-    /// Receiver of each entry, strictly increasing within a row.
+    /// Receiver slot of each entry (`<` state count), strictly increasing within a row.
     pub receiver: &'a [u32],
     /// `F_ji` of each entry, finite and in `[0, 1]`.
     pub form_factor: &'a [f32],
@@ -65,8 +66,13 @@ pub struct TableSpec<'a> {
     pub materials: &'a [[f32; 3]],
     /// Light groups (the lights that may change at run time).
     pub groups: &'a [GroupSpec<'a>],
-    /// Form factors.
+    /// Form factors, rows and receivers indexed by slot.
     pub rows: RowsSpec<'a>,
+    /// The patches with run-time state (crate docs, "Run-time state"): `None` gives every patch state (slot =
+    /// patch); `Some(patches)` lists them strictly increasing, slot `s` being `patches[s]`. Every light-group
+    /// member needs state, and leaving any patch out needs `base_solved` (a stateless patch shows its static
+    /// base).
+    pub state: Option<&'a [u32]>,
     /// Form-factor codec.
     pub codec: FfCodec,
     /// `true`: `base_irradiance` is the converged static solution, the solver starts with the static power
@@ -143,6 +149,21 @@ pub enum WriteError {
     },
     /// A transfer basis is given but `base_solved` is false (the basis relights on the solved static base).
     TransferNeedsSolvedBase,
+    /// Some patch is left without run-time state but `base_solved` is false: a stateless patch shows its
+    /// static base, which must be the static solution. Give every patch state (`state: None`) or solve the base.
+    StateNeedsSolvedBase,
+    /// The state list is not strictly increasing.
+    UnsortedState {
+        /// Position of the first patch not above its predecessor.
+        position: usize,
+    },
+    /// A light-group member is not in the state list.
+    MemberWithoutState {
+        /// Position of the member in its group.
+        position: usize,
+        /// The member's patch.
+        patch: u32,
+    },
 }
 
 impl fmt::Display for WriteError {
@@ -172,6 +193,17 @@ impl fmt::Display for WriteError {
             WriteError::TransferNeedsSolvedBase => {
                 write!(f, "transfer basis needs a solved static base (base_solved = true)")
             }
+            WriteError::StateNeedsSolvedBase => write!(
+                f,
+                "patches without run-time state need a solved static base (base_solved = true); give every \
+                 patch state otherwise"
+            ),
+            WriteError::UnsortedState { position } => {
+                write!(f, "state list: patch at position {position} not above the previous one")
+            }
+            WriteError::MemberWithoutState { position, patch } => {
+                write!(f, "light group member at position {position}: patch {patch} has no run-time state")
+            }
         }
     }
 }
@@ -185,6 +217,10 @@ fn count(n: usize, what: &'static str) -> Result<u32, WriteError> {
 fn header_of(spec: &TableSpec<'_>) -> Result<Header, WriteError> {
     spec.codec.check().map_err(|_| WriteError::BadCodec)?;
     let patch_count = count(spec.patches.len(), "patches")?;
+    let state_count = match spec.state {
+        Some(s) => count(s.len(), "patches with state")?,
+        None => patch_count,
+    };
     if spec.materials.len() > 0x1_0000 {
         return Err(WriteError::TooMany { what: "materials" });
     }
@@ -193,6 +229,7 @@ fn header_of(spec: &TableSpec<'_>) -> Result<Header, WriteError> {
         magic: MAGIC,
         version: FORMAT_VERSION,
         patch_count,
+        state_count,
         material_count: count(spec.materials.len(), "materials")?,
         group_count: count(spec.groups.len(), "light groups")?,
         member_count: count(member_total.ok_or(WriteError::TooMany { what: "members" })?, "members")?,
@@ -280,8 +317,25 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
         return Err(WriteError::BufferTooSmall { needed, got: out.len() });
     }
     let n = spec.patches.len();
+    let slots = h.state_count as usize;
+    if slots > n {
+        return Err(WriteError::TooMany { what: "patches with state" });
+    }
+    if let Some(state) = spec.state {
+        if slots < n && !spec.base_solved {
+            return Err(WriteError::StateNeedsSolvedBase);
+        }
+        for (k, &p) in state.iter().enumerate() {
+            if p as usize >= n {
+                return Err(WriteError::IndexOutOfRange { what: "state patch", position: k, index: p });
+            }
+            if k > 0 && state[k - 1] >= p {
+                return Err(WriteError::UnsortedState { position: k });
+            }
+        }
+    }
     let rows = spec.rows;
-    if rows.row_start.len() != n + 1 || rows.receiver.len() != rows.form_factor.len() {
+    if rows.row_start.len() != slots + 1 || rows.receiver.len() != rows.form_factor.len() {
         return Err(WriteError::BadRows);
     }
     let mut prev = 0u32;
@@ -324,6 +378,9 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
                     index: member.patch,
                 });
             }
+            if spec.state.is_some_and(|s| s.binary_search(&member.patch).is_err()) {
+                return Err(WriteError::MemberWithoutState { position: k, patch: member.patch });
+            }
             emission_codes("light group member emission", k, member.emission)?;
         }
     }
@@ -342,12 +399,12 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
             }
         }
     }
-    for j in 0..n {
+    for j in 0..slots {
         let (s, e) = (rows.row_start[j] as usize, rows.row_start[j + 1] as usize);
         let mut sum = 0u128;
         for k in s..e {
             let (r, f) = (rows.receiver[k], rows.form_factor[k]);
-            if r as usize >= n {
+            if r as usize >= slots {
                 return Err(WriteError::IndexOutOfRange {
                     what: "form-factor receiver",
                     position: k,
@@ -416,17 +473,25 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
             }
         }
     }
+    if let Some(state) = spec.state.filter(|_| slots < n) {
+        for &p in state {
+            o.index(p, h.index_bytes);
+        }
+        for &p in state {
+            o.u16(spec.patches.get(p as usize).map_or(0, |q| q.material as u16));
+        }
+    }
     for &s in rows.row_start {
         o.u32(s);
     }
     // Row exponents and codes: quantize each row through a fixed scratch block, in chunks if the row is long.
     let exps_at = o.at;
-    o.at += n;
+    o.at += slots;
     for &r in rows.receiver {
         o.index(r, h.index_bytes);
     }
     let codes_at = o.at;
-    for j in 0..n {
+    for j in 0..slots {
         let (s, e) = (rows.row_start[j] as usize, rows.row_start[j + 1] as usize);
         let values = &rows.form_factor[s..e];
         let target = values

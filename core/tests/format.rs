@@ -22,8 +22,8 @@ fn tiny() -> Scene {
     s
 }
 
-/// Payload section offsets of the tiny table (header is 17 bytes), mirroring the layout in the crate docs.
-const HEADER: usize = 17;
+/// Payload section offsets of the tiny table (header is 18 bytes), mirroring the layout in the crate docs.
+const HEADER: usize = 18;
 const AREA: usize = HEADER;
 const MATERIAL: usize = HEADER + 8;
 const GROUP_INTENSITY: usize = HEADER + 46;
@@ -37,6 +37,46 @@ const TOTAL: usize = HEADER + 96 + 4;
 
 #[rustfmt::skip]
 const GOLDEN: [u8; TOTAL] = [
+    // header (postcard): magic, version 3, 2 patches, 2 with state (every patch: no state sections),
+    // 1 material, 1 group, 1 member, 2 entries, 16-bit codes, 4 exponent bits, 2-byte indices, base not
+    // solved, fingerprint 300 (varint 0xac 0x02), no transfer section
+    0x52, 0x46, 0x54, 0x1a, 0x03, 0x02, 0x02, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00, 0xac, 0x02, 0x00,
+    // areas (f32): 1.0, 2.0
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x00, 0x40,
+    // materials (u16): 0, 0
+    0x00, 0x00, 0x00, 0x00,
+    // base emission codes: patch 0 (1, 0, 0), patch 1 (0, 0, 0); 1.0 = (1024 + 0) * 2^(31 - 41): x 31 = 0x7c00
+    0x00, 0x7c, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+    // base irradiance codes: patch 0 zero, patch 1 (0, 0.5, 0); 0.5: x 30 = 0x7800
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x78, 0x00, 0x00,
+    // reflectance codes: 0.5, 0.25, 0.75 = 0x8000, 0x4000, 0xc000
+    0x00, 0x80, 0x00, 0x40, 0x00, 0xc0,
+    // group ids
+    0xcd, 0xab, 0x00, 0x00,
+    // group default intensities (f32 x 3)
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x80, 0x3f,
+    // group member starts: 0, 1
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00,
+    // member patch: 1
+    0x01, 0x00,
+    // member emission codes: 2.0 x 3: x 32 = 0x8000
+    0x00, 0x80, 0x00, 0x80, 0x00, 0x80,
+    // row starts: 0, 1, 2
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+    // row exponents: 0.5 -> 1, 0.25 -> 2
+    0x01, 0x02,
+    // receivers: 1, 0
+    0x01, 0x00, 0x00, 0x00,
+    // codes: top binade value 2^-e = x 15, m 0 = 0xf000
+    0x00, 0xf0, 0x00, 0xf0,
+    // CRC-32 over everything above
+    0xbf, 0xde, 0x0e, 0x9d,
+];
+
+/// The same tiny table in format version 2 (before `state_count` and the state sections): the blob a v2
+/// writer produced, kept to show an old table gets a clear error.
+#[rustfmt::skip]
+const GOLDEN_V2: [u8; 117] = [
     // header (postcard): magic, version 2, 2 patches, 1 material, 1 group, 1 member, 2 entries,
     // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved, fingerprint 300 (varint 0xac 0x02),
     // no transfer section
@@ -155,11 +195,16 @@ fn named_corruptions_map_to_their_errors() {
     use TableError as E;
     assert_eq!(corrupt(|b| b[0] = b'X', false), Err(E::BadMagic { found: *b"XFT\x1a" }));
     assert_eq!(
-        corrupt(|b| b[4] = 3, false),
-        Err(E::UnsupportedVersion { found: 3, expected: FORMAT_VERSION })
+        corrupt(|b| b[4] = 4, false),
+        Err(E::UnsupportedVersion { found: 4, expected: FORMAT_VERSION })
     );
-    // A real version-1 blob (CRC intact) gets the version error, not a header or length error.
-    assert_eq!(Table::parse(&GOLDEN_V1).err(), Some(E::UnsupportedVersion { found: 1, expected: 2 }));
+    // Real version-1 and version-2 blobs (CRC intact) get the version error, not a header or length error.
+    assert_eq!(Table::parse(&GOLDEN_V1).err(), Some(E::UnsupportedVersion { found: 1, expected: 3 }));
+    assert_eq!(Table::parse(&GOLDEN_V2).err(), Some(E::UnsupportedVersion { found: 2, expected: 3 }));
+    assert_eq!(
+        Table::parse(&GOLDEN_V2).err().map(|e| e.to_string()).as_deref(),
+        Some("unsupported table format version 2, expected 3")
+    );
     let msg = E::UnsupportedVersion { found: 2, expected: 1 }.to_string();
     assert_eq!(msg, "unsupported table format version 2, expected 1");
     assert_eq!(
@@ -205,20 +250,24 @@ fn named_corruptions_map_to_their_errors() {
         Err(E::RowSumExceedsOne { row: 1 })
     );
     assert_eq!(
-        corrupt(|b| b[10] = 12, true),
+        corrupt(|b| b[11] = 12, true),
         Err(E::BadQuantParams { param: QuantParam::FfBits, value: 12 })
     );
     assert_eq!(
-        corrupt(|b| b[11] = 5, true),
+        corrupt(|b| b[12] = 5, true),
         Err(E::BadQuantParams { param: QuantParam::FfExponentBits, value: 5 })
     );
     assert_eq!(
-        corrupt(|b| b[12] = 3, true),
+        corrupt(|b| b[13] = 3, true),
         Err(E::BadQuantParams { param: QuantParam::IndexBytes, value: 3 })
     );
     assert_eq!(
         corrupt(|b| b[ROW_EXPONENT] = 65, true),
         Err(E::BadQuantParams { param: QuantParam::RowExponent, value: 0 })
+    );
+    assert_eq!(
+        corrupt(|b| b[6] = 3, true),
+        Err(E::StateCountExceedsPatches { state_count: 3, patch_count: 2 })
     );
     assert_eq!(corrupt(|b| b[AREA + 3] = 0xff, true), Err(E::BadArea { patch: 0 }));
     assert_eq!(corrupt(|b| b[AREA + 3] = 0xbf, true), Err(E::BadArea { patch: 0 }));
@@ -237,6 +286,7 @@ fn named_corruptions_map_to_their_errors() {
     // A header whose counts overflow the address space.
     let mut huge = Vec::from(&GOLDEN[..5]);
     huge.extend_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x0f]); // patch count 2^32 - 1
+    huge.extend_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x0f]); // state count 2^32 - 1
     huge.extend_from_slice(&[1, 1, 1, 2, 16, 4, 4, 0]);
     huge.extend_from_slice(&[0; 8]);
     assert!(matches!(Table::parse(&huge), Err(E::CountsTooLarge | E::Truncated { .. })));
@@ -302,6 +352,7 @@ fn write_into(s: &Scene, out: &mut [u8]) -> Result<usize, WriteError> {
         base_solved: s.base_solved,
         fingerprint: s.fingerprint,
         transfer: s.transfer.as_deref(),
+        state: s.state.as_deref(),
     };
     radiosity_core::write_table(&spec, out)
 }
@@ -375,7 +426,7 @@ proptest! {
 
     #[test]
     fn parse_never_panics_on_mutations(
-        which in 0usize..3,
+        which in 0usize..4,
         flips in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..6),
         cut in any::<usize>(),
         truncate in any::<bool>(),
@@ -384,6 +435,7 @@ proptest! {
         let mut b = match which {
             0 => GOLDEN.to_vec(),
             1 => medium(),
+            2 => partial().write(),
             _ => medium_transfer(),
         };
         for (pos, v) in flips {
@@ -407,4 +459,133 @@ proptest! {
         }
         exercise(&b);
     }
+}
+
+/// A table where only patches 1 and 3 have run-time state (slots 0 and 1): patches 0 and 2 are lit by the
+/// solved static base only. Materials differ per patch so the slot-ordered material section is visible.
+fn partial() -> Scene {
+    let mut s = Scene::new(4);
+    s.base_solved = true;
+    s.materials = vec![[0.5; 3], [0.25, 0.5, 0.75]];
+    for (i, p) in s.patches.iter_mut().enumerate() {
+        p.material = (i % 2) as u32;
+        p.area = 1.0 + i as f32;
+    }
+    s.patches[0].base_emission = [1.0; 3];
+    s.patches[2].base_irradiance = [0.5; 3];
+    s.state = Some(vec![1, 3]);
+    s.groups = vec![(7, [1.0; 3], vec![MemberSpec { patch: 3, emission: [2.0; 3] }])];
+    // Slot rows: slot 0 (patch 1) -> slot 1 (patch 3), and back.
+    s.rows = vec![vec![(1, 0.25)], vec![(0, 0.5)]];
+    s
+}
+
+/// Payload offsets of [`partial`] after its header, from the crate docs' layout: 4 patches, 2 slots,
+/// 2 materials, 1 group, 1 member, 2 entries, 2-byte indices, 16-bit codes.
+const P_STATE_PATCH: usize = 16 + 8 + 24 + 24 + 12 + 4 + 12 + 8 + 2 + 6;
+const P_STATE_MATERIAL: usize = P_STATE_PATCH + 4;
+const P_ROW_START: usize = P_STATE_MATERIAL + 4;
+const P_RECEIVER: usize = P_ROW_START + 12 + 2;
+const P_PAYLOAD: usize = P_RECEIVER + 4 + 4;
+
+fn corrupt_partial(f: impl FnOnce(&mut Vec<u8>, usize)) -> Result<(), TableError> {
+    let mut b = partial().write();
+    let header = b.len() - P_PAYLOAD - 4;
+    f(&mut b, header);
+    fix_crc(&mut b);
+    Table::parse(&b).map(|_| ())
+}
+
+#[test]
+fn partial_state_layout_and_accessors() {
+    let b = partial().write();
+    let header = b.len() - P_PAYLOAD - 4;
+    // magic, version 3, 4 patches, 2 with state, 2 materials, 1 group, 1 member, 2 entries, 16/4 bits, 2-byte
+    // indices, base solved, fingerprint 0, no transfer section.
+    assert_eq!(&b[..header], &[0x52, 0x46, 0x54, 0x1a, 3, 4, 2, 2, 1, 1, 2, 16, 4, 2, 1, 0, 0]);
+    // The state map (patches 1, 3), their materials (1, 1), row starts over slots (0, 1, 2), receivers (slots).
+    assert_eq!(&b[header + P_STATE_PATCH..header + P_STATE_MATERIAL], &[1, 0, 3, 0]);
+    assert_eq!(&b[header + P_STATE_MATERIAL..header + P_ROW_START], &[1, 0, 1, 0]);
+    assert_eq!(&b[header + P_ROW_START..header + P_ROW_START + 12], &[0, 0, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
+    assert_eq!(&b[header + P_RECEIVER..header + P_RECEIVER + 4], &[1, 0, 0, 0]);
+    let t = Table::parse(&b).expect("partial table parses");
+    assert_eq!((t.patch_count(), t.state_count(), t.every_patch_has_state()), (4, 2, false));
+    assert_eq!([0, 1, 2].map(|s| t.slot_patch(s)), [Some(1), Some(3), None]);
+    assert_eq!([0, 1, 2, 3, 4].map(|p| t.slot_of(p)), [None, Some(0), None, Some(1), None]);
+    assert_eq!([0, 1, 2].map(|s| t.slot_material(s)), [Some(1), Some(1), None]);
+    assert_eq!(t.row(1), Some(1..2));
+    assert_eq!(t.row(2), None);
+    assert_eq!(t.entry(1, 1).map(|(r, f)| (r, f.to_f32())), Some((0, 0.5)));
+    // Every patch has state: the map sections are absent and the identity holds.
+    let g = Table::parse(&GOLDEN).expect("golden");
+    assert!(g.every_patch_has_state());
+    assert_eq!([0, 1, 2].map(|p| g.slot_of(p)), [Some(0), Some(1), None]);
+    assert_eq!([0, 1, 2].map(|s| g.slot_patch(s)), [Some(0), Some(1), None]);
+    // Giving every patch state explicitly writes the same bytes as `state: None`.
+    let mut all = tiny();
+    all.state = Some(vec![0, 1]);
+    assert_eq!(all.write(), GOLDEN.to_vec());
+}
+
+#[test]
+fn malformed_state_maps_are_named_errors() {
+    use TableError as E;
+    assert_eq!(corrupt_partial(|_, _| {}), Ok(()));
+    // Non-increasing: slot 1's patch set to 1 (= slot 0's), then below it.
+    assert_eq!(
+        corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 1),
+        Err(E::UnsortedStateMap { slot: 1 })
+    );
+    assert_eq!(
+        corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 0),
+        Err(E::UnsortedStateMap { slot: 1 })
+    );
+    assert_eq!(
+        corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 4),
+        Err(E::IndexOutOfRange { array: IndexArray::StatePatch, position: 1, index: 4, bound: 4 })
+    );
+    // A receiver slot at or above the state count (2), though below the patch count (4).
+    assert_eq!(
+        corrupt_partial(|b, h| b[h + P_RECEIVER] = 2),
+        Err(E::IndexOutOfRange { array: IndexArray::EntryReceiver, position: 0, index: 2, bound: 2 })
+    );
+    assert_eq!(
+        corrupt_partial(|b, h| b[h + P_STATE_MATERIAL] = 0),
+        Err(E::StateMaterialMismatch { slot: 0 })
+    );
+    // The member (patch 3) moved to patch 2, which has no state; the member section precedes the map.
+    assert_eq!(
+        corrupt_partial(|b, h| b[h + P_STATE_PATCH - 8] = 2),
+        Err(E::MemberWithoutState { position: 0, patch: 2 })
+    );
+    // base_solved (header byte 14) cleared: stateless patches would have no solution to show.
+    assert_eq!(corrupt_partial(|b, _| b[14] = 0), Err(E::StateWithoutSolvedBase));
+    let msg = E::UnsortedStateMap { slot: 1 }.to_string();
+    assert_eq!(msg, "state map: patch of slot 1 not above the previous slot's");
+}
+
+#[test]
+fn writer_rejects_bad_state_lists() {
+    let mut s = partial();
+    s.base_solved = false;
+    assert_eq!(try_write(&s), Err(WriteError::StateNeedsSolvedBase));
+    let mut s = partial();
+    s.state = Some(vec![3, 1]);
+    assert_eq!(try_write(&s), Err(WriteError::UnsortedState { position: 1 }));
+    let mut s = partial();
+    s.state = Some(vec![1, 4]);
+    assert_eq!(try_write(&s), Err(WriteError::IndexOutOfRange { what: "state patch", position: 1, index: 4 }));
+    let mut s = partial();
+    s.state = Some(vec![1, 2]);
+    assert_eq!(try_write(&s), Err(WriteError::MemberWithoutState { position: 0, patch: 3 }));
+    let mut s = partial();
+    s.rows[0] = vec![(2, 0.3)];
+    assert_eq!(
+        try_write(&s),
+        Err(WriteError::IndexOutOfRange { what: "form-factor receiver", position: 0, index: 2 })
+    );
+    // Rows must be given per slot (2 + 1 starts), not per patch.
+    let mut s = partial();
+    s.rows = vec![Vec::new(); 4];
+    assert_eq!(try_write(&s), Err(WriteError::BadRows));
 }

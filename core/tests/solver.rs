@@ -353,7 +353,7 @@ fn determinism<S: Arith>() {
                 solver.set_reflectance(&t, 2, [0.5, 0.1, 0.2]).unwrap();
             }
         }
-        let state: Vec<_> = (0..3).map(|i| (solver.power(i), solver.unshot(i))).collect();
+        let state: Vec<_> = (0..3).map(|i| (solver.power(&t, i), solver.unshot(&t, i))).collect();
         format!("{log:?} {state:?}")
     };
     assert_eq!(run(), run());
@@ -377,7 +377,7 @@ fn budget_partition_invariance<S: Arith>() {
             }
             assert!(steps < 10_000_000, "{o:?}");
         }
-        let state: Vec<_> = (0..3).map(|i| (solver.power(i), solver.unshot(i))).collect();
+        let state: Vec<_> = (0..3).map(|i| (solver.power(&t, i), solver.unshot(&t, i))).collect();
         (format!("{state:?}"), steps)
     };
     for gs in [false, true] {
@@ -407,9 +407,89 @@ fn restart_is_cold<S: Arith>() {
     let mut cold = cold_store.solver(&edited, config());
     converge(&mut cold, &edited, 50, 10_000_000);
     // Same codes, same intensities, same operations: bit-identical.
-    let a: Vec<_> = (0..3).map(|i| solver.power(i)).collect();
-    let b: Vec<_> = (0..3).map(|i| cold.power(i)).collect();
+    let a: Vec<_> = (0..3).map(|i| solver.power(&t, i)).collect();
+    let b: Vec<_> = (0..3).map(|i| cold.power(&edited, i)).collect();
     assert_eq!(format!("{a:?}"), format!("{b:?}"));
+}
+
+/// Two closed pairs that cannot see each other, each like [`two_patch_scene`] (areas 1 and 2, `F_01 = 0.4`,
+/// `F_10 = 0.2`, rho 0.5 and 0.8): pair (0, 1) lit by a static unit emission on patch 0 (solved base, `G_i`
+/// by hand: `B_0 = 1 / 0.968`, `B_1 = 0.16 / 0.968`), pair (2, 3) by a light group on patch 2. With `partial`,
+/// only the dynamic pair has state (slots 0, 1 = patches 2, 3); otherwise every patch has.
+fn two_rooms_scene(partial: bool) -> Scene {
+    let mut s = Scene::new(4);
+    s.base_solved = true;
+    s.materials = vec![[0.5; 3], [0.8; 3]];
+    for (i, p) in s.patches.iter_mut().enumerate() {
+        p.material = (i % 2) as u32;
+        p.area = if i % 2 == 0 { 1.0 } else { 2.0 };
+    }
+    s.patches[0].base_emission = [1.0; 3];
+    s.patches[0].base_irradiance = [0.4 * 0.16 / 0.968; 3];
+    s.patches[1].base_irradiance = [0.2 / 0.968; 3];
+    s.groups = vec![(7, [1.0; 3], vec![MemberSpec { patch: 2, emission: [1.0; 3] }])];
+    if partial {
+        s.state = Some(vec![2, 3]);
+        s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)]];
+    } else {
+        s.rows = vec![vec![(1, 0.4)], vec![(0, 0.2)], vec![(3, 0.4)], vec![(2, 0.2)]];
+    }
+    s
+}
+
+/// A table whose static-only pair has no state solves like the table giving every patch state: the dynamic
+/// pair bit for bit (same rows, same shots), the stateless pair its static base; buffers hold the slots only.
+fn stateless_patches_show_the_static_base<S: Arith>() {
+    let (full_bytes, part_bytes) = (two_rooms_scene(false).write(), two_rooms_scene(true).write());
+    let (full, part) = (Table::parse(&full_bytes).unwrap(), Table::parse(&part_bytes).unwrap());
+    assert_eq!((part.patch_count(), part.state_count()), (4, 2));
+    let mut short = Store::<S>::for_table(&part);
+    short.tree.pop();
+    let err = radiosity_core::Solver::new(&part, short.buffers(), config()).err();
+    assert_eq!(err, Some(SolverError::BufferTooSmall { buffer: "tree", needed: 2, got: 1 }));
+    let mut store = Store::<S>::for_table(&part);
+    assert_eq!(store.power.len(), 2);
+    let mut solver = store.solver(&part, config());
+    let mut full_store = Store::<S>::for_table(&full);
+    let mut full_solver = full_store.solver(&full, config());
+    let units = converge(&mut solver, &part, 50, 100_000);
+    let full_units = converge(&mut full_solver, &full, 50, 100_000);
+    assert!(units < full_units, "fewer tree nodes: {units} vs {full_units}");
+    assert_eq!(solver.shots(), full_solver.shots());
+    let (b, b_full) = (radiosities(&solver, &part), radiosities(&full_solver, &full));
+    assert_eq!(b[2..], b_full[2..], "the dynamic pair");
+    let want = [1.0 / 0.968, 0.16 / 0.968];
+    for i in 0..2 {
+        // Stateless: exactly the decoded static base, E_s + rho G_s (as the transfer basis decodes it).
+        let base = radiosity_core::static_radiosity::<S>(&part, i as u32).unwrap().map(|x| x.to_f32());
+        assert_eq!(b[i], base, "patch {i}");
+        assert_eq!(solver.unshot(&part, i as u32), Some([S::ZERO; 3]));
+        for c in 0..3 {
+            // Through the emission codes (2^-11 relative each) and, with state, one division by the area.
+            let q = 2f32.powi(-10) * want[i];
+            assert_close("static pair", b[i][c], want[i], q + S::arith(want[i], 1, 0.8, 1.0));
+            assert_close("static pair vs full", b[i][c], b_full[i][c], S::arith(want[i], 2, 0.8, 1.0) * 2.0);
+            // The dynamic pair solves the same system (by hand, up to FLOAT16 and the tolerance).
+            let q = 2f32.powi(-11) * want[i] + truncation(2, TOL, 0.8, 1.0);
+            assert_close("dynamic pair", b[i + 2][c], want[i], q + S::arith(want[i], solver.shots(), 0.8, 1.0));
+        }
+    }
+    assert_eq!(solver.radiosity(&part, 4), None);
+    assert_eq!(solver.power(&full, 0), None, "another table");
+    // A light change touches the slots only; a reflectance edit changes a stateless patch's reflection of the
+    // static light (E_s + rho' G_s) without propagating it.
+    solver.set_light(&part, 0, [2.0; 3]).unwrap();
+    solver.set_reflectance(&part, 1, [0.4; 3]).unwrap();
+    converge(&mut solver, &part, 50, 100_000);
+    let b2 = radiosities(&solver, &part);
+    assert_eq!(b2[0], b[0]);
+    let rho_q = radiosity_core::codec::decode_reflectance(radiosity_core::codec::encode_reflectance(0.4)).to_f32();
+    let g1 = 0.2 / 0.968;
+    assert_close("stateless after an edit", b2[1][0], rho_q * g1, 2f32.powi(-11) * g1 + S::arith(g1, 1, 0.8, 1.0));
+    // Dynamic pair at intensity 2 with rho_1 = 0.4: B_2 = 2 / (1 - 0.5 * 0.4 * 0.4 * 0.2) = 2 / 0.984.
+    let want2 = 2.0 / 0.984;
+    let tol = 2f32.powi(-10) * want2 + truncation(2, TOL, 0.8, 1.0) + S::arith(want2, solver.shots() + 8, 0.8, 1.0);
+    assert_close("dynamic pair relit", b2[2][0], want2, tol);
 }
 
 macro_rules! both_paths {
@@ -439,6 +519,7 @@ both_paths! {
     warm_start_equals_cold_solve => relighting::<S>();
     deterministic => determinism::<S>();
     restart_after_dimming => restart_is_cold::<S>();
+    stateless_patches => stateless_patches_show_the_static_base::<S>();
     budget_partition => budget_partition_invariance::<S>();
 }
 

@@ -269,6 +269,7 @@ fn write(s: &Scene) -> Result<usize, WriteError> {
         base_solved: s.base_solved,
         fingerprint: s.fingerprint,
         transfer: s.transfer.as_deref(),
+        state: s.state.as_deref(),
     };
     let mut out = vec![0u8; 4096];
     radiosity_core::write_table(&spec, &mut out)

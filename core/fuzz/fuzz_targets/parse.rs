@@ -16,6 +16,7 @@ fuzz_target!(|data: &[u8]| {
     }
     for i in 0..=n {
         let _ = (t.area(i), t.material(i), t.base_emission(i), t.base_irradiance(i), t.row_sum(i));
+        let _ = (t.slot_of(i), t.slot_patch(i), t.slot_material(i));
     }
     for g in 0..=t.group_count() {
         let _ = (t.group_id(g), t.default_intensity(g), t.group_members(g), t.transfer_exponent(g));
@@ -30,7 +31,8 @@ fuzz_target!(|data: &[u8]| {
         let mut out = vec![[Fixed(0); 3]; n as usize];
         let _ = relight_transfer(&t, &ones, &mut out);
     }
-    let n = n as usize;
+    // Solver buffers hold the patches with run-time state only.
+    let n = t.state_count() as usize;
     let mut power = vec![[0.0f32; 3]; n];
     let mut unshot = vec![[0.0f32; 3]; n];
     let mut incident = vec![[0.0f32; 3]; n];
@@ -54,4 +56,7 @@ fuzz_target!(|data: &[u8]| {
     let _ = s.set_reflectance(&t, 0, [0.5; 3]);
     let o = s.step_gauss_seidel(&t, 1000);
     assert!(o.used() <= 1000);
+    for i in 0..=t.patch_count() {
+        let _ = (s.radiosity(&t, i), s.power(&t, i), s.unshot(&t, i));
+    }
 });

@@ -14,8 +14,10 @@ pub struct Scene {
     pub materials: Vec<[f32; 3]>,
     /// (id, default intensity, members)
     pub groups: Vec<(u32, [f32; 3], Vec<MemberSpec>)>,
-    /// Dense shooter rows: `rows[j]` = receivers `(i, F_ji)`, sorted.
+    /// Shooter rows per slot: `rows[j]` = receiver slots `(i, F_ji)`, sorted (slot = patch without `state`).
     pub rows: Vec<Vec<(u32, f32)>>,
+    /// Patches with run-time state, ascending (`None`: every patch).
+    pub state: Option<Vec<u32>>,
     pub codec: FfCodec,
     pub base_solved: bool,
     pub fingerprint: u64,
@@ -42,6 +44,7 @@ impl Scene {
             base_solved: false,
             fingerprint: 0,
             transfer: None,
+            state: None,
         }
     }
 
@@ -70,6 +73,7 @@ impl Scene {
             base_solved: self.base_solved,
             fingerprint: self.fingerprint,
             transfer: self.transfer.as_deref(),
+            state: self.state.as_deref(),
         };
         let len = radiosity_core::required_len(&spec).expect("required_len");
         let mut out = vec![0u8; len];
@@ -91,7 +95,7 @@ pub struct Store<S> {
 
 impl<S: Scalar> Store<S> {
     pub fn for_table(t: &Table<'_>) -> Store<S> {
-        let n = t.patch_count() as usize;
+        let n = t.state_count() as usize;
         Store {
             power: vec![[S::ZERO; 3]; n],
             unshot: vec![[S::ZERO; 3]; n],
