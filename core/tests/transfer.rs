@@ -337,15 +337,15 @@ fn parse_rejects_inconsistent_transfer_sections() {
     b.extend_from_slice(&[0; 4]);
     fix_crc(&mut b);
     assert_eq!(Table::parse(&b).err(), Some(TableError::Truncated { expected: len, actual: len - 2 }));
-    // The header says "transfer" but the base is not solved: the header's base_solved byte is 13.
+    // The header says "transfer" but the base is not solved: the header's base_solved byte is 14.
     let mut b = blob.clone();
-    assert_eq!(b[13], 1, "base_solved byte");
-    b[13] = 0;
+    assert_eq!(b[14], 1, "base_solved byte");
+    b[14] = 0;
     fix_crc(&mut b);
     assert_eq!(Table::parse(&b).err(), Some(TableError::TransferWithoutSolvedBase));
     // Transfer flag cleared: the section becomes trailing bytes.
     let mut b = blob.clone();
-    let flag = 15; // header: ... base_solved 13, fingerprint 0 (1 byte) 14, transfer 15
+    let flag = 16; // header: ... base_solved 14, fingerprint 0 (1 byte) 15, transfer 16
     assert_eq!(b[flag], 1, "transfer flag byte");
     b[flag] = 0;
     fix_crc(&mut b);
