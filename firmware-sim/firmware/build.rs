@@ -1,7 +1,8 @@
 //! Compiles the table and the relight scripts into the firmware.
 //!
 //! - `RADIOSITY_TABLE` (default `../tables/uniform-enclosure.rft`): the table, `include_bytes!`-ed into flash.
-//!   It is parsed here with core's `Table::parse`, and its counts size the solver's static buffers, so a baked
+//!   It is parsed here with core's `Table::parse`, and its counts (the state count for the per-patch buffers)
+//!   size the solver's static buffers, so a baked
 //!   table drops in by changing this one path.
 //! - `RADIOSITY_SCRIPTS` (default `../../scenes/cornell-box.relight.toml`): the relight scripts, parsed and
 //!   validated with firmware-sim's parser and written out as const data.
@@ -47,7 +48,8 @@ fn run() -> Result<(), String> {
         bytes.len(),
         scripts_path.display()
     ));
-    code.push_str(&format!("pub const PATCHES: usize = {};\n", table.patch_count()));
+    // The per-patch buffers hold the patches with run-time state only (core's crate docs, "Run-time state").
+    code.push_str(&format!("pub const STATE_PATCHES: usize = {};\n", table.state_count()));
     code.push_str(&format!("pub const GROUPS: usize = {};\n", table.group_count()));
     code.push_str(&format!("pub const MATERIALS: usize = {};\n", table.material_count()));
     code.push_str(&format!(

@@ -44,11 +44,11 @@ pub struct DeviceMemory<S> {
 }
 
 impl<S: Scalar> DeviceMemory<S> {
-    /// Buffers for `table`: patch count for power, unshot, incident power and the tree; light-group count for
-    /// intensities; material count for reflectances.
+    /// Buffers for `table`: state count (patches with run-time state) for power, unshot, incident power and
+    /// the tree; light-group count for intensities; material count for reflectances.
     #[must_use]
     pub fn for_table(table: &Table<'_>) -> DeviceMemory<S> {
-        let n = table.patch_count() as usize;
+        let n = table.state_count() as usize;
         DeviceMemory {
             power: vec![[S::ZERO; 3]; n],
             unshot: vec![[S::ZERO; 3]; n],

@@ -69,6 +69,7 @@ pub fn uniform_enclosure(k: u32, area: f32, codec: FfCodec) -> Result<Vec<u8>, W
         base_solved: false,
         fingerprint: 0,
         transfer: None,
+        state: None,
     };
     let mut blob = vec![0u8; required_len(&spec)?];
     let len = write_table(&spec, &mut blob)?;

@@ -30,12 +30,17 @@
 //! 3. **Dynamic light groups** become core's light groups: members are the patches of the group with their
 //!    emission at unit intensity, the group's default intensity, and an id [`group_id`] (FNV-1a of the name).
 //! 4. **Quantize and write** with core's codec ([`codec_for_bits`]: 16 -> `FLOAT16`, 8 -> `FLOAT8`),
-//!    [`required_len`] and [`write_table`].
-//! 5. **Reachability.** A patch needs run-time state if it is a member of a dynamic light group, or if its
-//!    reflectance is nonzero in some channel and it receives a stored entry from a patch that needs state (a
-//!    black receiver's radiosity never changes). Core's solver keeps state for every patch (its buffers and the
-//!    selection tree are indexed by patch), so the count is reported ([`RuntimeState`]) but the table still
-//!    carries every patch; excluding the rest needs a core change.
+//!    [`required_len`] and [`write_table`]: the rows of the patches with run-time state only (step 5), their
+//!    receivers as slots.
+//! 5. **Reachability** (computed before writing). A patch needs run-time state if it is a member of a dynamic
+//!    light group, or if its reflectance is nonzero in some channel and it receives a stored entry from a
+//!    patch that needs state (a black receiver's radiosity never changes). Only these patches get state in the
+//!    table (core's crate docs, "Run-time state"): core's solver sizes its buffers and selection tree by their
+//!    count, and every other patch shows its solved static base. The rows of the patches with state lose their
+//!    entries to stateless receivers, which are black in every channel and reflect nothing, so the answer is
+//!    unchanged for the baked reflectances; the report counts them ([`RuntimeState`]). Reachability uses the
+//!    baked reflectances: a run-time reflectance edit cannot make a black receiver respond to dynamic light.
+//!    When every patch is reachable the table gives every patch state and carries no state map.
 //! 6. **Error of the bake** on the scene's own lights (every dynamic group at its default intensity), each a
 //!    [`metrics::compare`] against the f64 solve of the original matrix (`B = E + R F B`):
 //!    `reciprocity` (the shooting form of the original matrix: nonzero only if `F` is not exactly reciprocal),
@@ -385,15 +390,16 @@ pub struct GroupReport {
     pub default_intensity: [f64; 3],
 }
 
-/// How many patches need run-time state (see the module docs, step 5).
+/// How many patches carry run-time state on the device (see the module docs, step 5).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RuntimeState {
-    /// Patches a dynamic light can reach (including the members).
+    /// Patches a dynamic light can reach (including the members): the table's state count.
     pub reachable: usize,
     /// Patches in the table.
     pub patches: usize,
-    /// Whether the table and core's solver can leave the unreachable patches out (currently no).
-    pub excluded_by_core: bool,
+    /// Entries dropped from the rows of patches with state because their receiver has none (a receiver black
+    /// in every channel: no effect on any radiosity at the baked reflectances).
+    pub entries_to_stateless: usize,
 }
 
 /// Error of the bake on the scene's own lights (see the module docs, step 6).
@@ -497,8 +503,9 @@ impl fmt::Display for BakeReport {
         writeln!(f, "{}", self.table_bytes)?;
         writeln!(
             f,
-            "runtime state      {} of {} patches reachable by a dynamic light (core keeps state for all {})",
-            self.runtime_state.reachable, self.runtime_state.patches, self.runtime_state.patches
+            "runtime state      {} of {} patches (reachable by a dynamic light; the others show the static \
+             base; {} entries to black stateless receivers dropped)",
+            self.runtime_state.reachable, self.runtime_state.patches, self.runtime_state.entries_to_stateless
         )?;
         let line = |name: &str, r: &ErrorReport| {
             format!(
@@ -530,6 +537,8 @@ impl fmt::Display for BakeReport {
 pub struct Capacities {
     /// Patches.
     pub patches: usize,
+    /// Patches with run-time state (the table's state count; the per-patch buffers' length).
+    pub state: usize,
     /// Materials.
     pub materials: usize,
     /// Light groups.
@@ -568,7 +577,8 @@ impl Capacities {
     #[must_use]
     pub fn of_table(table: &Table<'_>, table_bytes: usize) -> Capacities {
         let n = table.patch_count() as usize;
-        let max_row_len = (0..table.patch_count())
+        let slots = table.state_count() as usize;
+        let max_row_len = (0..table.state_count())
             .filter_map(|i| table.row(i))
             .map(|r| (r.end - r.start) as usize)
             .max()
@@ -579,18 +589,19 @@ impl Capacities {
             .sum();
         Capacities {
             patches: n,
+            state: slots,
             materials: table.material_count() as usize,
             groups: table.group_count() as usize,
             members,
             entries: table.entry_count() as usize,
             max_row_len,
-            power: n,
-            unshot: n,
-            incident: n,
-            tree: n,
+            power: slots,
+            unshot: slots,
+            incident: slots,
+            tree: slots,
             intensity: table.group_count() as usize,
             reflectance: table.material_count() as usize,
-            jacobi_scratch: n,
+            jacobi_scratch: slots,
             transfer_out: if table.has_transfer() { n } else { 0 },
             transfer_cost: if table.has_transfer() {
                 radiosity_core::transfer_cost(table) as usize
@@ -604,8 +615,9 @@ impl Capacities {
     /// The capacities as a Rust source file of `pub const NAME: usize = value;` items.
     #[must_use]
     pub fn to_rust(&self) -> String {
-        let items: [(&str, &str, usize); 16] = [
+        let items: [(&str, &str, usize); 17] = [
             ("PATCHES", "Patches in the table.", self.patches),
+            ("STATE_PATCHES", "Patches with run-time state (the per-patch buffers' length).", self.state),
             ("MATERIALS", "Materials.", self.materials),
             ("GROUPS", "Light groups.", self.groups),
             ("MEMBERS", "Light-group members.", self.members),
@@ -729,6 +741,44 @@ pub fn reachable_patches(sparse: &FormFactorMatrix, group: &[Option<usize>], rho
     reached
 }
 
+/// The rows of the patches with run-time state, as core's writer takes them: shooter and receiver indices are
+/// slots (positions in `patch`).
+struct SlotRows {
+    /// Patch of each slot, ascending.
+    patch: Vec<u32>,
+    row_start: Vec<u32>,
+    receiver: Vec<u32>,
+    value: Vec<f64>,
+    /// Entries of rows with state whose receiver has none (dropped).
+    dropped: usize,
+}
+
+impl SlotRows {
+    fn new(ff: &FormFactorMatrix, state: &[bool]) -> SlotRows {
+        let mut slot_of = vec![None; ff.n];
+        let mut patch = Vec::new();
+        for (i, _) in state.iter().enumerate().filter(|(_, &s)| s) {
+            slot_of[i] = Some(patch.len() as u32);
+            patch.push(i as u32);
+        }
+        let mut rows =
+            SlotRows { patch, row_start: vec![0], receiver: Vec::new(), value: Vec::new(), dropped: 0 };
+        for &i in &rows.patch {
+            for (j, f) in ff.row(i as usize) {
+                match slot_of[j] {
+                    Some(r) => {
+                        rows.receiver.push(r);
+                        rows.value.push(f);
+                    }
+                    None => rows.dropped += 1,
+                }
+            }
+            rows.row_start.push(rows.receiver.len() as u32);
+        }
+        rows
+    }
+}
+
 /// Radiosity per patch (W/m^2, RGB).
 type Radiosity = Vec<[f64; 3]>;
 
@@ -777,17 +827,43 @@ pub fn default_method(n: usize) -> Method {
 }
 
 /// Everything the device sees, decoded back from a parsed table into f64: reflectance per patch, emission per
-/// patch with every group at its default intensity, areas and the shooter rows.
+/// patch with every group at its default intensity, areas, the shooter rows (patch-indexed; a patch without
+/// run-time state has an empty row and receives nothing) and the static base.
+///
+/// What the device converges to is [`Decoded::solution`] of the f64 solve of `(rho, shooting form of rows,
+/// rhs)`: with a solved base the device starts from the static base and shoots only the light groups, so
+/// `B = B_base + (I - R F~)^-1 E_dyn`; without one it shoots everything, `B = (I - R F~)^-1 (E_s + E_dyn)`.
 #[derive(Clone, Debug)]
 pub struct Decoded {
     /// Reflectance per patch (decoded codes).
     pub rho: Vec<[f64; 3]>,
     /// Static plus dynamic emission per patch at the table's default intensities (W/m^2).
     pub emission: Vec<[f64; 3]>,
+    /// The right-hand side the device shoots (W/m^2): the dynamic emission with a solved base, else
+    /// [`Decoded::emission`].
+    pub rhs: Vec<[f64; 3]>,
+    /// The static base `E_s + rho G_s` per patch (decoded codes) when the base is solved, else zero.
+    pub base: Vec<[f64; 3]>,
     /// Patch areas (the table's f32 values).
     pub area: Vec<f64>,
-    /// Shooter rows with decoded form factors.
+    /// Shooter rows with decoded form factors, patch-indexed (empty rows for patches without state).
     pub rows: FormFactorMatrix,
+    /// Whether each patch has run-time state.
+    pub state: Vec<bool>,
+}
+
+impl Decoded {
+    /// The device's converged answer from `response`, the f64 solve of `rho`, the shooting form of `rows` and
+    /// `rhs`: `base + response`.
+    #[must_use]
+    pub fn solution(&self, mut response: Vec<[f64; 3]>) -> Vec<[f64; 3]> {
+        for (b, s) in response.iter_mut().zip(&self.base) {
+            for c in 0..3 {
+                b[c] += s[c];
+            }
+        }
+        response
+    }
 }
 
 /// Decodes a parsed table into f64: what the device computes with, for comparison with the f64 reference.
@@ -796,22 +872,35 @@ pub fn decode_table(table: &Table<'_>) -> Decoded {
     use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
     let n = table.patch_count();
     let emission_of = |codes: [u16; 3]| codes.map(|c| f64::from(decode_emission_f32(c)));
+    let solved = table.base_solved();
     let mut d = Decoded {
         rho: Vec::with_capacity(n as usize),
         emission: Vec::with_capacity(n as usize),
+        rhs: Vec::with_capacity(n as usize),
+        base: Vec::with_capacity(n as usize),
         area: Vec::with_capacity(n as usize),
         rows: FormFactorMatrix { n: n as usize, row_start: vec![0], col: Vec::new(), value: Vec::new() },
+        state: Vec::with_capacity(n as usize),
     };
     for i in 0..n {
         let m = table.material(i).unwrap_or(0);
         let r = table.reflectance(m).unwrap_or([0; 3]);
-        d.rho.push(r.map(|c| f64::from(decode_reflectance(c).to_f32())));
-        d.emission.push(emission_of(table.base_emission(i).unwrap_or([0; 3])));
+        let rho = r.map(|c| f64::from(decode_reflectance(c).to_f32()));
+        let e = emission_of(table.base_emission(i).unwrap_or([0; 3]));
+        let g = emission_of(table.base_irradiance(i).unwrap_or([0; 3]));
+        d.rho.push(rho);
+        d.emission.push(e);
+        d.rhs.push(if solved { [0.0; 3] } else { e });
+        d.base.push(if solved { [0, 1, 2].map(|c| e[c] + rho[c] * g[c]) } else { [0.0; 3] });
         d.area.push(f64::from(table.area(i).unwrap_or(0.0)));
-        for k in table.row(i).unwrap_or(0..0) {
-            if let Some((j, f)) = table.entry(i, k) {
-                d.rows.col.push(j);
-                d.rows.value.push(f64::from(f.to_f32()));
+        let slot = table.slot_of(i);
+        d.state.push(slot.is_some());
+        if let Some(slot) = slot {
+            for k in table.row(slot).unwrap_or(0..0) {
+                if let Some((j, f)) = table.entry(slot, k) {
+                    d.rows.col.push(table.slot_patch(j).unwrap_or(0));
+                    d.rows.value.push(f64::from(f.to_f32()));
+                }
             }
         }
         d.rows.row_start.push(d.rows.col.len());
@@ -822,7 +911,9 @@ pub fn decode_table(table: &Table<'_>) -> Decoded {
             if let Some(m) = table.member(k) {
                 let e = emission_of(m.emission);
                 for c in 0..3 {
-                    d.emission[m.patch as usize][c] += f64::from(intensity[c]) * e[c];
+                    let v = f64::from(intensity[c]) * e[c];
+                    d.emission[m.patch as usize][c] += v;
+                    d.rhs[m.patch as usize][c] += v;
                 }
             }
         }
@@ -977,29 +1068,30 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     let transfer_f32: Option<Vec<[f32; 3]>> =
         transfer.as_ref().map(|tv| (0..n).flat_map(|i| tv.t.iter().map(move |t| to_f32x3(t[i]))).collect());
 
+    // 5 (needed by the writer). Reachability: the patches with run-time state, and their rows over slots.
+    let reachable = reachable_patches(&sparse.matrix, &lighting.group, &lighting.rho);
+    let slots = SlotRows::new(&sparse.matrix, &reachable);
+
     // 4. Quantize and write.
     let fingerprint = scene_fingerprint(input.patches);
     let materials: Vec<[f32; 3]> = input.materials.iter().map(|&r| to_f32x3(r)).collect();
-    let row_start: Vec<u32> = sparse.matrix.row_start.iter().map(|&s| s as u32).collect();
-    let form_factor: Vec<f32> = sparse.matrix.value.iter().map(|&f| f as f32).collect();
+    let form_factor: Vec<f32> = slots.value.iter().map(|&f| f as f32).collect();
     let spec = TableSpec {
         patches: &patch_specs,
         materials: &materials,
         groups: &groups,
-        rows: RowsSpec { row_start: &row_start, receiver: &sparse.matrix.col, form_factor: &form_factor },
+        rows: RowsSpec { row_start: &slots.row_start, receiver: &slots.receiver, form_factor: &form_factor },
         codec: options.codec,
         base_solved: true,
         fingerprint,
         transfer: transfer_f32.as_deref(),
+        state: (slots.patch.len() < n).then_some(slots.patch.as_slice()),
     };
     let len = required_len(&spec).map_err(BakeError::Write)?;
     let mut blob = vec![0u8; len];
     let written = write_table(&spec, &mut blob).map_err(BakeError::Write)?;
     blob.truncate(written);
     let table = Table::parse(&blob).map_err(BakeError::Parse)?;
-
-    // 5. Reachability.
-    let reachable = reachable_patches(&sparse.matrix, &lighting.group, &lighting.rho);
 
     // 6. Errors on the scene's own lights.
     let (b_ref, r0) = solve_one("original matrix", &lighting.rho, ff, &e, options)?;
@@ -1020,9 +1112,10 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         "decoded table",
         &dec.rho,
         &shooting_form(&dec.rows, &dec.area),
-        &dec.emission,
+        &dec.rhs,
         &decoded_options,
     )?;
+    let b_dec = dec.solution(b_dec);
     let error = BakeErrors {
         reciprocity: metrics::compare(&b_recip, &b_ref, &area)?,
         sparsify: metrics::compare(&b_sparse, &b_ref, &area)?,
@@ -1066,9 +1159,9 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         base_solved: true,
         static_emitters: lighting.static_emission.iter().filter(|e| e.iter().any(|&v| v > 0.0)).count(),
         runtime_state: RuntimeState {
-            reachable: reachable.iter().filter(|&&r| r).count(),
+            reachable: slots.patch.len(),
             patches: n,
-            excluded_by_core: false,
+            entries_to_stateless: slots.dropped,
         },
         error,
         reference_residual: [res_sparse, r0, r1, r3].into_iter().chain(transfer_residual).fold(0.0, f64::max),

@@ -428,7 +428,7 @@ pub fn check(
     });
     // 4. Quantization.
     let dec = crate::bake::decode_table(&table);
-    let b_dec = answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.emission)?;
+    let b_dec = dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
     components.push(Component {
         name: QUANTIZATION.into(),
         compares: format!("f64, decoded {} table vs sparsified f64 matrix", bake::codec_name(table.codec())),
@@ -494,7 +494,7 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
     })?;
     let answers = SceneAnswers::new(p, options)?;
     let dec = crate::bake::decode_table(&table);
-    let b_dec = answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.emission)?;
+    let b_dec = dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
     let b_full = answers.solve(&p.lighting.rho, &p.form_factors, &answers.e_default)?;
     let components = vec![Component {
         name: TABLE_VS_SCENE.into(),
@@ -747,19 +747,25 @@ pub fn device_converged<S: Scalar>(
 
 /// The area-weighted distance between the table's decoded form factors and the scene's:
 /// `sum_i A_i sum_j |F_table_ij - F_scene_ij| / sum_i A_i s_i` (`s_i` the scene's row sums; rows beyond the
-/// shorter of the two are ignored). See [`match_scene`].
+/// shorter of the two are ignored). Only what the table stores is compared: rows and receivers of patches with
+/// run-time state (core's crate docs, "Run-time state"). See [`match_scene`].
 #[must_use]
 pub fn form_factor_distance(table: &Table<'_>, p: &Prepared) -> f64 {
     let dec = bake::decode_table(table);
     let (mut moved, mut total) = (0.0, 0.0);
     for i in 0..p.patches.len().min(dec.rows.n) {
+        if !dec.state[i] {
+            continue;
+        }
+        let stored = |&(j, _): &(usize, f64)| dec.state.get(j) == Some(&true);
         let mut row: std::collections::BTreeMap<usize, f64> =
-            p.form_factors.row(i).map(|(j, f)| (j, -f)).collect();
+            p.form_factors.row(i).filter(stored).map(|(j, f)| (j, -f)).collect();
+        let scene_sum: f64 = row.values().map(|f| -f).sum();
         for (j, f) in dec.rows.row(i) {
             *row.entry(j).or_insert(0.0) += f;
         }
         moved += p.patches[i].area * row.values().map(|d| d.abs()).sum::<f64>();
-        total += p.patches[i].area * p.form_factors.row_sum(i);
+        total += p.patches[i].area * scene_sum;
     }
     if total > 0.0 {
         moved / total

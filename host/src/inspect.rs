@@ -19,6 +19,9 @@ use crate::bake::codec_name;
 pub struct TableCounts {
     /// Patches `n`.
     pub patches: usize,
+    /// Patches with run-time state `s <= n` (core's crate docs, "Run-time state"): the rows and solver
+    /// buffers are sized by it.
+    pub state: usize,
     /// Materials `m`.
     pub materials: usize,
     /// Light groups `g`.
@@ -46,6 +49,7 @@ impl TableCounts {
             .sum();
         TableCounts {
             patches: n,
+            state: table.state_count() as usize,
             materials: table.material_count() as usize,
             groups: table.group_count() as usize,
             members,
@@ -70,7 +74,9 @@ pub struct SectionBytes {
     pub groups: usize,
     /// Member patches and their unit emission.
     pub members: usize,
-    /// Row starts and row exponents.
+    /// The state map (patch and material per slot); 0 when every patch has state.
+    pub state_map: usize,
+    /// Row starts and row exponents (per patch with state).
     pub rows: usize,
     /// Entry receivers.
     pub entry_receivers: usize,
@@ -94,18 +100,27 @@ impl SectionBytes {
         let materials = c.materials * 6;
         let groups = c.groups * (4 + 12) + (c.groups + 1) * 4;
         let members = c.members * (c.index_bytes + 6);
-        let rows = (c.patches + 1) * 4 + c.patches;
+        let state_map = if c.state < c.patches { c.state * (c.index_bytes + 2) } else { 0 };
+        let rows = (c.state + 1) * 4 + c.state;
         let entry_receivers = c.entries * c.index_bytes;
         let entry_codes = c.entries * c.code_bytes;
         let transfer = if c.transfer { c.groups * 3 + c.patches * c.groups * 6 } else { 0 };
-        let payload =
-            patches + materials + groups + members + rows + entry_receivers + entry_codes + transfer;
+        let payload = patches
+            + materials
+            + groups
+            + members
+            + state_map
+            + rows
+            + entry_receivers
+            + entry_codes
+            + transfer;
         SectionBytes {
             header: total.saturating_sub(payload + 4),
             patches,
             materials,
             groups,
             members,
+            state_map,
             rows,
             entry_receivers,
             entry_codes,
@@ -121,12 +136,13 @@ impl fmt::Display for SectionBytes {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "  header {} | patches {} | materials {} | groups {} | members {} | rows {} | receivers {} | codes {} | transfer {} | crc {}",
+            "  header {} | patches {} | materials {} | groups {} | members {} | state map {} | rows {} | receivers {} | codes {} | transfer {} | crc {}",
             self.header,
             self.patches,
             self.materials,
             self.groups,
             self.members,
+            self.state_map,
             self.rows,
             self.entry_receivers,
             self.entry_codes,
@@ -197,7 +213,7 @@ pub struct InspectReport {
     pub base_solved: bool,
     /// Bytes per section.
     pub bytes: SectionBytes,
-    /// Entries per row.
+    /// Entries per row (rows of patches with state).
     pub row_len: Stats,
     /// Decoded row sums.
     pub row_sum: Stats,
@@ -231,6 +247,13 @@ impl fmt::Display for InspectReport {
         writeln!(f, "table format v{}  crc {:#010x}  valid", self.version, self.crc)?;
         writeln!(f, "fingerprint  {:#018x} (scene and meshing)", self.fingerprint)?;
         writeln!(f, "patches      {} (total area {:.6e})", c.patches, self.total_area)?;
+        writeln!(
+            f,
+            "state        {} of {} patches carry run-time state{}",
+            c.state,
+            c.patches,
+            if c.state < c.patches { " (the others show the static base)" } else { "" }
+        )?;
         writeln!(f, "materials    {}", c.materials)?;
         writeln!(f, "light groups {} ({} members)", c.groups, c.members)?;
         for g in &self.groups {
@@ -327,8 +350,9 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
         Table::parse(bytes).map_err(|error| InspectError::Table { source_name: name.to_string(), error })?;
     let counts = TableCounts::of(&table);
     let n = table.patch_count();
+    let slots = table.state_count();
     let row_lens: Vec<f64> =
-        (0..n).filter_map(|i| table.row(i)).map(|r| f64::from(r.end - r.start)).collect();
+        (0..slots).filter_map(|i| table.row(i)).map(|r| f64::from(r.end - r.start)).collect();
     let groups = (0..table.group_count())
         .map(|g| GroupInfo {
             index: g,
@@ -368,7 +392,7 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
         base_solved: table.base_solved(),
         bytes: bytes_of,
         row_len: Stats::of(row_lens.iter().copied()),
-        row_sum: Stats::of((0..n).filter_map(|i| table.row_sum(i)).map(f64::from)),
+        row_sum: Stats::of((0..slots).filter_map(|i| table.row_sum(i)).map(f64::from)),
         empty_rows: row_lens.iter().filter(|&&l| l == 0.0).count(),
         total_area: (0..n).filter_map(|i| table.area(i)).map(f64::from).sum(),
         static_emitters: (0..n)

@@ -196,7 +196,7 @@ impl Owned {
 }
 
 fn owned_for(table: &Table<'_>) -> Owned {
-    Owned::new(table.patch_count() as usize, table.group_count() as usize, table.material_count() as usize)
+    Owned::new(table.state_count() as usize, table.group_count() as usize, table.material_count() as usize)
 }
 
 #[test]
@@ -531,7 +531,8 @@ fn capacities_size_the_solver_exactly() {
     let rust = cap.to_rust();
     assert!(rust.contains(&format!("pub const PATCHES: usize = {};", cap.patches)), "{rust}");
     assert!(rust.contains(&format!("pub const TREE_LEN: usize = {};", cap.tree)), "{rust}");
-    assert_eq!(rust.matches("pub const ").count(), 16);
+    assert!(rust.contains(&format!("pub const STATE_PATCHES: usize = {};", cap.state)), "{rust}");
+    assert_eq!(rust.matches("pub const ").count(), 17);
     let json = serde_json::to_value(cap).unwrap();
     assert_eq!(json["entries"], cap.entries);
 }
@@ -557,7 +558,22 @@ fn reachability_stops_at_black_patches_and_disconnected_parts() {
     assert_eq!(reach, [true, false, false, true, false]);
     let baked = scene.bake(0.0, FfCodec::FLOAT16);
     assert_eq!(baked.report.runtime_state.reachable, 2);
-    assert!(!baked.report.runtime_state.excluded_by_core);
+    // Row 0's entry to the black patch 1 has no receiver on the device; nothing else is dropped.
+    assert_eq!(baked.report.runtime_state.entries_to_stateless, 1);
+    assert!(baked.report.to_string().contains("runtime state      2 of 5 patches"), "{}", baked.report);
+    // The table keeps state for patches 0 and 3 only, and the firmware buffers are sized by them.
+    let table = Table::parse(&baked.table).unwrap();
+    assert_eq!((table.patch_count(), table.state_count()), (5, 2));
+    assert_eq!([0, 1].map(|s| table.slot_patch(s)), [Some(0), Some(3)]);
+    assert_eq!((baked.capacities.patches, baked.capacities.state, baked.capacities.power), (5, 2, 2));
+    assert_eq!(table.entry_count(), 2);
+    let mut owned = owned_for(&table);
+    let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: 1e-9, overshoot: 0 }).unwrap();
+    while let Outcome::BudgetSpent { .. } = solver.step(&table, 100) {}
+    // Only the lamp and patch 3 light up: the others show their (dark) static base.
+    let b: Vec<f32> = (0..5).map(|i| solver.radiosity(&table, i).unwrap()[0]).collect();
+    assert!(b[0] > 1.0 && b[3] > 0.0, "{b:?}");
+    assert_eq!([b[1], b[2], b[4]], [0.0; 3]);
 }
 
 #[test]

@@ -36,6 +36,7 @@ fn furnace_table(n: usize, rho: f32, e: f32, group: bool) -> Vec<u8> {
         base_solved: false,
         fingerprint: 0,
         transfer: None,
+        state: None,
     };
     let mut blob = vec![0u8; required_len(&spec).expect("furnace spec is valid")];
     let written = write_table(&spec, &mut blob).expect("furnace table writes");
@@ -45,7 +46,7 @@ fn furnace_table(n: usize, rho: f32, e: f32, group: bool) -> Vec<u8> {
 
 /// Converged radiosity of every patch and the work spent, from a cold start on arithmetic `S`.
 fn solve_cold<S: Scalar>(table: &Table<'_>, tolerance: f32, changes: &[[f32; 3]]) -> (Vec<[f64; 3]>, u64) {
-    let n = table.patch_count() as usize;
+    let n = table.state_count() as usize;
     let z = S::from_f32(0.0);
     let (mut p, mut u, mut h) = (vec![[z; 3]; n], vec![[z; 3]; n], vec![[z; 3]; n]);
     let (mut t, mut i, mut r) = (vec![0u32; n], vec![[z; 3]; 1], vec![[0u16; 3]; 1]);
@@ -74,7 +75,7 @@ fn solve_cold<S: Scalar>(table: &Table<'_>, tolerance: f32, changes: &[[f32; 3]]
         solver.set_light(table, 0, c).expect("group 0 exists");
         run(&mut solver);
     }
-    let b = (0..n as u32)
+    let b = (0..table.patch_count())
         .map(|k| solver.radiosity(table, k).expect("patch in range").map(|v| f64::from(v.to_f32())))
         .collect();
     (b, work)

@@ -50,9 +50,10 @@ impl Roofline {
     }
 }
 
-/// One streaming pass: decode every entry and accumulate `p * F` into its receiver.
+/// One streaming pass: decode every entry and accumulate `p * F` into its receiver (`acc` indexed by slot,
+/// the table's state count).
 pub fn stream_pass<S: Scalar>(table: &Table<'_>, power: [S; 3], acc: &mut [[S; 3]]) {
-    for i in 0..table.patch_count() {
+    for i in 0..table.state_count() {
         for k in table.row(i).unwrap_or(0..0) {
             if let Some((j, f)) = table.entry(i, k) {
                 if let Some(a) = acc.get_mut(j as usize) {
@@ -76,7 +77,7 @@ pub fn measure<S: Scalar>(
     tolerance: f64,
     reps: usize,
 ) -> Result<Roofline, BenchError> {
-    let n = table.patch_count() as usize;
+    let n = table.state_count() as usize;
     let entries = u64::from(table.entry_count());
     let reps = reps.max(1);
     let config = Config { tolerance: S::from_f32(tolerance as f32), overshoot: 0 };
