@@ -532,14 +532,8 @@ fn malformed_state_maps_are_named_errors() {
     use TableError as E;
     assert_eq!(corrupt_partial(|_, _| {}), Ok(()));
     // Non-increasing: slot 1's patch set to 1 (= slot 0's), then below it.
-    assert_eq!(
-        corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 1),
-        Err(E::UnsortedStateMap { slot: 1 })
-    );
-    assert_eq!(
-        corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 0),
-        Err(E::UnsortedStateMap { slot: 1 })
-    );
+    assert_eq!(corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 1), Err(E::UnsortedStateMap { slot: 1 }));
+    assert_eq!(corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 0), Err(E::UnsortedStateMap { slot: 1 }));
     assert_eq!(
         corrupt_partial(|b, h| b[h + P_STATE_PATCH + 2] = 4),
         Err(E::IndexOutOfRange { array: IndexArray::StatePatch, position: 1, index: 4, bound: 4 })
@@ -574,7 +568,10 @@ fn writer_rejects_bad_state_lists() {
     assert_eq!(try_write(&s), Err(WriteError::UnsortedState { position: 1 }));
     let mut s = partial();
     s.state = Some(vec![1, 4]);
-    assert_eq!(try_write(&s), Err(WriteError::IndexOutOfRange { what: "state patch", position: 1, index: 4 }));
+    assert_eq!(
+        try_write(&s),
+        Err(WriteError::IndexOutOfRange { what: "state patch", position: 1, index: 4 })
+    );
     let mut s = partial();
     s.state = Some(vec![1, 2]);
     assert_eq!(try_write(&s), Err(WriteError::MemberWithoutState { position: 0, patch: 3 }));

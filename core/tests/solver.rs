@@ -471,7 +471,12 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
             assert_close("static pair vs full", b[i][c], b_full[i][c], S::arith(want[i], 2, 0.8, 1.0) * 2.0);
             // The dynamic pair solves the same system (by hand, up to FLOAT16 and the tolerance).
             let q = 2f32.powi(-11) * want[i] + truncation(2, TOL, 0.8, 1.0);
-            assert_close("dynamic pair", b[i + 2][c], want[i], q + S::arith(want[i], solver.shots(), 0.8, 1.0));
+            assert_close(
+                "dynamic pair",
+                b[i + 2][c],
+                want[i],
+                q + S::arith(want[i], solver.shots(), 0.8, 1.0),
+            );
         }
     }
     assert_eq!(solver.radiosity(&part, 4), None);
@@ -483,12 +488,19 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
     converge(&mut solver, &part, 50, 100_000);
     let b2 = radiosities(&solver, &part);
     assert_eq!(b2[0], b[0]);
-    let rho_q = radiosity_core::codec::decode_reflectance(radiosity_core::codec::encode_reflectance(0.4)).to_f32();
+    let rho_q =
+        radiosity_core::codec::decode_reflectance(radiosity_core::codec::encode_reflectance(0.4)).to_f32();
     let g1 = 0.2 / 0.968;
-    assert_close("stateless after an edit", b2[1][0], rho_q * g1, 2f32.powi(-11) * g1 + S::arith(g1, 1, 0.8, 1.0));
+    assert_close(
+        "stateless after an edit",
+        b2[1][0],
+        rho_q * g1,
+        2f32.powi(-11) * g1 + S::arith(g1, 1, 0.8, 1.0),
+    );
     // Dynamic pair at intensity 2 with rho_1 = 0.4: B_2 = 2 / (1 - 0.5 * 0.4 * 0.4 * 0.2) = 2 / 0.984.
     let want2 = 2.0 / 0.984;
-    let tol = 2f32.powi(-10) * want2 + truncation(2, TOL, 0.8, 1.0) + S::arith(want2, solver.shots() + 8, 0.8, 1.0);
+    let tol =
+        2f32.powi(-10) * want2 + truncation(2, TOL, 0.8, 1.0) + S::arith(want2, solver.shots() + 8, 0.8, 1.0);
     assert_close("dynamic pair relit", b2[2][0], want2, tol);
 }
 

@@ -441,8 +441,11 @@ pub struct BakeReport {
     pub threshold: f64,
     /// Nonzero form factors before sparsification.
     pub nonzeros_before: usize,
-    /// Nonzero form factors after sparsification (table entries).
+    /// Nonzero form factors after sparsification.
     pub nonzeros_after: usize,
+    /// Entries stored in the table: the sparsified rows of the patches with run-time state, without their
+    /// entries to receivers without state (equal to `nonzeros_after` when every patch has state).
+    pub table_entries: usize,
     /// Energy dropped by sparsification.
     pub energy_dropped: EnergyDropped,
     /// Codec name ([`codec_name`]).
@@ -485,8 +488,8 @@ impl fmt::Display for BakeReport {
         writeln!(f, "static emitters    {} patches (folded into the solved base)", self.static_emitters)?;
         writeln!(
             f,
-            "form factors       {} -> {} nonzeros (threshold {})",
-            self.nonzeros_before, self.nonzeros_after, self.threshold
+            "form factors       {} -> {} nonzeros (threshold {}), {} stored (rows of patches with state)",
+            self.nonzeros_before, self.nonzeros_after, self.threshold, self.table_entries
         )?;
         writeln!(
             f,
@@ -1151,10 +1154,15 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         threshold: options.threshold,
         nonzeros_before: ff.nonzeros(),
         nonzeros_after: nnz,
+        table_entries: slots.receiver.len(),
         energy_dropped,
         codec: codec_name(options.codec),
         ff_bits: options.codec.bits,
-        bytes_per_entry: if nnz == 0 { 0.0 } else { blob.len() as f64 / nnz as f64 },
+        bytes_per_entry: if slots.receiver.is_empty() {
+            0.0
+        } else {
+            blob.len() as f64 / slots.receiver.len() as f64
+        },
         table_bytes,
         base_solved: true,
         static_emitters: lighting.static_emission.iter().filter(|e| e.iter().any(|&v| v > 0.0)).count(),

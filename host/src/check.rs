@@ -428,7 +428,8 @@ pub fn check(
     });
     // 4. Quantization.
     let dec = crate::bake::decode_table(&table);
-    let b_dec = dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
+    let b_dec =
+        dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
     components.push(Component {
         name: QUANTIZATION.into(),
         compares: format!("f64, decoded {} table vs sparsified f64 matrix", bake::codec_name(table.codec())),
@@ -494,7 +495,8 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
     })?;
     let answers = SceneAnswers::new(p, options)?;
     let dec = crate::bake::decode_table(&table);
-    let b_dec = dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
+    let b_dec =
+        dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
     let b_full = answers.solve(&p.lighting.rho, &p.form_factors, &answers.e_default)?;
     let components = vec![Component {
         name: TABLE_VS_SCENE.into(),
