@@ -131,8 +131,9 @@
 //! row visit or patch visit of a sweep. Each is a small constant number of instructions on any platform, so
 //! instructions are linear in units. The counts do not depend on the platform or the arithmetic path.
 //! - Shooting ([`Solver::step`]): selection is the root of a tournament tree (a max-tree over the slots'
-//!   unshot magnitudes `|r| + |g| + |b|`, in the caller's `tree` buffer, ties to the lower slot). Below, `n` is
-//!   the state count `s` (every patch count here counts slots only). Rebuilding it costs `n - 1` units (done inside step budgets, resumable). A shot costs 1 unit plus the shooter's
+//!   unshot magnitudes `|r| + |g| + |b|`, in the caller's `tree` buffer, ties to the lower slot). Here and in
+//!   the sweeps, `n` and "patch" count the patches with run-time state only (the state count `s`). Rebuilding
+//!   the tree costs `n - 1` units (done inside step budgets, resumable). A shot costs 1 unit plus the shooter's
 //!   leaf-to-root path; each entry costs 1 unit plus the receiver's path, stopping early where the winner does
 //!   not change; a path is at most `depth = floor(log2(2n - 1))` nodes. An action starts only if its worst case
 //!   fits in what is left of the budget, and a shot longer than the budget is split: the next step resumes the
