@@ -29,9 +29,11 @@
 //! the table is matched to the scene first ([`match_scene`]); see there which components it can separate.
 //!
 //! The shooting form (`F~_ij = A_j F_ji / A_i`, [`bake::shooting_form`]) is what shooting with stored rows
-//! converges to, so the sparsification and quantization components use it on both sides. The arithmetic
-//! component also holds the quantization of the static irradiance the bake stores (emission code, `2^-11`
-//! relative) and the solver's stopping tolerance. "Converged" means [`radiosity_core::Outcome::Converged`] at
+//! converges to, so the sparsification and quantization components use it on both sides. The "f64 solve of the
+//! decoded table" is what the device converges to ([`bake::Decoded::solution`]): with a solved static base, the
+//! decoded base `E_s + rho G_s` (its codes: emission code `2^-11` relative) plus the f64 response to the light
+//! groups on the decoded rows, so patches without run-time state get their base. The arithmetic component also
+//! holds the solver's stopping tolerance. "Converged" means [`radiosity_core::Outcome::Converged`] at
 //! the tolerance [`CheckOptions::tolerance`] times the largest per-channel emitted power.
 
 use std::fmt;
