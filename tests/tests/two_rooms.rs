@@ -6,7 +6,7 @@
 use std::path::PathBuf;
 
 use radiosity_core::{Buffers, Config, Outcome, Solver, Table};
-use radiosity_host::bake::{bake, shooting_form, BakeInput, BakeOptions};
+use radiosity_host::bake::{bake, decode_table, shooting_form, BakeInput, BakeOptions};
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{DenseLu, RadiositySystem};
@@ -138,6 +138,25 @@ fn only_the_dynamically_lit_room_carries_state() {
         // Room B is lit (by the static light) and room A only by the lamp: both rooms show their light.
         assert!(b_ref[i][0] > 0.0, "patch {i} unlit");
     }
+    // Against the f64 solve of the decoded table itself (what the device converges to: room B's decoded base,
+    // room A's response to the lamp on the decoded rows) only the stopping rule and f32 accumulation remain.
+    let dec = decode_table(&table);
+    let dec_shoot = shooting_form(&dec.rows, &dec.area);
+    let dec_system =
+        RadiositySystem::with_row_sum_tolerance(&dec.rho, &dec_shoot, 1e-3).expect("decoded system");
+    let b_dec = dec.solution(DenseLu::factor(dec_system).expect("factor").solve(&dec.rhs).expect("solve").b);
+    let bound_arith = room_a as f64 * tolerance / ((1.0 - rho_max) * a_min)
+        + 1.5 * eps32 * (shots + 1.0 / (1.0 - rho_max)) * b_max;
+    let mut worst_dec = 0.0f64;
+    for i in 0..n {
+        let b = solver.radiosity(&table, i as u32).expect("radiosity");
+        for c in 0..3 {
+            let err = (f64::from(b[c]) - b_dec[i][c]).abs();
+            worst_dec = worst_dec.max(err / bound_arith);
+            assert!(err <= bound_arith, "patch {i} channel {c}: f32 {} vs decoded f64 {}", b[c], b_dec[i][c]);
+        }
+    }
+    println!("vs the decoded table: bound {bound_arith:.3e}, worst error {worst_dec:.3} of it");
     println!(
         "room A bound {bound_a:.3e} (B_max {b_max:.3e}, {shots} shots): worst error {worst_a:.3} of it; \
          room B: worst error {worst_b:.3} of its per-patch bound"
