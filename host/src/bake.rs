@@ -176,6 +176,29 @@ pub enum BakeError {
         /// The solver's error.
         source: ReferenceError,
     },
+    /// The codec is too coarse for this scene: a patch's decoded incoming form factors (the shooting form
+    /// `A_j F_ji / A_i` of the stored sender rows) sum to far more than 1, because each code step of a sender's
+    /// row is multiplied by the sender's area over the receiver's.
+    #[error(
+        "{bits}-bit form-factor codes are too coarse for this scene: the incoming form factors of patch {patch} \
+         (area {area:.3e}) decode to a sum of {sum:.3} (physical: at most 1 + {tolerance:.2e}); \
+         senders up to {ratio:.0} times its area multiply each code step by that ratio. Use --bits 16, or mesh \
+         so that small patches do not border much larger ones"
+    )]
+    CodecTooCoarse {
+        /// Bits per form-factor code.
+        bits: u8,
+        /// The receiving patch.
+        patch: usize,
+        /// Its area.
+        area: f64,
+        /// Its decoded incoming row sum.
+        sum: f64,
+        /// The tolerance it exceeds.
+        tolerance: f64,
+        /// Largest sender area over its area, among its stored senders.
+        ratio: f64,
+    },
     /// Core's writer rejected the table.
     #[error("writing the table: {0}")]
     Write(radiosity_core::WriteError),
@@ -1111,13 +1134,25 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
             + 2f64.powi(-mantissa_bits) * (1.0 + options.row_sum_tolerance),
         ..*options
     };
-    let (b_dec, r3) = solve_one(
-        "decoded table",
-        &dec.rho,
-        &shooting_form(&dec.rows, &dec.area),
-        &dec.rhs,
-        &decoded_options,
-    )?;
+    let decoded_gather = shooting_form(&dec.rows, &dec.area);
+    let (b_dec, r3) = solve_one("decoded table", &dec.rho, &decoded_gather, &dec.rhs, &decoded_options)
+        .map_err(|err| match err {
+            BakeError::Reference {
+                source: ReferenceError::RowSumTooLarge { row, sum, tolerance }, ..
+            } => {
+                let ratio =
+                    decoded_gather.row(row).map(|(j, _)| dec.area[j] / dec.area[row]).fold(0.0, f64::max);
+                BakeError::CodecTooCoarse {
+                    bits: options.codec.bits,
+                    patch: row,
+                    area: dec.area[row],
+                    sum,
+                    tolerance,
+                    ratio,
+                }
+            }
+            other => other,
+        })?;
     let b_dec = dec.solution(b_dec);
     let error = BakeErrors {
         reciprocity: metrics::compare(&b_recip, &b_ref, &area)?,

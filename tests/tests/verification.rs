@@ -252,6 +252,23 @@ fn slivers_close_and_match_the_closed_form() {
     }
 }
 
+/// 8-bit codes on the slab: each sliver receives from the floor and ceiling (1000 times its area), so a code
+/// step of theirs is multiplied by 1000 in the sliver's incoming row; the bake refuses the table and says why
+/// (the area ratio, the patch, what to do), where 16-bit codes bake it.
+#[test]
+fn coarse_codec_is_refused_with_the_reason() {
+    let p = prepare(&scene("slab.obj"), &options(true, 16, 16)).expect("prepare");
+    let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
+    let Err(err) = bake(&input, &BakeOptions { codec: FfCodec::FLOAT8, ..BakeOptions::default() }) else {
+        panic!("an 8-bit slab table must be refused");
+    };
+    let msg = err.to_string();
+    println!("{msg}");
+    assert!(msg.contains("8-bit form-factor codes are too coarse"), "{msg}");
+    assert!(msg.contains("1000 times its area") && msg.contains("--bits 16"), "{msg}");
+    bake(&input, &BakeOptions { codec: FfCodec::FLOAT16, ..BakeOptions::default() }).expect("16-bit bake");
+}
+
 /// An open scene (two facing squares; energy escapes): the decoded table keeps the f64 estimator's row sums
 /// (about 0.2, never renormalized toward 1), and the device answer matches the f64 one within the sum of the
 /// error components.
