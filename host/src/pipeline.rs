@@ -38,6 +38,26 @@ pub struct PrepareOptions {
     pub verbose: bool,
 }
 
+impl PrepareOptions {
+    /// Quiet settings (no progress bar, no stage summaries) with the scene's own meshing limits and the given
+    /// estimator sample counts: what tests and batch tools use.
+    #[must_use]
+    pub fn quiet(no_subdivide: bool, samples_per_patch: usize, rays_per_pair: usize) -> PrepareOptions {
+        PrepareOptions {
+            no_subdivide,
+            max_patch_edge: None,
+            max_patches: None,
+            form_factors: FormFactorOptions {
+                samples_per_patch,
+                rays_per_pair,
+                progress: false,
+                ..FormFactorOptions::default()
+            },
+            verbose: false,
+        }
+    }
+}
+
 /// A scene meshed into patches, with its form factors and per-patch lighting attributes.
 #[derive(Clone, Debug)]
 pub struct Prepared {

@@ -9,7 +9,6 @@ use radiosity_host::check::{
     check, check_table, form_factor_distance, CheckError, CheckOptions, CheckReport, QUANTIZATION,
     RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE, WRONG_SCENE_FRACTION,
 };
-use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::mesh::{mesh, MeshOptions};
 use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
 use radiosity_host::regress::{self, CheckSelection};
@@ -21,19 +20,9 @@ fn scene(name: &str) -> PathBuf {
 
 /// Small, fast settings: the scene's default meshing, 4 samples and 4 rays per pair.
 fn options(seed: u64) -> PrepareOptions {
-    PrepareOptions {
-        no_subdivide: false,
-        max_patch_edge: None,
-        max_patches: None,
-        form_factors: FormFactorOptions {
-            samples_per_patch: 4,
-            rays_per_pair: 4,
-            seed,
-            progress: false,
-            ..FormFactorOptions::default()
-        },
-        verbose: false,
-    }
+    let mut options = PrepareOptions::quiet(false, 4, 4);
+    options.form_factors.seed = seed;
+    options
 }
 
 fn component(r: &CheckReport, name: &str) -> f64 {

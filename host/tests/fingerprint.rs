@@ -5,25 +5,13 @@ use std::path::Path;
 
 use radiosity_core::Table;
 use radiosity_host::bake::{bake, scene_fingerprint, BakeInput, BakeOptions};
-use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::inspect::inspect;
 use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
 
 /// The Cornell box with one patch per face (fast; the fingerprint does not depend on accuracy).
 fn cornell_faces() -> Prepared {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
-    let options = PrepareOptions {
-        no_subdivide: true,
-        max_patch_edge: None,
-        max_patches: None,
-        form_factors: FormFactorOptions {
-            samples_per_patch: 4,
-            rays_per_pair: 4,
-            progress: false,
-            ..FormFactorOptions::default()
-        },
-        verbose: false,
-    };
+    let options = PrepareOptions::quiet(true, 4, 4);
     prepare(&path, &options).unwrap()
 }
 

@@ -76,20 +76,8 @@ fn cortex_m4_fixed_point_matches_host_bit_for_bit() {
 #[test]
 fn cortex_m4_f32_partial_state_table_matches_host() {
     use radiosity_host::bake::{bake, BakeInput, BakeOptions};
-    use radiosity_host::formfactor::FormFactorOptions;
     use radiosity_host::pipeline::{prepare, PrepareOptions};
-    let options = PrepareOptions {
-        no_subdivide: false,
-        max_patch_edge: None,
-        max_patches: None,
-        form_factors: FormFactorOptions {
-            samples_per_patch: 4,
-            rays_per_pair: 4,
-            progress: false,
-            ..FormFactorOptions::default()
-        },
-        verbose: false,
-    };
+    let options = PrepareOptions::quiet(false, 4, 4);
     let p = prepare(&root().join("scenes/two-rooms.obj"), &options).unwrap();
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
     let baked = bake(&input, &BakeOptions::default()).unwrap();

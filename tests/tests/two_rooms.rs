@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use radiosity_core::{Buffers, Config, Outcome, Solver, Table};
 use radiosity_host::bake::{bake, decode_table, shooting_form, BakeInput, BakeOptions};
-use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{DenseLu, RadiositySystem};
 
@@ -17,18 +16,7 @@ const ROOM_A_FACES: usize = 10;
 #[test]
 fn only_the_dynamically_lit_room_carries_state() {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/two-rooms.obj");
-    let options = PrepareOptions {
-        no_subdivide: false,
-        max_patch_edge: None,
-        max_patches: None,
-        form_factors: FormFactorOptions {
-            samples_per_patch: 4,
-            rays_per_pair: 4,
-            progress: false,
-            ..FormFactorOptions::default()
-        },
-        verbose: false,
-    };
+    let options = PrepareOptions::quiet(false, 4, 4);
     let p = prepare(&path, &options).expect("prepare two-rooms");
     let n = p.patches.len();
     let room_a = p.patches.iter().filter(|q| q.face < ROOM_A_FACES).count();

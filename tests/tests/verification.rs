@@ -9,7 +9,6 @@ use std::path::PathBuf;
 use radiosity_core::{FfCodec, Fixed, Scalar, Table};
 use radiosity_host::bake::{bake, decode_table, BakeInput, BakeOptions, DEFAULT_ROW_SUM_TOLERANCE};
 use radiosity_host::check::{check, device_converged, CheckOptions, Radiosity};
-use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
 use radiosity_host::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem};
 
@@ -18,18 +17,7 @@ fn scene(name: &str) -> PathBuf {
 }
 
 fn options(no_subdivide: bool, samples: usize, rays: usize) -> PrepareOptions {
-    PrepareOptions {
-        no_subdivide,
-        max_patch_edge: None,
-        max_patches: None,
-        form_factors: FormFactorOptions {
-            samples_per_patch: samples,
-            rays_per_pair: rays,
-            progress: false,
-            ..FormFactorOptions::default()
-        },
-        verbose: false,
-    }
+    PrepareOptions::quiet(no_subdivide, samples, rays)
 }
 
 /// Exact f64 radiosity of the scene's own matrix at its default intensities.
