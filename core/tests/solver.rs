@@ -650,23 +650,40 @@ fn random_scene() -> impl Strategy<Value = Scene> {
                 proptest::collection::vec(proptest::collection::vec(0.0f32..1.0, n), n),
                 proptest::collection::vec(0.2f32..1.0, n),
                 proptest::collection::vec(0usize..n, 1..4),
+                proptest::collection::vec(any::<bool>(), n),
             )
         })
-        .prop_map(|(n, areas, weights, sums, members)| {
+        .prop_map(|(n, areas, weights, sums, members, stateful)| {
             let mut s = Scene::new(n);
             s.materials = vec![[0.5, 0.7, 0.3], [0.9, 0.2, 0.6]];
-            for i in 0..n {
-                s.patches[i].area = areas[i];
-                s.patches[i].material = (i % 2) as u32;
-                // Sparse: weights below 0.4 are dropped; the rest scaled to the row's sum.
+            // Run-time state for the group members and a random subset of the rest; the others (when there are
+            // any) show a solved static base, and rows and receivers are by slot.
+            let slots: Vec<usize> = (0..n).filter(|&i| stateful[i] || members.contains(&i)).collect();
+            let slot_of = |i: usize| slots.iter().position(|&p| p == i);
+            if slots.len() < n {
+                s.base_solved = true;
+                s.state = Some(slots.iter().map(|&p| p as u32).collect());
+                s.rows = vec![Vec::new(); slots.len()];
+            }
+            for (i, (patch, &area)) in s.patches.iter_mut().zip(&areas).enumerate() {
+                patch.area = area;
+                patch.material = (i % 2) as u32;
+                if slot_of(i).is_none() {
+                    patch.base_emission = [0.3, 0.1, 0.2];
+                    patch.base_irradiance = [0.2; 3];
+                }
+            }
+            for (k, &i) in slots.iter().enumerate() {
+                // Sparse: weights below 0.4 are dropped (and receivers without state); the rest scaled to the
+                // row's sum.
                 let kept: Vec<(u32, f32)> = weights[i]
                     .iter()
                     .enumerate()
                     .filter(|(_, &w)| w >= 0.4)
-                    .map(|(j, &w)| (j as u32, w))
+                    .filter_map(|(j, &w)| slot_of(j).map(|slot| (slot as u32, w)))
                     .collect();
                 let total: f32 = kept.iter().map(|x| x.1).sum();
-                s.rows[i] = kept.into_iter().map(|(j, w)| (j, w / total * sums[i] * 0.999)).collect();
+                s.rows[k] = kept.into_iter().map(|(j, w)| (j, w / total * sums[i] * 0.999)).collect();
             }
             s.groups = vec![
                 (1, [1.0; 3], vec![MemberSpec { patch: members[0] as u32, emission: [1.0, 2.0, 0.5] }]),
