@@ -287,6 +287,7 @@ pub fn estimate_form_factors(
     let order = (options.samples_per_patch as f64).sqrt().round().max(1.0) as usize;
     let rule = gauss_legendre(order);
     let quadratures: Vec<Quadrature> = patches.iter().map(|p| Quadrature::new(&p.vertices, &rule)).collect();
+    let receivers: Vec<Receiver> = patches.iter().map(Receiver::new).collect();
 
     let progress = if options.progress && std::io::stderr().is_terminal() {
         let bar = ProgressBar::new(2 * patches.len() as u64);
@@ -303,6 +304,7 @@ pub fn estimate_form_factors(
         patches,
         samplers: &samplers,
         quadratures: &quadratures,
+        receivers: &receivers,
         rule: &rule,
         scene: &scene,
         options,
@@ -761,6 +763,8 @@ struct RowContext<'a> {
     patches: &'a [Patch],
     samplers: &'a [PolygonSampler],
     quadratures: &'a [Quadrature],
+    /// Each patch as a receiver of the near-field quadrature.
+    receivers: &'a [Receiver<'a>],
     rule: &'a [(f64, f64)],
     scene: &'a TriangleScene,
     options: &'a FormFactorOptions,
@@ -861,10 +865,9 @@ impl RowContext<'_> {
             } else {
                 &patch_i.vertices
             };
-            let receiver = Receiver::new(patch_j);
-            let u: f64 = if near(domain, receiver.center, receiver.radius)
-                && sliver_strips(domain, &mut strips)
-            {
+            let receiver = &self.receivers[j];
+            let is_near = near(domain, receiver.center, receiver.radius);
+            let u: f64 = if is_near && sliver_strips(domain, &mut strips) {
                 // Near field of a sliver sender: the kernel varies on the scale of the sliver's width (its points
                 // are that close to j) along its whole length, and near j's edges along it too; integrate over
                 // short pieces of it.
@@ -873,7 +876,7 @@ impl RowContext<'_> {
                     .map(|piece| {
                         near_field_integral(
                             piece,
-                            &receiver,
+                            receiver,
                             self.rule,
                             patch_i.normal,
                             0,
@@ -883,12 +886,12 @@ impl RowContext<'_> {
                     })
                     .sum::<f64>()
                     / patch_i.area
-            } else if near(domain, receiver.center, receiver.radius) {
+            } else if is_near {
                 // Near field: j is closer to (part of) i than i's own size, so the kernel varies on a scale the
                 // fixed rule cannot resolve; split the domain towards j.
                 near_field_integral(
                     domain,
-                    &receiver,
+                    receiver,
                     self.rule,
                     patch_i.normal,
                     NEAR_FIELD_MAX_DEPTH,
@@ -1028,7 +1031,7 @@ fn near(domain: &[DVec3], center: DVec3, radius: f64) -> bool {
 /// beyond [`NEAR_FIELD_MAX_DEPTH`]: pieces down to `2^-(NEAR_FIELD_MAX_DEPTH + SLIVER_DEPTH)` of the sender's size.
 pub const SLIVER_DEPTH: usize = 10;
 
-/// If `polygon` is a sliver quadrilateral (`2 A / P`, its width, below an eighth of its bounding radius), cuts it
+/// If `polygon` is a sliver quadrilateral ([`sliver_width`]), cuts it
 /// across its length into pieces about twice as long as it is wide (at most `2^SLIVER_DEPTH`), writes them to
 /// `pieces` and returns true; returns false for anything else.
 fn sliver_strips(polygon: &[DVec3], pieces: &mut Vec<Vec<DVec3>>) -> bool {
@@ -1036,13 +1039,7 @@ fn sliver_strips(polygon: &[DVec3], pieces: &mut Vec<Vec<DVec3>>) -> bool {
         &[a, b, c, d] => [a, b, c, d],
         _ => return false,
     };
-    let area = polygon_area(polygon);
-    let perimeter = a.distance(b) + b.distance(c) + c.distance(d) + d.distance(a);
-    let width = 2.0 * area / perimeter;
-    let (_, radius) = bounding_sphere(polygon);
-    if !(width > 0.0 && width < radius / 8.0) {
-        return false;
-    }
+    let Some(width) = sliver_width(polygon) else { return false };
     // The long sides: a -> b with d -> c, or b -> c with a -> d.
     let (p0, p1, q0, q1) = if a.distance(b) + d.distance(c) >= b.distance(c) + a.distance(d) {
         (a, b, d, c)
@@ -1070,22 +1067,25 @@ struct Receiver<'a> {
     radius: f64,
     vertices: &'a [DVec3],
     normal: DVec3,
-    /// `2 A / P` (area over half the perimeter: the width of a long strip) if that is less than an eighth of the
-    /// bounding radius, i.e. the receiver is a sliver (a strip longer than 16 times its width); `None` otherwise.
+    /// Its width if it is a sliver ([`sliver_width`]).
     sliver_width: Option<f64>,
+}
+
+/// `2 A / P` of a polygon (area over half the perimeter: the width of a long strip) if that is positive and less
+/// than an eighth of its bounding radius, i.e. the polygon is a sliver (a strip longer than about 16 times its
+/// width); `None` otherwise.
+fn sliver_width(polygon: &[DVec3]) -> Option<f64> {
+    let perimeter: f64 =
+        polygon.iter().zip(polygon.iter().cycle().skip(1)).map(|(a, b)| a.distance(*b)).sum();
+    let width = 2.0 * polygon_area(polygon) / perimeter;
+    let (_, radius) = bounding_sphere(polygon);
+    (width > 0.0 && width < radius / 8.0).then_some(width)
 }
 
 impl<'a> Receiver<'a> {
     fn new(patch: &'a Patch) -> Self {
         let (center, radius) = bounding_sphere(&patch.vertices);
-        let perimeter: f64 = patch
-            .vertices
-            .iter()
-            .zip(patch.vertices.iter().cycle().skip(1))
-            .map(|(a, b)| a.distance(*b))
-            .sum();
-        let width = 2.0 * patch.area / perimeter;
-        let sliver_width = (width < radius / 8.0).then_some(width);
+        let sliver_width = sliver_width(&patch.vertices);
         Receiver { center, radius, vertices: &patch.vertices, normal: patch.normal, sliver_width }
     }
 
