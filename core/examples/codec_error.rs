@@ -160,7 +160,7 @@ fn main() {
         let mut power = vec![[0.0f32; 3]; n];
         let mut unshot = vec![[0.0f32; 3]; n];
         let mut incident = vec![[0.0f32; 3]; n];
-        let mut tree = vec![0u32; n];
+        let mut tree = vec![0u32; radiosity_core::selection_len(n as u32) as usize];
         let mut reflectance = vec![[0u16; 3]; 1];
         let buffers = Buffers {
             power: &mut power,

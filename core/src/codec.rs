@@ -65,6 +65,7 @@ impl Frac {
 
     /// The value as f32 (exact for every code this crate decodes).
     #[must_use]
+    #[inline]
     pub fn to_f32(self) -> f32 {
         self.mantissa as f32 * pow2_f32(-(self.shift as i32))
     }
@@ -152,6 +153,7 @@ impl FfCodec {
     /// Decodes `code` in a row with exponent `row_exponent` (assumes [`FfCodec::check`] passed; codes above
     /// [`FfCodec::max_code`] are clamped).
     #[must_use]
+    #[inline]
     pub fn decode(self, code: u16, row_exponent: u8) -> Frac {
         let code = u32::from(code.min(self.max_code()));
         let m_bits = self.mantissa_bits().min(16);

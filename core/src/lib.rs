@@ -47,7 +47,7 @@
 //! Patches that no dynamic light can reach carry no run-time state. A table lists the patches that do, its
 //! **slots**: `state_count` (`s <= n`) patches, slot `k` being the `k`-th of them in ascending patch order
 //! ([`Table::slot_patch`], [`Table::slot_of`]). Only slots have form-factor rows, entries name receiver
-//! *slots*, and the solver's buffers and selection tree are sized by `s`: the shooting loop indexes them by
+//! *slots*, and the solver's buffers and selection are sized by `s`: the shooting loop indexes them by
 //! slot directly, with the slot's material read from a slot-ordered section (no map lookup per entry). A patch
 //! without state shows its static base `E_s + rho G_s` ([`static_radiosity`]), so leaving patches out requires
 //! a solved base (`base_solved`); the writer refuses otherwise ([`WriteError::StateNeedsSolvedBase`]) and a
@@ -127,21 +127,26 @@
 //!
 //! # Cost model: work units
 //! A work unit is one of: one form-factor entry applied (decode, three multiply-adds into power, unshot and
-//! incident power), one tournament-tree node recomputed (one comparison of two unshot-power magnitudes), one
-//! row visit or patch visit of a sweep. Each is a small constant number of instructions on any platform, so
-//! instructions are linear in units. The counts do not depend on the platform or the arithmetic path.
-//! - Shooting ([`Solver::step`]): selection is the root of a tournament tree (a max-tree over the slots'
-//!   unshot magnitudes `|r| + |g| + |b|`, in the caller's `tree` buffer, ties to the lower slot). Here and in
-//!   the sweeps, `n` and "patch" count the patches with run-time state only (the state count `s`). Rebuilding
-//!   the tree costs `n - 1` units (done inside step budgets, resumable). A shot costs 1 unit plus the shooter's
-//!   leaf-to-root path; each entry costs 1 unit plus the receiver's path, stopping early where the winner does
-//!   not change; a path is at most `depth = floor(log2(2n - 1))` nodes. An action starts only if its worst case
-//!   fits in what is left of the budget, and a shot longer than the budget is split: the next step resumes the
-//!   row where it stopped. So a step never spends more than its budget.
+//! incident power, and for shooting the comparison of the receiver's unshot magnitude with its block's winner),
+//! one slot scanned when a selection block is rebuilt, one block winner scanned when selecting, one row visit or
+//! patch visit of a sweep. Each is a small constant number of instructions on any platform, so instructions
+//! are linear in units. The counts do not depend on the platform or the arithmetic path.
+//! - Shooting ([`Solver::step`]): the shooter is the slot with the largest unshot magnitude `|r| + |g| + |b|`
+//!   (ties to the lower slot). Here and in the sweeps, `n` and "patch" count the patches with run-time state
+//!   only (the state count `s`). The slots are cut into blocks of `B` consecutive slots (`B` the power of two
+//!   at or above `sqrt(n)`), and the caller's `tree` buffer ([`selection_len`] entries) holds each block's
+//!   winner. Building it costs `n` units (inside step budgets, resumable block by block); a selection scans the
+//!   `ceil(n / B)` winners; a shot costs 1 unit plus a rescan of the shooter's block (`<= B`); each entry costs
+//!   1 unit, plus a rescan of its block when the receiver was the block's winner and moved towards zero in some
+//!   channel (only possible with overshooting or after a light was dimmed). So about `2 sqrt(n)` units per
+//!   shot and 1 per entry: receivers are increasing within a row, and the block winner being compared stays
+//!   in registers while the row stays in its block. An action starts only if its worst case (an entry with a
+//!   rescan: `B + 1`) fits in what is left of the budget, and a shot longer than the budget is split: the next
+//!   step resumes the row where it stopped. So a step never spends more than its budget.
 //! - Gauss-Seidel and Jacobi sweeps: 1 unit per row visit, 1 per entry, 1 per patch in the end-of-sweep scan
 //!   (plus 1 per patch to clear Jacobi's scratch buffer).
 //! - Outside the budget, reported as return values where they depend on the scene: [`Solver::set_light`]
-//!   (members plus their paths), [`Solver::set_reflectance`] (slots scanned plus paths); and
+//!   (members plus block rescans), [`Solver::set_reflectance`] (slots scanned plus block rescans); and
 //!   [`Solver::new`], [`Solver::reset`], [`Solver::ambient`], which are `O(patches + members)`.
 //! - Transfer relight ([`relight_transfer`]): `patches x (groups + 1)` units, outside any budget, not
 //!   resumable (its cost is known from the counts).
@@ -161,28 +166,30 @@
 //!   [`scalar`] for the fixed-point convergence condition on the tolerance.
 //!
 //! Solver cost and arithmetic error, measured on a closed cube of 6 x 6 x 6 patches, 38880 entries, rho 0.8,
-//! one light, FLOAT16, tolerance `1e-6` of the emitted power (`cargo run --release -p radiosity-core --example
-//! methods`; error: relative L2 of `B` against a solve to `1e-9`):
+//! one light, FLOAT16, tolerance `1e-6` of the emitted power, raised for fixed point to its convergence floor
+//! (`cargo run --release -p radiosity-core --example methods`; error: relative L2 of `B` against a solve to
+//! `1e-9`):
 //!
-//! | method | path | work units | rows shot | rel. L2 error |
-//! |---|---|---|---|---|
-//! | shooting | f32 | 2760817 | 5021 | 5.68e-6 |
-//! | shooting | fixed | 2924759 | 5319 | 6.43e-5 |
-//! | shooting, overshoot 1.25 | f32 | 1405453 | 2555 | 5.21e-6 |
-//! | shooting, overshoot 1.25 | fixed | 1539983 | 2799 | 3.15e-5 |
-//! | Gauss-Seidel | f32 | 982800 | 5400 | 3.45e-6 |
-//! | Gauss-Seidel | fixed | 1022112 | 5616 | 6.47e-5 |
-//! | Jacobi | f32 | 1739232 | 9504 | 1.60e-5 |
-//! | Jacobi | fixed | 1818288 | 9936 | 1.36e-4 |
+//! | method | path | tolerance / emitted | work units | rows shot | rel. L2 error |
+//! |---|---|---|---|---|---|
+//! | shooting | f32 | 1.0e-6 | 1058181 | 5021 | 5.68e-6 |
+//! | shooting | fixed | 4.5e-5 | 658482 | 3124 | 3.92e-4 |
+//! | shooting, overshoot 1.25 | f32 | 1.0e-6 | 546951 | 2555 | 5.21e-6 |
+//! | shooting, overshoot 1.25 | fixed | 4.5e-5 | 358169 | 1665 | 2.31e-4 |
+//! | Gauss-Seidel | f32 | 1.0e-6 | 982800 | 5400 | 3.45e-6 |
+//! | Gauss-Seidel | fixed | 4.5e-5 | 628992 | 3456 | 3.18e-4 |
+//! | Jacobi | f32 | 1.0e-6 | 1739232 | 9504 | 1.60e-5 |
+//! | Jacobi | fixed | 4.5e-5 | 1067256 | 5832 | 6.25e-4 |
 //!
-//! In a dense closed scene with a single light, full sweeps are cheaper per unit of convergence than shooting
-//! (shooting pays the tree updates, about 3 units per entry here). Shooting's advantage is its order: the
-//! largest unshot power goes first, so after a light change the first budgets carry the changed light's
-//! direct contribution. The fixed-point error here is the Q32.32 resolution against the small powers of a
-//! unit cube (patch areas 1/36).
+//! Shooting costs about one unit per entry plus `2 sqrt(n)` per shot, so in this dense closed scene with a
+//! single light plain shooting and Gauss-Seidel sweeps cost about the same, and shooting with overshooting
+//! about half (with the earlier tournament tree, about 3 units per entry, shooting cost 2760817 units here).
+//! Shooting's further advantage is its order: the largest unshot power goes first, so after a light change the
+//! first budgets carry the changed light's direct contribution. The fixed-point error here is the Q32.32
+//! resolution against the small powers of a unit cube (patch areas 1/36), with the tolerance at its floor.
 //!
-//! Warm starts (same example, the light as a light group, shooting, f32): cold solve 2760817 units; relit to
-//! 0.9: 2136517; to 0: 2730430; to (1, 0.2, 0.2): 2556223, against 2556427 for a cold solve of that setting.
+//! Warm starts (same example, the light as a light group, shooting, f32): cold solve 1058181 units; relit to
+//! 0.9: 819230; to 0: 1046993; to (1, 0.2, 0.2): 979617, against 979801 for a cold solve of that setting.
 //! With an absolute tolerance the work to re-converge grows with `log(change / tolerance)`, so a warm start
 //! saves most when the change is small against the scene's light; its value on the device is that every
 //! frame in between shows the old solution plus the largest corrections, never a blank start.
@@ -265,7 +272,9 @@ pub mod write;
 
 pub use codec::{FfCodec, Frac};
 pub use scalar::{Fixed, Scalar};
-pub use solver::{convergence_floor, Buffers, Config, NoProgressReason, Outcome, Solver, SolverError};
+pub use solver::{
+    convergence_floor, selection_len, Buffers, Config, NoProgressReason, Outcome, Solver, SolverError,
+};
 pub use table::{Table, TableError, FORMAT_VERSION, MAGIC};
 pub use transfer::{relight_transfer, static_radiosity, transfer_cost, TransferError};
 pub use write::{

@@ -24,7 +24,8 @@ pub struct Buffers<'b, S> {
     /// Incident power `H_i = sum_j F_ji Phi_j` received so far (RGB) per slot, before reflection: state count.
     /// Reflectance edits need it.
     pub incident: &'b mut [[S; 3]],
-    /// Tournament tree over unshot power: state count.
+    /// Selection: the slot with the largest unshot power of each block of consecutive slots, the length
+    /// [`selection_len`] of the state count (about its square root).
     pub tree: &'b mut [u32],
     /// Current intensity (RGB) per light group: light group count.
     pub intensity: &'b mut [[S; 3]],
@@ -95,7 +96,8 @@ impl Outcome {
 /// Why a step made no progress.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NoProgressReason {
-    /// The budget is smaller than the smallest indivisible action (one entry plus its tree update).
+    /// The budget is smaller than the smallest indivisible action (an entry with its block rescan, a block
+    /// rebuild, a selection scan or a shot start).
     BudgetTooSmall {
         /// Units the next action needs.
         needed: u32,
@@ -142,7 +144,7 @@ pub enum SolverError {
     WrongTable,
     /// A Jacobi sweep is half done; changes would be lost by its end-of-sweep copy.
     JacobiInProgress,
-    /// More patches with state than the solver's tree indexing supports ([`MAX_PATCHES`]).
+    /// More patches with state than the solver supports ([`MAX_PATCHES`]).
     TooManyPatches {
         /// Patches with state in the table.
         patches: u32,
@@ -179,7 +181,7 @@ fn convergence_units(table: &Table<'_>) -> u64 {
     (6 * longest * 65536).div_ceil(65536 - code_max.min(65535))
 }
 
-/// Largest state count the solver accepts (tree positions `< 2n` must fit in a `u32`).
+/// Largest state count the solver accepts.
 pub const MAX_PATCHES: u32 = 1 << 30;
 
 impl fmt::Display for SolverError {
@@ -222,8 +224,9 @@ struct Shot<S> {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum TreeState {
+    /// Every block winner is current.
     Valid,
-    /// Rebuilding bottom-up; the next internal node to compute (counts down to 1).
+    /// Rebuilding block winners in order; the next block to scan (the ones below it are current).
     Rebuilding(u32),
 }
 
@@ -248,7 +251,7 @@ struct Sweep<S> {
 #[derive(Debug)]
 pub struct Solver<'b, S> {
     buf: Buffers<'b, S>,
-    /// Slots: patches with run-time state (the table's state count); buffers and tree are indexed by slot.
+    /// Slots: patches with run-time state (the table's state count); buffers are indexed by slot.
     slots: u32,
     patches: u32,
     groups: u32,
@@ -257,8 +260,14 @@ pub struct Solver<'b, S> {
     config: Config<S>,
     shot: Option<Shot<S>>,
     tree: TreeState,
+    /// Selection blocks: `B = 1 << block_shift` slots each, `blocks = ceil(slots / B)` of them.
+    block_shift: u32,
+    blocks: u32,
+    /// The selection made by the last scan, until the next change of unshot power.
+    selected: Option<u32>,
     sweep: Option<Sweep<S>>,
     shots: u32,
+    entries: u64,
 }
 
 fn get3<S: Scalar>(s: &[[S; 3]], i: u32) -> [S; 3] {
@@ -286,17 +295,28 @@ fn emission<S: Scalar>(code: u16) -> S {
     S::from_dyadic(m, e)
 }
 
-/// Number of internal tree nodes on the path from a leaf to the root, at most: `floor(log2(2n - 1))`.
-fn tree_depth(n: u32) -> u32 {
-    let leaves_end = (u64::from(n) * 2).saturating_sub(1).max(1);
-    63 - leaves_end.leading_zeros()
+/// Length of the [`Buffers::tree`] buffer for `state_count` slots: one selection block winner per block of
+/// `B` consecutive slots, `B` the smallest power of two with `B * B >= state_count` (about `sqrt(n)` entries).
+#[must_use]
+pub fn selection_len(state_count: u32) -> u32 {
+    state_count.div_ceil(1 << block_shift(state_count))
+}
+
+/// Selection block size exponent for `n` slots: the smallest `B = 2^shift` with `B * B >= n`, so a selection
+/// scan (`ceil(n / B)` winners) and a block rescan (`B` slots) both cost about `sqrt(n)`.
+fn block_shift(n: u32) -> u32 {
+    let mut shift = 0;
+    while (1u64 << (2 * shift)) < u64::from(n) {
+        shift += 1;
+    }
+    shift
 }
 
 impl<'b, S: Scalar> Solver<'b, S> {
     /// Creates the solver for `table`: loads reflectances and default intensities, and sets the cold start
     /// (static base plus every light group at its default intensity, as unshot power).
     ///
-    /// Cost: `O(patches + members)`, outside any budget. The selection tree is built by the first steps,
+    /// Cost: `O(patches + members)`, outside any budget. The selection is built by the first steps,
     /// inside their budgets.
     ///
     /// # Errors
@@ -306,11 +326,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if n > MAX_PATCHES {
             return Err(SolverError::TooManyPatches { patches: n });
         }
+        let block_shift = block_shift(n);
+        let blocks = selection_len(n);
         let checks: [(&'static str, usize, u32); 6] = [
             ("power", buffers.power.len(), n),
             ("unshot", buffers.unshot.len(), n),
             ("incident", buffers.incident.len(), n),
-            ("tree", buffers.tree.len(), n),
+            ("tree", buffers.tree.len(), blocks),
             ("intensity", buffers.intensity.len(), table.group_count()),
             ("reflectance", buffers.reflectance.len(), table.material_count()),
         ];
@@ -335,9 +357,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
             table_crc: table.crc(),
             config,
             shot: None,
-            tree: TreeState::Rebuilding(n.saturating_sub(1)),
+            tree: TreeState::Rebuilding(0),
+            block_shift,
+            blocks,
+            selected: None,
             sweep: None,
             shots: 0,
+            entries: 0,
         };
         s.reset(table);
         Ok(s)
@@ -421,7 +447,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
         self.shot = None;
         self.sweep = None;
         self.shots = 0;
-        self.tree = TreeState::Rebuilding(self.slots.saturating_sub(1));
+        self.entries = 0;
+        self.tree = TreeState::Rebuilding(0);
+        self.selected = None;
     }
 
     /// Adds `scale` times group `g`'s unit emission (times area) to power and unshot power; returns members.
@@ -478,6 +506,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
     #[must_use]
     pub fn shots(&self) -> u32 {
         self.shots
+    }
+
+    /// Form-factor entries applied since the last cold start (shooting and sweeps alike): the work that is
+    /// proportional to table bytes read, for reports that compare methods per entry.
+    #[must_use]
+    pub fn entries(&self) -> u64 {
+        self.entries
     }
 
     /// Power `Phi_i = B_i A_i` of `patch` (RGB), or `None` out of range or for another table. A patch without
@@ -599,70 +634,96 @@ impl<'b, S: Scalar> Solver<'b, S> {
         Some([0, 1, 2].map(|c| b[c].add(ambient[c].mul_frac(rho[c]))))
     }
 
-    // ---- selection tree -------------------------------------------------------------------------------
+    // ---- selection: block winners -------------------------------------------------------------------
 
     fn key(&self, i: u32) -> S {
         magnitude(get3(self.buf.unshot, i))
     }
 
-    /// Winner of tree position `k` (internal node or leaf).
-    fn winner_at(&self, k: u32) -> u32 {
-        if k >= self.slots {
-            k - self.slots
-        } else {
-            self.buf.tree.get(k as usize).copied().unwrap_or(0)
+    /// Whether slot `a` (key `ka`) ranks above slot `b` (key `kb`): a key that is not finite (f32) or
+    /// saturated (fixed point) ranks above every usable one, so an overflow is selected and reported; otherwise
+    /// the larger key, ties to the lower slot. Written without short-circuits so it compiles to selects.
+    fn ranks_above(a: u32, ka: S, b: u32, kb: S) -> bool {
+        let (bad_a, bad_b) = (!ka.is_usable(), !kb.is_usable());
+        (bad_a & !bad_b) | ((bad_a == bad_b) & ((ka > kb) | ((ka == kb) & (a < b))))
+    }
+
+    /// Slots of block `b`.
+    fn block_range(&self, b: u32) -> core::ops::Range<u32> {
+        let start = b << self.block_shift;
+        start.min(self.slots)..start.saturating_add(1 << self.block_shift).min(self.slots)
+    }
+
+    /// Scans block `b` for its winner and stores it; returns slots scanned (work units).
+    fn rescan_block(&mut self, b: u32) -> u32 {
+        let range = self.block_range(b);
+        let len = range.end - range.start;
+        let mut best = range.start;
+        let mut best_key = self.key(best);
+        for i in range.start + 1..range.end {
+            let k = self.key(i);
+            if Self::ranks_above(i, k, best, best_key) {
+                best = i;
+                best_key = k;
+            }
+        }
+        self.set_winner(b, best);
+        len
+    }
+
+    /// Whether block `b`'s stored winner is current (its block is rebuilt).
+    fn block_valid(&self, b: u32) -> bool {
+        match self.tree {
+            TreeState::Valid => true,
+            TreeState::Rebuilding(next) => b < next,
         }
     }
 
-    /// The better of two patches: larger key, ties to the lower index.
-    fn better(&self, a: u32, b: u32) -> u32 {
-        let (ka, kb) = (self.key(a), self.key(b));
-        if ka > kb || (ka == kb && a < b) {
-            a
-        } else {
-            b
-        }
-    }
-
-    fn recompute(&mut self, k: u32) -> u32 {
-        let w = self.better(self.winner_at(2 * k), self.winner_at(2 * k + 1));
-        if let Some(t) = self.buf.tree.get_mut(k as usize) {
-            *t = w;
-        }
-        w
-    }
-
-    /// Updates the path of `slot`'s leaf after its key changed; returns nodes visited (work units).
+    /// Records that `slot`'s unshot power changed (in any direction). The comparison with its block's winner
+    /// is part of the change's own unit; returns the extra work units: the block's length when `slot` was the
+    /// winner (it may have shrunk) and the block is rescanned, else 0.
     fn update_leaf(&mut self, slot: u32) -> u32 {
-        if self.tree != TreeState::Valid {
+        self.selected = None;
+        let b = slot >> self.block_shift;
+        if !self.block_valid(b) {
             return 0;
         }
-        let mut k = (self.slots + slot) / 2;
-        let mut visited = 0;
-        while k >= 1 {
-            let old = self.winner_at(k);
-            let new = self.recompute(k);
-            visited += 1;
-            if new == old && old != slot {
-                break;
+        let w = self.buf.tree.get(b as usize).copied().unwrap_or(slot);
+        if w == slot {
+            self.rescan_block(b)
+        } else {
+            if Self::ranks_above(slot, self.key(slot), w, self.key(w)) {
+                self.set_winner(b, slot);
             }
-            k /= 2;
+            0
         }
-        visited
     }
 
-    fn root(&self) -> u32 {
-        if self.slots <= 1 {
-            0
-        } else {
-            self.winner_at(1)
+    /// The slot with the largest unshot magnitude (ties to the lower slot), from the block winners; returns it
+    /// and the blocks scanned (work units).
+    fn select(&self) -> (u32, u32) {
+        let mut best = self.buf.tree.first().copied().unwrap_or(0);
+        let mut best_key = self.key(best);
+        for b in 1..self.blocks {
+            let w = self.buf.tree.get(b as usize).copied().unwrap_or(0);
+            let k = self.key(w);
+            if Self::ranks_above(w, k, best, best_key) {
+                best = w;
+                best_key = k;
+            }
         }
+        (best, self.blocks)
     }
 
     // ---- steps ----------------------------------------------------------------------------------------
 
     /// Applies entries of the shot in flight while the budget allows. Returns `true` when the row is done.
-    /// `scratch`: Jacobi's receiving buffer; `None` sends received power to the unshot buffer.
+    /// `scratch`: Jacobi's receiving buffer; `None` sends received power to the unshot buffer and keeps the
+    /// block winners current.
+    ///
+    /// Receivers are increasing within a row, so consecutive entries mostly fall in the same selection block:
+    /// its winner and key are kept in locals and stored when the row moves to another block (a store and
+    /// reload per entry would chain every entry to the previous one through memory).
     fn apply_shot(
         &mut self,
         table: &Table<'_>,
@@ -672,10 +733,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
         per_entry: u32,
     ) -> bool {
         let Some(mut shot) = self.shot else { return true };
+        // The block in the locals (`u32::MAX`: none), whether its winner is maintained, its winner and key.
+        let (mut block, mut live, mut winner, mut winner_key) = (u32::MAX, false, 0u32, S::ZERO);
+        let mut done = true;
         while shot.next < shot.end {
             if budget - *used < per_entry {
-                self.shot = Some(shot);
-                return false;
+                done = false;
+                break;
             }
             if let Some((i, f)) = table.entry(shot.shooter, shot.next) {
                 let rho = self.rho(table, i);
@@ -691,17 +755,58 @@ impl<'b, S: Scalar> Solver<'b, S> {
                 match scratch.as_deref_mut() {
                     Some(s) => add3(s, i, r),
                     None => {
+                        let before = get3(self.buf.unshot, i);
                         add3(self.buf.unshot, i, r);
-                        *used += self.update_leaf(i);
+                        let b = i >> self.block_shift;
+                        if b != block {
+                            if live {
+                                self.set_winner(block, winner);
+                            }
+                            block = b;
+                            live = self.block_valid(b);
+                            if live {
+                                winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
+                                winner_key = self.key(winner);
+                            }
+                        }
+                        if live {
+                            let k = self.key(i);
+                            if i == winner {
+                                // Each channel moved away from zero (or not at all): it stays the winner.
+                                let grew = (0..3)
+                                    .all(|c| (before[c] >= S::ZERO) == (r[c] >= S::ZERO) || r[c] == S::ZERO);
+                                if grew {
+                                    winner_key = k;
+                                } else {
+                                    *used += self.rescan_block(b);
+                                    winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
+                                    winner_key = self.key(winner);
+                                }
+                            } else if Self::ranks_above(i, k, winner, winner_key) {
+                                winner = i;
+                                winner_key = k;
+                            }
+                        }
                     }
                 }
             } else {
                 *used += 1;
             }
             shot.next += 1;
+            self.entries = self.entries.wrapping_add(1);
         }
-        self.shot = None;
-        true
+        if live {
+            self.set_winner(block, winner);
+        }
+        self.selected = None;
+        self.shot = if done { None } else { Some(shot) };
+        done
+    }
+
+    fn set_winner(&mut self, b: u32, w: u32) {
+        if let Some(t) = self.buf.tree.get_mut(b as usize) {
+            *t = w;
+        }
     }
 
     /// Starts shooting `shooter`'s unshot power times `omega_extra` (overshoot/256 extra).
@@ -720,18 +825,21 @@ impl<'b, S: Scalar> Solver<'b, S> {
         1 + self.update_leaf(shooter)
     }
 
-    /// Worst-case units of one shooting entry: the entry plus a full leaf-to-root path.
+    /// Worst-case units of one shooting entry: the entry and a rescan of the receiver's block (`1 + B`).
     fn shooting_entry_cost(&self) -> u32 {
-        1 + tree_depth(self.slots)
+        (1u32 << self.block_shift) + 1
     }
 
     /// Progressive-refinement shooting (Southwell iteration; Cohen et al. 1988) for at most `budget` work
-    /// units: repeatedly shoot the patch with the largest unshot power (tournament tree), resuming a row cut
-    /// short by the previous step.
+    /// units: repeatedly shoot the patch with the largest unshot power, resuming a row cut short by the
+    /// previous step.
     ///
-    /// Cost: 1 unit per tree node rebuilt; per shot 1 unit plus the shooter's leaf path (`<= depth` nodes);
-    /// per entry 1 unit plus the receiver's leaf path (`<= depth`), where `depth = floor(log2(2n - 1))`.
-    /// An action runs only if its worst case fits in what is left of the budget.
+    /// Selection keeps the winner of each block of `B` consecutive slots (`B` the power of two at or above
+    /// `sqrt(n)`) and scans the `ceil(n / B)` winners for the largest. Cost: 1 unit per block winner scanned
+    /// and per slot scanned when a block is rebuilt; per shot 1 unit plus a rescan of the shooter's block
+    /// (`<= B`); per entry 1 unit, plus a rescan of the receiver's block when the receiver was its block's
+    /// winner and its magnitude may have shrunk (a channel moved towards zero). An action runs only if its
+    /// worst case (`B + 1`) fits in what is left of the budget.
     pub fn step(&mut self, table: &Table<'_>, budget: u32) -> Outcome {
         let mut used = 0u32;
         if !self.same_table(table) {
@@ -743,36 +851,53 @@ impl<'b, S: Scalar> Solver<'b, S> {
         // A Gauss-Seidel sweep left half done is abandoned (its in-flight row is finished below): shooting
         // works on the same residual.
         self.sweep = None;
-        let per_entry = self.shooting_entry_cost();
+        let worst = self.shooting_entry_cost();
         loop {
-            if let TreeState::Rebuilding(mut k) = self.tree {
-                while k >= 1 {
-                    if used >= budget {
-                        self.tree = TreeState::Rebuilding(k);
-                        return self.spent(used, 1);
+            if let TreeState::Rebuilding(mut b) = self.tree {
+                while b < self.blocks {
+                    let range = self.block_range(b);
+                    let need = range.end - range.start;
+                    if budget - used < need {
+                        self.tree = TreeState::Rebuilding(b);
+                        return self.spent(used, need);
                     }
-                    self.recompute(k);
-                    used += 1;
-                    k -= 1;
+                    used += self.rescan_block(b);
+                    b += 1;
                 }
                 self.tree = TreeState::Valid;
             }
             if self.shot.is_some() {
-                if !self.apply_shot(table, budget, &mut used, None, per_entry) {
-                    return self.spent(used, per_entry);
+                if !self.apply_shot(table, budget, &mut used, None, worst) {
+                    return self.spent(used, worst);
                 }
                 continue;
             }
-            let w = self.root();
+            if self.slots == 0 {
+                return Outcome::Converged { used };
+            }
+            let w = match self.selected {
+                Some(w) => w,
+                None => {
+                    if budget - used < self.blocks {
+                        return self.spent(used, self.blocks);
+                    }
+                    let (w, units) = self.select();
+                    used += units;
+                    self.selected = Some(w);
+                    w
+                }
+            };
             let key = self.key(w);
             if !key.is_usable() {
                 return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
             }
-            if key <= self.config.tolerance || self.slots == 0 {
+            if key <= self.config.tolerance {
                 return Outcome::Converged { used };
             }
-            if budget - used < per_entry {
-                return self.spent(used, per_entry);
+            let range = self.block_range(w >> self.block_shift);
+            let need = 1 + (range.end - range.start);
+            if budget - used < need {
+                return self.spent(used, need);
             }
             used += self.start_shot(table, w, self.config.overshoot);
         }
@@ -826,8 +951,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
             }
             _ => {
                 // Coming from shooting or a half-done Gauss-Seidel sweep: finish the row in flight into the
-                // unshot buffer (the tree is not maintained from here on), then start a fresh sweep.
-                self.tree = TreeState::Rebuilding(self.slots.saturating_sub(1));
+                // unshot buffer (the selection is not maintained from here on), then start a fresh sweep.
+                self.tree = TreeState::Rebuilding(0);
+                self.selected = None;
                 if !self.apply_shot(table, budget, &mut used, None, 1) {
                     return self.spent(used, 1);
                 }
@@ -922,7 +1048,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
 
     /// Sets light `group` to intensity `rgb`: the emission change (positive or negative) of every member is
     /// injected as unshot power, keeping the current solution as a warm start. Returns the work done (one
-    /// unit per member plus its tree path), outside any step budget.
+    /// unit per member plus any block rescan), outside any step budget.
     ///
     /// The injection cancels against the power already there, so with f32 a patch's absolute error after a
     /// change is about `2^-24` times the largest power it has held (dimming 1 -> 1e-6 leaves errors near
@@ -961,7 +1087,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// for every patch `i` of the material with state, `(rho_new - rho_old) H_i` (its incident power so far)
     /// is added to its power and injected as unshot power, so the solve converges to the cold solve of the
     /// edited scene restricted to the patches with state. Returns the work done (one unit per slot scanned
-    /// plus tree paths), outside any step budget.
+    /// plus block rescans), outside any step budget.
     ///
     /// Patches without state (crate docs, "Run-time state") show `E_s + rho_new G_s`: their own reflection of
     /// the static light changes, but nothing is propagated (what they reflect reaches no state), and the

@@ -344,6 +344,7 @@ impl fmt::Display for TableError {
 impl core::error::Error for TableError {}
 
 // Byte offsets use checked arithmetic: on 32-bit targets `usize` is 32 bits.
+#[inline]
 fn le_u16(s: &[u8], i: usize) -> u16 {
     let Some(at) = i.checked_mul(2) else { return 0 };
     match s.get(at..at.saturating_add(2)) {
@@ -352,6 +353,7 @@ fn le_u16(s: &[u8], i: usize) -> u16 {
     }
 }
 
+#[inline]
 fn le_u32(s: &[u8], i: usize) -> u32 {
     let Some(at) = i.checked_mul(4) else { return 0 };
     match s.get(at..at.saturating_add(4)) {
@@ -625,6 +627,7 @@ impl<'a> Table<'a> {
         Ok(())
     }
 
+    #[inline]
     fn index(&self, s: &[u8], k: u32) -> u32 {
         if self.header.index_bytes == 2 {
             u32::from(le_u16(s, k as usize))
@@ -633,6 +636,7 @@ impl<'a> Table<'a> {
         }
     }
 
+    #[inline]
     fn code(&self, k: u32) -> u16 {
         if self.codec.bits == 8 {
             u16::from(self.entry_code.get(k as usize).copied().unwrap_or(0))
@@ -650,6 +654,7 @@ impl<'a> Table<'a> {
     /// Number of patches with run-time state, the slots `0..state_count` (see the crate docs, "Run-time
     /// state"); equal to [`Table::patch_count`] when every patch has state.
     #[must_use]
+    #[inline]
     pub fn state_count(&self) -> u32 {
         self.header.state_count
     }
@@ -702,6 +707,7 @@ impl<'a> Table<'a> {
     /// Material of the patch of `slot` (read from the slot-ordered section: no map lookup), or `None` out of
     /// range.
     #[must_use]
+    #[inline]
     pub fn slot_material(&self, slot: u32) -> Option<u32> {
         (slot < self.state_count()).then(|| u32::from(le_u16(self.state_material, slot as usize)))
     }
@@ -720,6 +726,7 @@ impl<'a> Table<'a> {
 
     /// Number of stored form-factor entries.
     #[must_use]
+    #[inline]
     pub fn entry_count(&self) -> u32 {
         self.header.entry_count
     }
@@ -865,12 +872,14 @@ impl<'a> Table<'a> {
 
     /// Row exponent of the row of shooter `slot`.
     #[must_use]
+    #[inline]
     pub fn row_exponent(&self, slot: u32) -> Option<u8> {
         (slot < self.state_count()).then(|| self.row_exponent.get(slot as usize).copied().unwrap_or(0))
     }
 
     /// Receiver slot and raw code of entry `position`.
     #[must_use]
+    #[inline]
     pub fn entry_code(&self, position: u32) -> Option<(u32, u16)> {
         (position < self.entry_count())
             .then(|| (self.index(self.entry_receiver, position), self.code(position)))
@@ -878,6 +887,7 @@ impl<'a> Table<'a> {
 
     /// Receiver slot and decoded form factor of entry `position` in the row of shooter `slot`.
     #[must_use]
+    #[inline]
     pub fn entry(&self, slot: u32, position: u32) -> Option<(u32, Frac)> {
         let e = self.row_exponent(slot)?;
         let (r, c) = self.entry_code(position)?;

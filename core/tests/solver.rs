@@ -180,7 +180,8 @@ fn three_patch_other_methods<S: Arith>() {
         }
         check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
         // The result is converged for shooting too: its step finds nothing to shoot after the tree rebuild.
-        assert_eq!(solver.step(&t, 100), Outcome::Converged { used: 2 });
+        // 3 slots in blocks of 2: rebuilding the blocks (2 + 1 units), then scanning their 2 winners.
+        assert_eq!(solver.step(&t, 100), Outcome::Converged { used: 5 });
     }
 }
 
@@ -196,7 +197,11 @@ fn static_base_costs_nothing<S: Arith>() {
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
     let mut solver = store.solver(&t, config());
-    assert_eq!(solver.step(&t, 100), Outcome::Converged { used: 2 }, "only the 2 internal tree nodes");
+    assert_eq!(
+        solver.step(&t, 100),
+        Outcome::Converged { used: 5 },
+        "only the block rebuild (3) and selection (2)"
+    );
     assert_eq!(solver.shots(), 0);
     // The irradiance went through the emission code: relative error <= 2^-11, times rho <= 0.75.
     let b = radiosities(&solver, &t);
@@ -446,7 +451,7 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
     let mut short = Store::<S>::for_table(&part);
     short.tree.pop();
     let err = radiosity_core::Solver::new(&part, short.buffers(), config()).err();
-    assert_eq!(err, Some(SolverError::BufferTooSmall { buffer: "tree", needed: 2, got: 1 }));
+    assert_eq!(err, Some(SolverError::BufferTooSmall { buffer: "tree", needed: 1, got: 0 }));
     let mut store = Store::<S>::for_table(&part);
     assert_eq!(store.power.len(), 2);
     let mut solver = store.solver(&part, config());
@@ -454,7 +459,7 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
     let mut full_solver = full_store.solver(&full, config());
     let units = converge(&mut solver, &part, 50, 100_000);
     let full_units = converge(&mut full_solver, &full, 50, 100_000);
-    assert!(units < full_units, "fewer tree nodes: {units} vs {full_units}");
+    assert!(units < full_units, "fewer slots to select from: {units} vs {full_units}");
     assert_eq!(solver.shots(), full_solver.shots());
     let (b, b_full) = (radiosities(&solver, &part), radiosities(&full_solver, &full));
     assert_eq!(b[2..], b_full[2..], "the dynamic pair");
@@ -541,16 +546,34 @@ fn small_budgets_and_wrong_tables_are_reported() {
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<f32>::for_table(&t);
     let mut solver = store.solver(&t, config());
-    // Tree rebuild: 2 nodes, then a shot needs 1 + depth (2) = 3 units.
+    // 3 slots: blocks of B = 2 (slots 0-1 and 2). Rebuild: 2 + 1 units; selection: 2 blocks; a shot start:
+    // 1 + its block's rescan (2 for patch 0, the light); an entry: 1 + B = 3 at worst.
     assert_eq!(
         solver.step(&t, 0),
-        Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 1 } }
+        Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 2 } }
     );
     assert_eq!(solver.step(&t, 2), Outcome::BudgetSpent { used: 2 });
     assert_eq!(
         solver.step(&t, 2),
+        Outcome::BudgetSpent { used: 1 },
+        "block 1, then the selection does not fit"
+    );
+    assert_eq!(
+        solver.step(&t, 1),
+        Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 2 } }
+    );
+    assert_eq!(solver.step(&t, 4), Outcome::BudgetSpent { used: 2 }, "the selection; the shot needs 3");
+    assert_eq!(
+        solver.step(&t, 2),
         Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 3 } }
     );
+    assert_eq!(solver.shots(), 0);
+    assert_eq!(
+        solver.step(&t, 3),
+        Outcome::BudgetSpent { used: 3 },
+        "the selection is kept: the shot starts"
+    );
+    assert_eq!(solver.shots(), 1);
     let other = three_patch_scene();
     let mut other = other;
     other.materials[0] = [0.1; 3];

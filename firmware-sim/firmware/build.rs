@@ -50,6 +50,10 @@ fn run() -> Result<(), String> {
     ));
     // The per-patch buffers hold the patches with run-time state only (core's crate docs, "Run-time state").
     code.push_str(&format!("pub const STATE_PATCHES: usize = {};\n", table.state_count()));
+    code.push_str(&format!(
+        "pub const SELECTION: usize = {};\n",
+        radiosity_core::selection_len(table.state_count())
+    ));
     code.push_str(&format!("pub const GROUPS: usize = {};\n", table.group_count()));
     code.push_str(&format!("pub const MATERIALS: usize = {};\n", table.material_count()));
     code.push_str(&format!(

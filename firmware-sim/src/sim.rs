@@ -53,7 +53,7 @@ impl<S: Scalar> DeviceMemory<S> {
             power: vec![[S::ZERO; 3]; n],
             unshot: vec![[S::ZERO; 3]; n],
             incident: vec![[S::ZERO; 3]; n],
-            tree: vec![0; n],
+            tree: vec![0; radiosity_core::selection_len(table.state_count()) as usize],
             intensity: vec![[S::ZERO; 3]; table.group_count() as usize],
             reflectance: vec![[0; 3]; table.material_count() as usize],
         }

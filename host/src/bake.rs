@@ -35,7 +35,7 @@
 //! 5. **Reachability** (computed before writing). A patch needs run-time state if it is a member of a dynamic
 //!    light group, or if its reflectance is nonzero in some channel and it receives a stored entry from a
 //!    patch that needs state (a black receiver's radiosity never changes). Only these patches get state in the
-//!    table (core's crate docs, "Run-time state"): core's solver sizes its buffers and selection tree by their
+//!    table (core's crate docs, "Run-time state"): core's solver sizes its buffers and selection by their
 //!    count, and every other patch shows its solved static base. The rows of the patches with state lose their
 //!    entries to stateless receivers, which are black in every channel and reflect nothing, so the answer is
 //!    unchanged for the baked reflectances; the report counts them ([`RuntimeState`]). Reachability uses the
@@ -624,7 +624,7 @@ impl Capacities {
             power: slots,
             unshot: slots,
             incident: slots,
-            tree: slots,
+            tree: radiosity_core::selection_len(table.state_count()) as usize,
             intensity: table.group_count() as usize,
             reflectance: table.material_count() as usize,
             jacobi_scratch: slots,

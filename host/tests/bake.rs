@@ -177,7 +177,7 @@ impl Owned {
             power: vec![[0.0; 3]; patches],
             unshot: vec![[0.0; 3]; patches],
             incident: vec![[0.0; 3]; patches],
-            tree: vec![0; patches],
+            tree: vec![0; radiosity_core::selection_len(patches as u32) as usize],
             intensity: vec![[0.0; 3]; groups],
             reflectance: vec![[0; 3]; materials],
         }
@@ -361,10 +361,11 @@ fn static_light_is_folded_into_the_base() {
     assert!(table.base_solved());
     let mut owned = owned_for(&table);
     let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: 1e-6, overshoot: 0 }).unwrap();
-    let n = table.patch_count();
-    // The only work left is building the selection tree (n - 1 units); nothing is shot.
-    match solver.step(&table, n) {
-        Outcome::Converged { used } => assert!(used < n, "used {used} units, more than the tree build"),
+    let n = table.state_count();
+    // The only work left is building the selection (n slots scanned) and one selection scan; nothing is shot.
+    let build = n + radiosity_core::selection_len(n);
+    match solver.step(&table, build) {
+        Outcome::Converged { used } => assert_eq!(used, build, "only the selection's build and scan"),
         other => panic!("expected Converged at once, got {other:?}"),
     }
     assert_eq!(solver.shots(), 0);

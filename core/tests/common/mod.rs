@@ -100,7 +100,7 @@ impl<S: Scalar> Store<S> {
             power: vec![[S::ZERO; 3]; n],
             unshot: vec![[S::ZERO; 3]; n],
             incident: vec![[S::ZERO; 3]; n],
-            tree: vec![0; n],
+            tree: vec![0; radiosity_core::selection_len(t.state_count()) as usize],
             intensity: vec![[S::ZERO; 3]; t.group_count() as usize],
             reflectance: vec![[0; 3]; t.material_count() as usize],
         }

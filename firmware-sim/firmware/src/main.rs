@@ -22,7 +22,7 @@ use radiosity_core::{Buffers, Scalar, Table};
 mod generated {
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
-use generated::{GROUPS, INSTRUCTIONS_PER_TICK, MATERIALS, SCRIPTS, STATE_PATCHES, TABLE};
+use generated::{GROUPS, INSTRUCTIONS_PER_TICK, MATERIALS, SCRIPTS, SELECTION, STATE_PATCHES, TABLE};
 
 /// The solver's arithmetic.
 #[cfg(not(feature = "fixed"))]
@@ -118,7 +118,7 @@ fn main() -> ! {
     static mut POWER: [[S; 3]; STATE_PATCHES] = [[<S as Scalar>::ZERO; 3]; STATE_PATCHES];
     static mut UNSHOT: [[S; 3]; STATE_PATCHES] = [[<S as Scalar>::ZERO; 3]; STATE_PATCHES];
     static mut INCIDENT: [[S; 3]; STATE_PATCHES] = [[<S as Scalar>::ZERO; 3]; STATE_PATCHES];
-    static mut TREE: [u32; STATE_PATCHES] = [0; STATE_PATCHES];
+    static mut TREE: [u32; SELECTION] = [0; SELECTION];
     static mut INTENSITY: [[S; 3]; GROUPS] = [[<S as Scalar>::ZERO; 3]; GROUPS];
     static mut REFLECTANCE: [[u16; 3]; MATERIALS] = [[0; 3]; MATERIALS];
 

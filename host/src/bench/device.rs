@@ -74,7 +74,7 @@ pub struct StopRule {
     pub max_work: u64,
     /// Stop when the error has improved by less than 5% over this many checkpoints (an error floor)...
     pub plateau: usize,
-    /// ... once at least this much work is spent (before, a slow start such as a tree rebuild or a first sweep
+    /// ... once at least this much work is spent (before, a slow start such as building the selection or a first sweep
     /// is not a floor).
     pub plateau_after: u64,
 }

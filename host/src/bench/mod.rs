@@ -572,7 +572,8 @@ impl SceneRun<'_> {
 
 fn stop_rule(entries: usize, patches: usize, rho_max: f64, quick: bool) -> StopRule {
     // Enough passes over the table for Jacobi (the slowest, contraction rho_max per sweep) to reach the stop
-    // error, times 4 for shooting's tree units per entry.
+    // error, times 4 as a margin (shooting's work units per entry were up to about 3 with the earlier
+    // tournament tree; about 1.1 with block selection).
     let error: f64 = 3e-4;
     let passes = (error.ln() / rho_max.max(0.05).ln()).ceil() + 10.0;
     StopRule {
@@ -582,7 +583,7 @@ fn stop_rule(entries: usize, patches: usize, rho_max: f64, quick: bool) -> StopR
         max_work: (passes * 4.0 * entries as f64) as u64,
         plateau: if quick { 3 } else { 5 },
         // A floor is only declared after the passes Jacobi needs to reach 10% (at least four passes; a pass is
-        // entries + 2 units per patch), times 4 for shooting's tree units: at rho = 0.99 the error falls ~1% per
+        // entries + 2 units per patch), times 4 as a margin: at rho = 0.99 the error falls ~1% per
         // pass, which a fixed window would mistake for a plateau.
         plateau_after: ((0.1f64.ln() / rho_max.max(0.05).ln()).ceil().max(4.0) * 4.0) as u64
             * (entries + 2 * patches) as u64,

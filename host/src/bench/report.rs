@@ -238,7 +238,7 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
         "- Model instructions = work units x the Cortex-M4 cost model's **bound** per unit from \
          `firmware-sim/COST.md` ({:.2} for f32, {:.2} for fixed point; measured under QEMU on shooting frames). \
          It is the model's upper bound, not a measurement of these runs; sweep units (Gauss-Seidel, Jacobi) are \
-         converted with the same per-unit bound, although a sweep unit has no tree update and likely costs less.",
+         converted with the same per-unit bound, although a sweep unit has no selection work and likely costs less.",
         r.instr_per_unit.0, r.instr_per_unit.1
     );
     let _ = writeln!(
@@ -343,28 +343,32 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
             );
         }
         if let Some((bits, rf)) = sc.roofline.iter().find(|(_, rf)| rf.shooting_fraction() < 0.7) {
+            // Time per entry, split by difference: the stream's decode and multiply-add; what Gauss-Seidel
+            // adds (reflectance decode, two more buffers); what shooting adds on top (selection, per-shot work).
+            let ns = |per_s: f64| 1e9 / per_s;
+            let (stream, gs, shoot) = (
+                ns(rf.stream_entries_per_s),
+                ns(rf.gauss_seidel_entries_per_s),
+                ns(rf.shooting_entries_per_s),
+            );
+            let share = |x: f64| 100.0 * x.max(0.0) / shoot;
             let _ = writeln!(
                 s,
-                "\nShooting is below the 70% target ({bits}-bit: {:.0}%). Where the time goes, by difference: \
-                 Gauss-Seidel does the same per-entry work as shooting (decode, reflectance, three buffers) without \
-                 the selection tree and runs at {:.0}% of the stream ({}); shooting additionally recomputes {:.2} \
-                 tree nodes per entry on average ({:.2} work units per entry, each node two unshot-magnitude \
-                 evaluations and a comparison on a receiver-dependent, cache-unfriendly path), which takes it from \
-                 {:.1} to {:.1} M entries/s: the selection tree, not the decode, is where shooting's time goes.",
+                "\nShooting is below the 70% target ({bits}-bit: {:.0}%). Where its {shoot:.1} ns per entry go, by \
+                 difference between the three loops: {stream:.1} ns ({:.0}%) the stream's decode and \
+                 multiply-add; {:.1} ns ({:.0}%) what Gauss-Seidel adds per entry without any selection \
+                 (reflectance decode, the incident and power buffers besides unshot power); {:.1} ns ({:.0}%) what \
+                 shooting adds on top: its selection (the receiver's magnitude compared with its block's winner \
+                 per entry, {:.2} work units per entry in all) and per-shot work (a scan of the block winners and \
+                 a rescan of the shooter's block, {:.0} entries per shot here).",
                 100.0 * rf.shooting_fraction(),
-                100.0 * rf.gauss_seidel_entries_per_s / rf.stream_entries_per_s,
-                if rf.gauss_seidel_entries_per_s >= 0.9 * rf.stream_entries_per_s {
-                    "the per-entry extras cost little or nothing measurable on this loaded machine".to_string()
-                } else {
-                    format!(
-                        "the per-entry extras add {:.0}% to the stream's time per entry",
-                        100.0 * (rf.stream_entries_per_s / rf.gauss_seidel_entries_per_s - 1.0)
-                    )
-                },
-                rf.shooting_units as f64 / rf.shooting_entries.max(1) as f64 - 1.0,
+                share(stream),
+                gs - stream,
+                share(gs - stream),
+                shoot - gs,
+                share(shoot - gs),
                 rf.shooting_units as f64 / rf.shooting_entries.max(1) as f64,
-                rf.gauss_seidel_entries_per_s / 1e6,
-                rf.shooting_entries_per_s / 1e6
+                rf.shooting_entries as f64 / rf.shots.max(1) as f64,
             );
         }
         if let Some((_, files)) = plot_files.iter().find(|(n, _)| *n == sc.name) {

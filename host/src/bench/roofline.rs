@@ -6,13 +6,12 @@
 //!   (`acc_j += p * F_ij`, [`Scalar::mul_frac`]). No selection, no reflectance, one output buffer: the least work
 //!   any method that reads every entry must do.
 //! - **Gauss-Seidel**: core's sweep, whole sweeps; each entry as in shooting (decode, reflectance lookup, three
-//!   buffers) but no selection tree. Entries per sweep are the table's entry count.
-//! - **Shooting**: core's [`Solver::step`] to convergence at a tolerance. Core does not count entries, so a
-//!   separate untimed pass replays the same solve with budgets so small that each step applies at most one entry
-//!   and counts them (shooting is deterministic and resumable, so the split does not change which rows are shot).
+//!   buffers) but no selection. Entries per sweep are the table's entry count.
+//! - **Shooting**: core's [`Solver::step`] to convergence at a tolerance; entries applied as counted by the
+//!   solver ([`Solver::entries`]).
 //!
 //! The differences locate the time: stream to Gauss-Seidel is the per-entry reflectance decode and the two extra
-//! buffers; Gauss-Seidel to shooting is the tournament-tree maintenance (its units per entry are reported).
+//! buffers; Gauss-Seidel to shooting is the selection and per-shot work (its units per entry are reported).
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -124,42 +123,10 @@ pub fn measure<S: Scalar>(
     }
     let gauss_seidel = entries as f64 / median(&mut t_gs);
 
-    // Shooting: count entries (untimed, one entry per step), then time the same solve.
-    let (shooting_entries, shooting_units, shots) = {
-        let mut owned = Owned::<S>::new(caps);
-        let (buffers, _) = owned.split();
-        let mut solver = Solver::new(table, buffers, config).map_err(err)?;
-        let (mut budget, mut counted, mut units) = (1u32, 0u64, 0u64);
-        loop {
-            let before = solver.shots();
-            let o = solver.step(table, budget);
-            units += u64::from(o.used());
-            match o {
-                Outcome::NoProgress {
-                    reason: radiosity_core::NoProgressReason::BudgetTooSmall { needed },
-                    ..
-                } => {
-                    budget = needed;
-                    continue;
-                }
-                Outcome::NoProgress { reason, .. } => {
-                    return Err(BenchError::Solver(format!("roofline shooting: {reason:?}")))
-                }
-                _ => {}
-            }
-            // With a budget of one worst-case entry, a step either rebuilds tree nodes (before the first shot),
-            // starts one shot, or applies exactly one entry.
-            if solver.shots() == before && before > 0 && o.used() > 0 {
-                counted += 1;
-            }
-            if let Outcome::Converged { .. } = o {
-                break;
-            }
-        }
-        (counted, units, u64::from(solver.shots()))
-    };
+    // Shooting: time the solve; the solver counts the entries it applied.
+    let (mut shooting_entries, mut shooting_units, mut shots) = (0u64, 0u64, 0u64);
     let mut t_shoot = Vec::new();
-    for _ in 0..reps {
+    for rep in 0..reps {
         let mut owned = Owned::<S>::new(caps);
         let (buffers, _) = owned.split();
         let mut solver = Solver::new(table, buffers, config).map_err(err)?;
@@ -168,16 +135,23 @@ pub fn measure<S: Scalar>(
         loop {
             let o = solver.step(table, u32::MAX);
             units += u64::from(o.used());
-            if !matches!(o, Outcome::BudgetSpent { .. }) {
-                break;
+            match o {
+                Outcome::BudgetSpent { .. } => {}
+                Outcome::Converged { .. } => break,
+                Outcome::NoProgress { reason, .. } => {
+                    return Err(BenchError::Solver(format!("roofline shooting: {reason:?}")))
+                }
             }
         }
         t_shoot.push(t0.elapsed().as_secs_f64());
-        if units != shooting_units {
+        let run = (solver.entries(), units, u64::from(solver.shots()));
+        if rep > 0 && run != (shooting_entries, shooting_units, shots) {
             return Err(BenchError::Solver(format!(
-                "roofline: timed shooting spent {units} units, the counting replay {shooting_units}"
+                "roofline: shooting is not deterministic: {run:?} vs {:?}",
+                (shooting_entries, shooting_units, shots)
             )));
         }
+        (shooting_entries, shooting_units, shots) = run;
     }
     let shooting = shooting_entries as f64 / median(&mut t_shoot);
     Ok(Roofline {
