@@ -22,6 +22,8 @@
 //!   absolute error `< row_max * 2^-(M + 2^E - 2)`.
 //! - linear code (`E = 0`): absolute error `< row_max * 2^-(bits - 1)`.
 //!
+//! A bump never more than doubles an entry (see below), so a decoded entry is at most twice its true value.
+//!
 //! The crate docs ("Error bounds") give the measured errors of each codec on a closed cube (from the
 //! `codec_error` example) and why [`FfCodec::FLOAT16`] (`E = 4, M = 12`) and [`FfCodec::FLOAT8`]
 //! (`E = 3, M = 5`) are the defaults.
@@ -29,8 +31,12 @@
 //! # Row-sum rounding
 //! The writer rounds every entry down, then spends the remaining slack (exact target minus decoded sum,
 //! with the target capped at 1) on the entries whose fractional rounding loss is largest, one code step each,
-//! never exceeding the target. So every row's decoded sum is `<=` its true sum and `<= 1`, which makes the
-//! solver's iteration matrix `R F` have row sums `< 1` (reflectance codes are `< 1`): shooting converges.
+//! never exceeding the target, and only on entries the step at most doubles: below the float range a step can
+//! be many times a tiny entry, and the receiver's incoming (shooting-form) row multiplies the excess by the
+//! sender's area over its own. So every row's decoded sum is `<=` its true sum and `<= 1`, which makes the
+//! solver's iteration matrix `R F` have row sums `< 1` (reflectance codes are `< 1`): shooting converges. The
+//! deficit is less than one code step plus the losses of entries smaller than half a step, which are only
+//! rounded down.
 //!
 //! # Reflectance code
 //! `u16` `q`, `rho = q / 65536`, round to nearest, so `0 <= rho <= 65535/65536 < 1` always; absolute error
@@ -255,7 +261,9 @@ pub(crate) fn quantize_row_with_exponent(
     if slack == 0 {
         return sum;
     }
-    // Fractional loss of entry k, in 1/2^16 of its code step: loss / step. An entry gets at most one bump.
+    // Fractional loss of entry k, in 1/2^16 of its code step: loss / step. An entry gets at most one bump, and
+    // only if the bumped value is at most twice the entry: below the float range a step can be many times a
+    // tiny entry, and a transposed (shooting-form) row multiplies that by the area ratio.
     let frac_loss = |c: u16, v: f32| -> Option<(u32, u128)> {
         if c >= codec.max_code() {
             return None;
@@ -263,8 +271,12 @@ pub(crate) fn quantize_row_with_exponent(
         let lo = codec.decode(c, e).to_exact();
         let hi = codec.decode(c + 1, e).to_exact();
         let step = hi.saturating_sub(lo);
-        let loss = f32_to_exact(v).saturating_sub(lo);
+        let exact = f32_to_exact(v);
+        let loss = exact.saturating_sub(lo);
         if step == 0 || loss == 0 {
+            return None;
+        }
+        if hi.saturating_sub(exact) > exact {
             return None;
         }
         // loss < step, so the quotient fits in 16 bits; scale loss first without overflow (both < 2^101).
@@ -441,6 +453,8 @@ mod tests {
         for (&c, &v) in codes.iter().zip(values) {
             let d = codec.decode(c, e);
             sum += d.to_exact();
+            // Slack never more than doubles an entry (a step below the float range can be many times it).
+            prop_assert!(d.to_f32() <= 2.0 * v * (1.0 + 1e-6), "{codec:?} v={v} bumped to {}", d.to_f32());
             let err = (d.to_f32() - v).abs();
             if v >= normal_floor {
                 // Relative error < 2^-M (one code step in the normal range), plus f32 rounding of the check.

@@ -155,7 +155,9 @@
 //! - Form factors (see [`codec`]): the default [`FfCodec::FLOAT16`] (4 exponent and 12 mantissa bits under a
 //!   per-row power-of-two scale) has relative error `< 2^-12` (2.4e-4) for entries `>= row max / 2^14`;
 //!   [`FfCodec::FLOAT8`] (3 + 5 bits) `< 2^-5` (3.1%) for entries `>= row max / 2^6`. Rounding keeps every
-//!   row's decoded sum `<=` its true sum and `<= 1`; the deficit is less than one code step.
+//!   row's decoded sum `<=` its true sum and `<= 1`; the deficit is less than one code step plus the losses of
+//!   entries smaller than half a code step, which are only rounded down (a step is never added where it would
+//!   more than double an entry).
 //! - Reflectance: absolute error `<= 2^-17`. Emission and irradiance: relative `<= 2^-11` in
 //!   `[9.3e-10, 8.6e9]` W/m^2.
 //! - Convergence: decoded rows sum to `<= 1` and reflectances are `< 1`, so `R F` has row sums `< 1` and

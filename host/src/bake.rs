@@ -1127,8 +1127,9 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     // The decoded rows' shooting form exceeds the original's row sums by the codec's rounding: an entry in the
     // float range is bumped up by at most one code step, at most 2^-M of the entry for M mantissa bits (core's
     // crate docs, "Error bounds"), so its row sums may exceed 1 + tolerance by that factor (2^-5 with 8-bit
-    // codes); the stored rows the device shoots stay <= 1. Beyond that allowance, steps of tiny entries scaled
-    // by large sender/receiver area ratios are at work: the codec is too coarse for the scene (CodecTooCoarse).
+    // codes); the stored rows the device shoots stay <= 1. Beyond that allowance, steps of tiny entries (below
+    // the float range, where the writer may round up an entry that is at least half a step) scaled by large
+    // sender/receiver area ratios are at work: the codec is too coarse for the scene (CodecTooCoarse).
     let mantissa_bits = i32::from(options.codec.bits.saturating_sub(options.codec.exponent_bits));
     let decoded_options = BakeOptions {
         row_sum_tolerance: options.row_sum_tolerance

@@ -831,3 +831,43 @@ fn gauss_seidel_and_dense_bakes_agree() {
     }
     assert!(gs.reference_residual <= 1e-12 && dense.reference_residual <= 1e-12);
 }
+
+/// A codec too coarse for the scene's area ratios is refused with its own error. A sliver (area 2^-10) receives
+/// from six unit-area patches whose rows hold one tiny entry to it, 0.55 of an 8-bit code step below the float
+/// range (row max 1/2: exponent 1, step 2^-(1 + 5 + 6) = 2^-12), next to an entry whose rounding loss leaves
+/// slack for one such step. The writer may bump the tiny entry to a whole step (it at most doubles it), which
+/// is harmless in the stored rows (sums stay <= 1) but in the sliver's incoming row each step counts 2^10
+/// times: 6 * 2^-12 * 2^10 = 1.5 decoded against 0.825 true, beyond the 8-bit allowance (1 + 2^-5 + the
+/// row-sum tolerance). 16-bit codes bake the same scene. (The meshed case: `coarse_codec_is_refused_with_the_
+/// reason` in tests/tests/verification.rs, the slab.)
+#[test]
+fn coarse_codec_is_refused_on_a_synthetic_sliver() {
+    let (k, sliver) = (6usize, 2f64.powi(-10));
+    let mut patches = vec![patch(0, sliver, 0)];
+    patches.extend((1..=k).map(|i| patch(i, 1.0, 0)));
+    let n = k + 1;
+    let step = 2f64.powi(-12);
+    let mut rows = vec![vec![0.0; n]; n];
+    for i in 1..=k {
+        let (next, prev) = (i % k + 1, (i + k - 2) % k + 1);
+        rows[i][next] = 0.5;
+        rows[i][prev] = 0.25 + 0.9 * 2f64.powi(-7);
+        rows[i][0] = 0.55 * step;
+        // Reciprocity: A_0 F_0i = A_i F_i0.
+        rows[0][i] = rows[i][0] / sliver;
+    }
+    let materials = vec![[0.5; 3]];
+    let mut lighting = dark_lighting(&patches, &materials, 1);
+    lighting.group[1] = Some(0);
+    lighting.unit_emission[1] = [1.0; 3];
+    let scene =
+        TestScene { patches, materials, lighting, names: vec!["lamp".into()], ff: dense_to_csr(&rows) };
+    let options = |codec| BakeOptions { threshold: 0.0, codec, ..BakeOptions::default() };
+    let err = bake(&scene.input(), &options(FfCodec::FLOAT8)).expect_err("8-bit codes must be refused");
+    let msg = err.to_string();
+    println!("{msg}");
+    assert!(matches!(err, BakeError::CodecTooCoarse { bits: 8, patch: 0, .. }), "{msg}");
+    assert!(msg.contains("decode to a sum of 1.500") && msg.contains("1024 times its area"), "{msg}");
+    assert!(msg.contains("--bits 16"), "{msg}");
+    bake(&scene.input(), &options(FfCodec::FLOAT16)).expect("16-bit bake");
+}
