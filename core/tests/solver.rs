@@ -364,7 +364,7 @@ fn determinism<S: Arith>() {
     assert_eq!(run(), run());
 }
 
-/// Splitting work across steps does not change the result: shots resume mid-row and the tournament tree
+/// Splitting work across steps does not change the result: shots resume mid-row and the block selection
 /// picks the same shooter whether rebuilt or updated, so any budget partition gives bit-identical states.
 fn budget_partition_invariance<S: Arith>() {
     let bytes = relight_scene([1.0; 3], [0.25; 3]).write();

@@ -4,8 +4,8 @@
 //! Model: `instructions = overhead + per_unit * units`, with `units = used + light_units` (the step's units
 //! plus the light changes' units, which core reports outside the budget), fitted by ordinary least squares on
 //! the frames of one calibration script: that is the typical cost. Work units are not all alike (an entry
-//! applied costs more instructions than a tree node recomputed), so the per-unit cost of a frame varies with
-//! its mix (about 92..117 instructions per unit in f32 on the Cortex-M4), and a least-squares line is not a
+//! applied, with its selection comparison, costs more instructions than a slot scanned when selecting or
+//! rebuilding a block), so the per-unit cost of a frame varies with its mix, and a least-squares line is not a
 //! bound. The **bound** is the upper envelope through the calibration frames: overhead `bound_overhead` = the
 //! largest of the least-squares overhead, 0 and the instructions of any calibration frame with no units (an
 //! idle frame after convergence: the loop's fixed cost), and slope `bound_per_unit` = the largest

@@ -44,8 +44,9 @@ pub struct DeviceMemory<S> {
 }
 
 impl<S: Scalar> DeviceMemory<S> {
-    /// Buffers for `table`: state count (patches with run-time state) for power, unshot, incident power and
-    /// the tree; light-group count for intensities; material count for reflectances.
+    /// Buffers for `table`: state count (patches with run-time state) for power, unshot and incident power;
+    /// `selection_len` of it for the selection; light-group count for intensities; material count for
+    /// reflectances.
     #[must_use]
     pub fn for_table(table: &Table<'_>) -> DeviceMemory<S> {
         let n = table.state_count() as usize;
