@@ -358,14 +358,16 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
                  difference between the three loops: {stream:.1} ns ({:.0}%) the stream's decode and \
                  multiply-add; {:.1} ns ({:.0}%) what Gauss-Seidel adds per entry without any selection \
                  (reflectance decode, the incident and power buffers besides unshot power); {:.1} ns ({:.0}%) what \
-                 shooting adds on top: its selection (the receiver's magnitude compared with its block's winner \
-                 per entry, {:.2} work units per entry in all) and per-shot work (a scan of the block winners and \
-                 a rescan of the shooter's block, {:.0} entries per shot here).",
+                 shooting adds on top, not separated here: its selection (the receiver's magnitude compared with \
+                 its block's winner per entry, {:.2} work units per entry in all), per-shot work (a scan of the \
+                 block winners and a rescan of the shooter's block, {:.0} entries per shot here), and the order \
+                 of its reads (rows in selection order, each shot a new stream through the table, where the \
+                 stream and Gauss-Seidel read it front to back).",
                 100.0 * rf.shooting_fraction(),
                 share(stream),
-                gs - stream,
+                (gs - stream).max(0.0),
                 share(gs - stream),
-                shoot - gs,
+                (shoot - gs).max(0.0),
                 share(shoot - gs),
                 rf.shooting_units as f64 / rf.shooting_entries.max(1) as f64,
                 rf.shooting_entries as f64 / rf.shots.max(1) as f64,
