@@ -735,6 +735,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
         let Some(mut shot) = self.shot else { return true };
         // The block in the locals (`u32::MAX`: none), whether its winner is maintained, its winner and key.
         let (mut block, mut live, mut winner, mut winner_key) = (u32::MAX, false, 0u32, S::ZERO);
+        // Sweeps run with the selection invalid (rebuilt before the next shot): nothing to maintain.
+        let maintain = scratch.is_none() && self.tree == TreeState::Valid;
         let mut done = true;
         while shot.next < shot.end {
             if budget - *used < per_entry {
@@ -754,6 +756,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
                 *used += 1;
                 match scratch.as_deref_mut() {
                     Some(s) => add3(s, i, r),
+                    None if !maintain => add3(self.buf.unshot, i, r),
                     None => {
                         let before = get3(self.buf.unshot, i);
                         add3(self.buf.unshot, i, r);
