@@ -842,7 +842,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// and per slot scanned when a block is rebuilt; per shot 1 unit plus a rescan of the shooter's block
     /// (`<= B`); per entry 1 unit, plus a rescan of the receiver's block when the receiver was its block's
     /// winner and its magnitude may have shrunk (a channel moved towards zero). An action runs only if its
-    /// worst case (`B + 1`) fits in what is left of the budget.
+    /// worst case fits in what is left of the budget: an entry `B + 1`, a block rebuild its length, a
+    /// selection the block count, a shot start 1 plus its block's length. A selection made at the end of one
+    /// step is kept for the next while nothing changes.
     pub fn step(&mut self, table: &Table<'_>, budget: u32) -> Outcome {
         let mut used = 0u32;
         if !self.same_table(table) {
