@@ -733,9 +733,10 @@ impl<'b, S: Scalar> Solver<'b, S> {
         per_entry: u32,
     ) -> bool {
         let Some(mut shot) = self.shot else { return true };
-        // The block in the locals (`u32::MAX`: none), whether its winner is maintained, its winner and key.
-        let (mut block, mut live, mut winner, mut winner_key) = (u32::MAX, false, 0u32, S::ZERO);
-        // Sweeps run with the selection invalid (rebuilt before the next shot): nothing to maintain.
+        // The block in the locals (`u32::MAX`: none), its winner and key.
+        let (mut block, mut winner, mut winner_key) = (u32::MAX, 0u32, S::ZERO);
+        // Sweeps run with the selection invalid (rebuilt before the next shot): nothing to maintain. Shooting
+        // applies entries only with every block built (`step` finishes a rebuild before resuming a row).
         let maintain = scratch.is_none() && self.tree == TreeState::Valid;
         let mut done = true;
         while shot.next < shot.end {
@@ -762,33 +763,28 @@ impl<'b, S: Scalar> Solver<'b, S> {
                         add3(self.buf.unshot, i, r);
                         let b = i >> self.block_shift;
                         if b != block {
-                            if live {
+                            if block != u32::MAX {
                                 self.set_winner(block, winner);
                             }
                             block = b;
-                            live = self.block_valid(b);
-                            if live {
+                            winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
+                            winner_key = self.key(winner);
+                        }
+                        let k = self.key(i);
+                        if i == winner {
+                            // Each channel moved away from zero (or not at all): it stays the winner.
+                            let grew = (0..3)
+                                .all(|c| (before[c] >= S::ZERO) == (r[c] >= S::ZERO) || r[c] == S::ZERO);
+                            if grew {
+                                winner_key = k;
+                            } else {
+                                *used += self.rescan_block(b);
                                 winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
                                 winner_key = self.key(winner);
                             }
-                        }
-                        if live {
-                            let k = self.key(i);
-                            if i == winner {
-                                // Each channel moved away from zero (or not at all): it stays the winner.
-                                let grew = (0..3)
-                                    .all(|c| (before[c] >= S::ZERO) == (r[c] >= S::ZERO) || r[c] == S::ZERO);
-                                if grew {
-                                    winner_key = k;
-                                } else {
-                                    *used += self.rescan_block(b);
-                                    winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
-                                    winner_key = self.key(winner);
-                                }
-                            } else if Self::ranks_above(i, k, winner, winner_key) {
-                                winner = i;
-                                winner_key = k;
-                            }
+                        } else if Self::ranks_above(i, k, winner, winner_key) {
+                            winner = i;
+                            winner_key = k;
                         }
                     }
                 }
@@ -798,7 +794,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
             shot.next += 1;
             self.entries = self.entries.wrapping_add(1);
         }
-        if live {
+        if block != u32::MAX {
             self.set_winner(block, winner);
         }
         self.selected = None;
