@@ -202,6 +202,12 @@ pub struct FormFactorStats {
     /// Pairs with a nonzero unoccluded form factor whose rays all landed where the kernel vanishes (part of `j`
     /// below `i`'s horizon), so no visibility was measured and the pair was taken as unoccluded.
     pub pairs_assumed_visible: u64,
+    /// Point-to-polygon kernel evaluations (Lambert's contour sum) of the unoccluded form factors.
+    pub kernel_evaluations: u64,
+    /// Wall time of the unoccluded form factors (the kernels; no rays).
+    pub kernel_time: Duration,
+    /// Wall time of the visible fractions (sampling the ray end points, then casting the rays).
+    pub visibility_time: Duration,
     /// Wall time of the whole computation.
     pub elapsed: Duration,
 }
@@ -333,11 +339,15 @@ pub fn estimate_form_factors(
     };
     let compute = || -> Phases {
         // Phase 1: unoccluded form factors, no rays.
-        let unoccluded: Vec<Vec<(u32, f64)>> =
-            (0..patches.len()).into_par_iter().map(|i| context.unoccluded_row(i)).collect();
+        let phase = Instant::now();
+        let (unoccluded, kernels): (Vec<Vec<(u32, f64)>>, Vec<u64>) =
+            (0..patches.len()).into_par_iter().map(|i| context.unoccluded_row(i)).unzip();
+        let kernel_time = phase.elapsed();
         // Phase 2: one visible fraction per unordered pair that needs one, computed in the row of its smaller index.
+        let phase = Instant::now();
         let visibility: Vec<Visibility> =
             (0..patches.len()).into_par_iter().map(|i| context.visibility_row(i, &unoccluded)).collect();
+        let visibility_time = phase.elapsed();
         let escapes = match options.closure {
             ClosureMode::Off => (0, 0),
             ClosureMode::Detect => (0..patches.len())
@@ -345,9 +355,15 @@ pub fn estimate_form_factors(
                 .map(|i| context.escaping_rays(i))
                 .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1)),
         };
-        (unoccluded, visibility, escapes)
+        let timing = (kernels.iter().sum::<u64>(), kernel_time, visibility_time);
+        (unoccluded, visibility, escapes, timing)
     };
-    let (unoccluded, visibility, (escape_rays, escaped_rays)) = match options.threads {
+    let (
+        unoccluded,
+        visibility,
+        (escape_rays, escaped_rays),
+        (kernel_evaluations, kernel_time, visibility_time),
+    ) = match options.threads {
         None => compute(),
         Some(threads) => rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -439,6 +455,9 @@ pub fn estimate_form_factors(
         rays_cast,
         rays_per_second: rays_cast as f64 / elapsed.as_secs_f64().max(1e-9),
         pairs_assumed_visible,
+        kernel_evaluations,
+        kernel_time,
+        visibility_time,
         elapsed,
     };
     Ok(FormFactorEstimate { matrix, stats, partly_visible })
@@ -821,8 +840,9 @@ impl SplitMix64 {
     }
 }
 
-/// Unoccluded rows, visibility rows, and (escape rays cast, escaped).
-type Phases = (Vec<Vec<(u32, f64)>>, Vec<Visibility>, (u64, u64));
+/// Unoccluded rows, visibility rows, (escape rays cast, escaped), and (kernel evaluations, wall time of the
+/// kernel phase, wall time of the visibility phase).
+type Phases = (Vec<Vec<(u32, f64)>>, Vec<Visibility>, (u64, u64), (u64, Duration, Duration));
 
 struct RowContext<'a> {
     patches: &'a [Patch],
@@ -911,18 +931,20 @@ impl RowContext<'_> {
         (rays.len() as u64, escaped)
     }
 
-    /// `U_ij` for every `j` that `i` can see, sorted by `j`.
-    fn unoccluded_row(&self, i: usize) -> Vec<(u32, f64)> {
+    /// `U_ij` for every `j` that `i` can see, sorted by `j`, and the kernel evaluations that took.
+    fn unoccluded_row(&self, i: usize) -> (Vec<(u32, f64)>, u64) {
         let patch_i = &self.patches[i];
         let mut clipped = Vec::new();
         let mut front = Vec::new();
         let mut strips = Vec::new();
         let mut row = Vec::new();
+        let mut kernels = 0u64;
         for (j, patch_j) in self.patches.iter().enumerate() {
             if j == i || !may_see(patch_i, patch_j) {
                 continue;
             }
             let mut kernel = |x: &DVec3| {
+                kernels += 1;
                 point_to_polygon_with(*x, patch_i.normal, &patch_j.vertices, patch_j.normal, &mut clipped)
             };
             // If j's plane cuts i, the kernel is zero on the part of i behind it and has a kink along the cut,
@@ -982,7 +1004,7 @@ impl RowContext<'_> {
             }
         }
         self.progress.inc(1);
-        row
+        (row, kernels)
     }
 
     /// Visible fractions of the pairs `(i, j)`, `j > i`, for which `U_ij > 0` or `U_ji > 0`.

@@ -308,6 +308,10 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                         "reciprocity_error_max": s.reciprocity_error_max,
                         "rays_cast": s.rays_cast,
                         "rays_per_second": s.rays_per_second,
+                        "kernel_evaluations": s.kernel_evaluations,
+                        "kernel_seconds": s.kernel_time.as_secs_f64(),
+                        "visibility_seconds": s.visibility_time.as_secs_f64(),
+                        "seconds": s.elapsed.as_secs_f64(),
                         "rows": rows,
                     });
                     serde_json::to_writer_pretty(&mut out, &doc)?;
@@ -321,6 +325,13 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     writeln!(out, "reciprocity error max {:.3e}", s.reciprocity_error_max)?;
                     writeln!(out, "rays cast             {}", s.rays_cast)?;
                     writeln!(out, "rays per second       {:.3e}", s.rays_per_second)?;
+                    writeln!(out, "kernel evaluations    {}", s.kernel_evaluations)?;
+                    writeln!(
+                        out,
+                        "phases                kernels {:.3} s, visibility {:.3} s",
+                        s.kernel_time.as_secs_f64(),
+                        s.visibility_time.as_secs_f64()
+                    )?;
                     writeln!(out, "time                  {:.3} s", s.elapsed.as_secs_f64())?;
                 }
             }

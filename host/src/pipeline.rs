@@ -250,7 +250,7 @@ fn align_flags(from: &FormFactorMatrix, flags: &[bool], to: &FormFactorMatrix) -
 fn report_form_factors(stats: &FormFactorStats, reciprocity_change: f64, clamp: &RowClamp) {
     eprintln!(
         "form factors: {} patches, {} nonzeros, row sums {:.6}..{:.6}, reciprocity error {:.2e}, {} rays in {:.2} s \
-         ({:.2} Mrays/s)",
+         ({:.2} Mrays/s; {} kernel evaluations {:.2} s, visibility {:.2} s)",
         stats.patches,
         stats.nonzeros,
         stats.estimate_row_sum_min,
@@ -258,7 +258,10 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: f64, clamp: 
         stats.reciprocity_error_max,
         stats.rays_cast,
         stats.elapsed.as_secs_f64(),
-        stats.rays_per_second / 1e6
+        stats.rays_per_second / 1e6,
+        stats.kernel_evaluations,
+        stats.kernel_time.as_secs_f64(),
+        stats.visibility_time.as_secs_f64()
     );
     match &stats.closure {
         Some(c) => eprintln!(

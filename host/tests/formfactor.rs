@@ -536,3 +536,23 @@ fn far_field_rule_matches_the_full_rule() {
     assert!(changed > 0, "no pair used the far-field rule");
     assert!(worst <= bound, "worst relative change {worst:.3e} > {bound:.1e}");
 }
+
+/// The kernel counter counts what the rules evaluate: unit squares 20 apart are in the far field (gap >=
+/// `FAR_FIELD_GAP` diameters), so each direction takes the 2 x 2 rule, or 4 x 4 with the far-field rule off; and
+/// the two phase timers fit in the whole computation's time.
+#[test]
+fn kernel_evaluations_follow_the_rules() {
+    let far = vec![
+        quad(0, DVec3::ZERO, DVec3::X, DVec3::Y),
+        quad(1, DVec3::new(0.0, 0.0, 20.0), DVec3::Y, DVec3::X),
+    ];
+    let (_, stats) = compute_form_factors(&far, &quiet(16, 16, 1)).unwrap();
+    assert_eq!(stats.kernel_evaluations, 2 * 4);
+    assert!(stats.kernel_time + stats.visibility_time <= stats.elapsed);
+    let full = FormFactorOptions { far_field: false, ..quiet(16, 16, 1) };
+    let (_, stats) = compute_form_factors(&far, &full).unwrap();
+    assert_eq!(stats.kernel_evaluations, 2 * 16);
+    // Facing squares 1 apart are in each other's near field: the rule runs on pieces split towards the other.
+    let (_, stats) = compute_form_factors(&facing_squares(), &quiet(16, 16, 1)).unwrap();
+    assert!(stats.kernel_evaluations > 2 * 16, "{}", stats.kernel_evaluations);
+}

@@ -257,6 +257,9 @@ pub struct BakeThroughput {
     pub ff: Vec<(usize, u64, f64)>,
     /// Raw Embree: rays, seconds on 1 and 2 threads.
     pub raw: Vec<(usize, usize, f64)>,
+    /// Where the form factors' time went, on 1 and 2 threads: threads, kernel evaluations, seconds of the kernel
+    /// phase and of the visibility phase (medians; see [`crate::formfactor::FormFactorStats`]).
+    pub phases: Vec<(usize, u64, f64, f64)>,
 }
 
 /// One size of the growth series.
@@ -840,10 +843,12 @@ fn bake_throughput(options: &BenchOptions) -> Result<BakeThroughput, BenchError>
         mesh(&scene, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: usize::MAX / 4 })
             .map_err(|e| BenchError::Options(format!("meshing: {e}")))?;
     let mut ff = Vec::new();
+    let mut phases = Vec::new();
     let mut matrix = None;
     for threads in [1usize, 2] {
         let mut times = Vec::new();
-        let mut rays = 0;
+        let (mut kernel_times, mut visibility_times) = (Vec::new(), Vec::new());
+        let (mut rays, mut kernels) = (0, 0);
         for _ in 0..options.reps.min(2) {
             let (mtx, stats) = compute_form_factors(
                 &m.patches,
@@ -851,10 +856,19 @@ fn bake_throughput(options: &BenchOptions) -> Result<BakeThroughput, BenchError>
             )
             .map_err(|e| BenchError::Options(format!("form factors: {e}")))?;
             times.push(stats.elapsed.as_secs_f64());
+            kernel_times.push(stats.kernel_time.as_secs_f64());
+            visibility_times.push(stats.visibility_time.as_secs_f64());
             rays = stats.rays_cast;
+            kernels = stats.kernel_evaluations;
             matrix = Some(mtx);
         }
         ff.push((threads, rays, device::median(&mut times)));
+        phases.push((
+            threads,
+            kernels,
+            device::median(&mut kernel_times),
+            device::median(&mut visibility_times),
+        ));
     }
     let matrix = matrix.unwrap_or_default();
     let scene_rt = bakebench::occluder_scene(&m.patches, ffo.robust)?;
@@ -874,6 +888,7 @@ fn bake_throughput(options: &BenchOptions) -> Result<BakeThroughput, BenchError>
         rays_per_pair: ffo.rays_per_pair,
         ff,
         raw,
+        phases,
     })
 }
 
