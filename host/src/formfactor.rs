@@ -206,7 +206,7 @@ pub struct FormFactorStats {
     pub kernel_evaluations: u64,
     /// Wall time of the unoccluded form factors (the kernels; no rays).
     pub kernel_time: Duration,
-    /// Wall time of the visible fractions (sampling the ray end points, then casting the rays).
+    /// Wall time of the visible fractions (finding the pairs, sampling the ray end points, casting the rays).
     pub visibility_time: Duration,
     /// Wall time of the whole computation.
     pub elapsed: Duration,
@@ -345,8 +345,19 @@ pub fn estimate_form_factors(
         let kernel_time = phase.elapsed();
         // Phase 2: one visible fraction per unordered pair that needs one, computed in the row of its smaller index.
         let phase = Instant::now();
-        let visibility: Vec<Visibility> =
-            (0..patches.len()).into_par_iter().map(|i| context.visibility_row(i, &unoccluded)).collect();
+        // For each i, the j > i whose row holds i (ascending): the transpose's upper part, one pass over the rows
+        // (a binary search of every later row from each row costs O(n^2 log n) scattered reads).
+        let mut later: Vec<Vec<u32>> = vec![Vec::new(); patches.len()];
+        for (j, row) in unoccluded.iter().enumerate() {
+            for &(i, _) in row.iter().take_while(|&&(i, _)| (i as usize) < j) {
+                later[i as usize].push(j as u32);
+            }
+        }
+        let visibility: Vec<Visibility> = later
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, later)| context.visibility_row(i, &unoccluded[i], later))
+            .collect();
         let visibility_time = phase.elapsed();
         let escapes = match options.closure {
             ClosureMode::Off => (0, 0),
@@ -382,15 +393,11 @@ pub fn estimate_form_factors(
         let (lo, hi) = if i < j { (i, j) } else { (j, i) };
         visibility[lo].fraction_for(hi as u32)
     };
-    // Fully visible and fully hidden pairs are exact up to quadrature (the ratio estimator gives exactly 1 or 0);
-    // the others carry visibility noise. NaN marks a pair whose visibility was assumed.
-    let uncertain = |i: usize, j: usize| {
-        let v = fraction(i, j);
-        v.is_nan() || (v > 0.0 && v < 1.0)
-    };
+    let mut walk = FractionWalk::new(&visibility);
     for (i, row) in unoccluded.iter().enumerate() {
+        let mut own = 0;
         for &(j, u) in row {
-            let v = fraction(i, j as usize);
+            let v = walk.get(i, j as usize, &mut own);
             let f = u * if v.is_nan() { 1.0 } else { v };
             if f > 0.0 {
                 matrix.col.push(j);
@@ -434,10 +441,15 @@ pub fn estimate_form_factors(
     } else {
         None
     };
-    let partly_visible: Vec<bool> = (0..matrix.n)
-        .flat_map(|i| matrix.row(i).map(move |(j, _)| (i, j)).collect::<Vec<_>>())
-        .map(|(i, j)| uncertain(i, j))
-        .collect();
+    let mut partly_visible = Vec::with_capacity(matrix.nonzeros());
+    let mut walk = FractionWalk::new(&visibility);
+    for i in 0..matrix.n {
+        let mut own = 0;
+        for (j, _) in matrix.row(i) {
+            let v = walk.get(i, j, &mut own);
+            partly_visible.push(v.is_nan() || (v > 0.0 && v < 1.0));
+        }
+    }
     let elapsed = start.elapsed();
     let (row_sum_min, row_sum_max) = row_sum_range(&matrix);
     let stats = FormFactorStats {
@@ -867,6 +879,38 @@ struct Visibility {
     pairs_assumed_visible: u64,
 }
 
+/// Visible fractions looked up in row-major order (rows ascending, columns ascending within a row) in O(1)
+/// amortized: pair `(i, j)` lives in row `min(i, j)`, and both that row's own lookups (`j > i`) and the later rows'
+/// lookups into it (`j < i`, with `i` ascending) ask for ascending keys, so a cursor per row only moves forward.
+struct FractionWalk<'a> {
+    visibility: &'a [Visibility],
+    /// Per row `r`: the cursor of the lookups from rows below it (`j = r < i`).
+    below: Vec<usize>,
+}
+
+impl<'a> FractionWalk<'a> {
+    fn new(visibility: &'a [Visibility]) -> Self {
+        FractionWalk { visibility, below: vec![0; visibility.len()] }
+    }
+
+    /// `v_ij` as [`Visibility::fraction_for`] gives it; `own` is row `i`'s cursor into its own fractions (start
+    /// each row at 0).
+    fn get(&mut self, i: usize, j: usize, own: &mut usize) -> f64 {
+        let (row, cursor, key) = if j > i {
+            (&self.visibility[i].fractions, own, j)
+        } else {
+            (&self.visibility[j].fractions, &mut self.below[j], i)
+        };
+        while row.get(*cursor).is_some_and(|&(c, _)| (c as usize) < key) {
+            *cursor += 1;
+        }
+        match row.get(*cursor) {
+            Some(&(c, v)) if c as usize == key => v,
+            _ => 1.0,
+        }
+    }
+}
+
 impl Visibility {
     /// The visible fraction of pair `(i, j)` (this row is `i < j`); 1 if `j` needed none, which cannot happen for
     /// an entry of either unoccluded row since phase 2 covers both.
@@ -1011,14 +1055,10 @@ impl RowContext<'_> {
     ///
     /// Visibility and the ray weight `cos θ_x cos θ_y / r²` are symmetric in `x` and `y`, so one estimate serves
     /// `F_ij` and `F_ji`: reciprocity then holds up to the quadrature error of `U`, and each pair costs its rays once.
-    fn visibility_row(&self, i: usize, unoccluded: &[Vec<(u32, f64)>]) -> Visibility {
-        let mut needed: Vec<u32> =
-            unoccluded[i].iter().map(|&(j, _)| j).filter(|&j| j as usize > i).collect();
-        for (j, row) in unoccluded.iter().enumerate().skip(i + 1) {
-            if row.binary_search_by_key(&(i as u32), |&(c, _)| c).is_ok() {
-                needed.push(j as u32);
-            }
-        }
+    ///
+    /// `row` is `i`'s unoccluded row; `needed` comes with the `j > i` whose unoccluded rows hold `i`.
+    fn visibility_row(&self, i: usize, row: &[(u32, f64)], mut needed: Vec<u32>) -> Visibility {
+        needed.extend(row.iter().map(|&(j, _)| j).filter(|&j| j as usize > i));
         needed.sort_unstable();
         needed.dedup();
 
