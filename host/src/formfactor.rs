@@ -631,7 +631,8 @@ fn point_to_polygon_with(
 ///
 /// The contour sum evaluates one per polygon edge and sample point, and the platform's `atan2` was a third of the
 /// bake's time (perf, Cornell box, 518 patches). This one reduces the argument to `|u| <= tan(π/16)` (swap to
-/// `t = min/max <= 1`, then `atan t = c + atan((t - tan c) / (1 + t tan c))` for `c` in `{0, π/8, π/4}`) and sums
+/// `t = min/max <= 1`, then `atan t = c + atan((t - tan c) / (1 + t tan c))` for `c` in `{0, π/8, π/4}`, one
+/// division in all) and sums
 /// the Taylor series `u - u³/3 + u⁵/5 - ...` through `u²¹/21`: the first omitted term is below
 /// `tan(π/16)^22 / 23 = 1.6e-17` of `u`, so the result is within a few rounding errors of the exact angle (the
 /// unit test bounds it at 4 ulp against `f64::atan2`). `y = x = 0` gives 0; NaN gives NaN.
@@ -649,14 +650,15 @@ fn edge_angle(y: f64, x: f64) -> f64 {
     if den == 0.0 {
         return 0.0;
     }
-    let t = num / den;
-    let (centre, u) = if t <= TAN_PI_16 {
-        (0.0, t)
-    } else if t <= TAN_3PI_16 {
-        (FRAC_PI_8, (t - TAN_PI_8) / (1.0 + t * TAN_PI_8))
+    // With t = num / den: (t - tan c) / (1 + t tan c) = (num - den tan c) / (den + num tan c), one division.
+    let (centre, top, bottom) = if num <= TAN_PI_16 * den {
+        (0.0, num, den)
+    } else if num <= TAN_3PI_16 * den {
+        (FRAC_PI_8, num - TAN_PI_8 * den, den + TAN_PI_8 * num)
     } else {
-        (FRAC_PI_4, (t - 1.0) / (t + 1.0))
+        (FRAC_PI_4, num - den, num + den)
     };
+    let u = top / bottom;
     // atan u = u + u³ p(u²), p(z) = Σ_{m=0..9} (-1)^(m+1) z^m / (2m + 3), in Estrin's form (a shallower
     // dependency chain than Horner's: the four edges' angles then overlap in the pipeline).
     let z = u * u;

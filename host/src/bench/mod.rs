@@ -300,8 +300,8 @@ pub struct BenchResults {
     pub scenes: Vec<SceneResult>,
     /// All curves.
     pub curves: Vec<Curve>,
-    /// Bake throughput.
-    pub bake: BakeThroughput,
+    /// Bake throughput, at each measured mesh size.
+    pub bake: Vec<BakeThroughput>,
     /// Growth series (Cornell box).
     pub growth: Vec<GrowthRow>,
     /// What the growth series covers (sizes and what runs at each).
@@ -833,8 +833,7 @@ fn run_scene(
     Ok((result, run.curves))
 }
 
-fn bake_throughput(options: &BenchOptions) -> Result<BakeThroughput, BenchError> {
-    let target = if options.quick { 100 } else { 500 };
+fn bake_throughput(options: &BenchOptions, target: usize) -> Result<BakeThroughput, BenchError> {
     let ffo = FormFactorOptions { progress: false, ..FormFactorOptions::default() };
     let path = options.scenes.join("cornell-box.obj");
     let scene = Scene::load(&path)?;
@@ -982,8 +981,11 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         });
     }
     growth.sort_by_key(|g| g.patches);
-    log(options, "bake throughput");
-    let bake = bake_throughput(options)?;
+    let mut bake = Vec::new();
+    for target in if options.quick { vec![100] } else { vec![500, 2000] } {
+        log(options, &format!("bake throughput: ~{target} patches"));
+        bake.push(bake_throughput(options, target)?);
+    }
     let results = BenchResults {
         quick: options.quick,
         reps: options.reps,
