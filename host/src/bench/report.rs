@@ -532,12 +532,12 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
                     allowed * 1e9,
                     per_kernel / allowed,
                     per_kernel * 1e9,
-                    if per_kernel / allowed >= 2.0 {
+                    if per_kernel / allowed >= 4.0 {
                         ": at this size the target is out of reach of this estimator, which spends kernel evaluations to need few \
                          rays (see the form-factor module docs: 4 x 4 Gauss points are within 4e-7 of closed forms where \
                          16 area-sampled rays scatter by about 20%), rather than of its constant factors."
                     } else {
-                        "."
+                        ": a faster kernel or fewer evaluations per ray could still reach it at this size."
                     }
                 );
             }
