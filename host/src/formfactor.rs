@@ -81,7 +81,7 @@
 //! ray starts or ends on an edge either. Points coplanar with `j` get 0 (they cannot see `j`'s front).
 //!
 //! Two near-field shapes defeat a split driven by bounding spheres, and get their own rule
-//! ([`near_field_integral`], up to [`SLIVER_DEPTH`] more levels, pieces only along the feature, so the cost grows
+//! (`near_field_integral`, up to [`SLIVER_DEPTH`] more levels, pieces only along the feature, so the cost grows
 //! like one over its width): a **sliver** (a strip much longer than wide) as receiver, seen from a large patch
 //! only within a few widths of it, and as sender (cut into short pieces); and **nearly touching parallel faces**,
 //! whose kernel falls from 1 to 1/2 within a few gaps of the receiver's edges. Measured on `scenes/slab.obj`
@@ -1184,7 +1184,7 @@ fn near(domain: &[DVec3], center: DVec3, radius: f64) -> bool {
     c.distance(center) - radius - r < 2.0 * r
 }
 
-/// Extra levels of splitting of the near-field quadrature towards a sliver receiver ([`Receiver::sliver_width`]),
+/// Extra levels of splitting of the near-field quadrature towards a sliver receiver (`Receiver::sliver_width`),
 /// beyond [`NEAR_FIELD_MAX_DEPTH`]: pieces down to `2^-(NEAR_FIELD_MAX_DEPTH + SLIVER_DEPTH)` of the sender's size.
 pub const SLIVER_DEPTH: usize = 10;
 

@@ -7,7 +7,7 @@
 //! instructions each frame took and proves the host run is bit-exact with the device's.
 //!
 //! The exact answer of a frame is the f64 relighting of the scene's own form-factor matrix (unsparsified,
-//! unquantized): `B = B_static + sum_g I_g T_g` with the frame's intensities `I_g` ([`TransferVectors`]). The
+//! unquantized): `B = B_static + sum_g I_g T_g` with the frame's intensities `I_g` ([`TransferVectors`](crate::reference::TransferVectors)). The
 //! per-frame error therefore holds every source at once: form-factor estimation is the only one left out (the
 //! matrix is the same estimate), while sparsification, quantization, iteration truncation at the frame's budget
 //! and arithmetic are all in it. `radiosity check` separates them.

@@ -75,7 +75,7 @@ impl PatchTracer {
     /// faces the ray, and the hit point.
     ///
     /// Surfaces seen from behind are skipped (back-face culling, continuing the ray just past them), so a camera
-    /// outside a closed room sees through the wall facing it into the room. After [`MAX_BACK_FACES`] back faces in
+    /// outside a closed room sees through the wall facing it into the room. After `MAX_BACK_FACES` back faces in
     /// a row the ray counts as a miss.
     #[must_use]
     pub fn closest_hit(&self, origin: DVec3, direction: DVec3) -> Option<Hit> {
