@@ -91,6 +91,11 @@ fn scene(
     s
 }
 
+/// The selection's block size `B` for `n` slots: the smallest power of two with `B^2 >= n` (`Solver::step`).
+fn block_size(n: usize) -> u32 {
+    (0..).map(|k| 1u32 << k).find(|&b| (b as usize) * (b as usize) >= n).unwrap()
+}
+
 /// When to change the light: never, after a first solve, or after a step that builds only the first selection
 /// block (the change must update the blocks already built and leave the others to the build).
 #[derive(Clone, Copy, Debug)]
@@ -128,8 +133,7 @@ fn check(scene: &Scene, overshoot: u8, relight: Relight, budget: u32) -> Result<
         }
         Relight::MidBuild(rgb) => {
             // The first block is `B` slots (or all of them): a budget of exactly that builds it and stops.
-            let first =
-                (0..).map(|k| 1u32 << k).find(|b| b * b >= t.state_count()).unwrap().min(t.state_count());
+            let first = block_size(t.state_count() as usize).min(t.state_count());
             prop_assert_eq!(solver.step(&t, first).used(), first);
             solver.set_light(&t, 0, rgb).unwrap();
         }
@@ -169,7 +173,7 @@ proptest! {
         budget in prop_oneof![Just(None), (0u32..48).prop_map(Some)],
     ) {
         // The smallest budget that always progresses: an entry and its block's rescan, 1 + B.
-        let block = (0..).map(|k| 1u32 << k).find(|b| (b * b) as usize >= n).unwrap();
+        let block = block_size(n);
         let budget = budget.map_or(u32::MAX, |extra| block + 1 + extra);
         check(&scene(n, (&areas.0, areas.1), &weights, &sums, cut, &lights), overshoot, relight, budget)?;
     }

@@ -591,22 +591,10 @@ fn point_to_polygon_with(
     // Sutherland-Hodgman clip against the tangent plane at x: keep h = normal · (y - x) >= 0. A polygon wholly
     // above the plane (the common case) is its own clip.
     let height = |y: DVec3| normal.dot(y - x);
-    let next = |k: usize| if k + 1 == polygon.len() { 0 } else { k + 1 };
     let vertices: &[DVec3] = if polygon.iter().all(|&y| height(y) >= 0.0) {
         polygon
     } else {
-        clipped.clear();
-        for (k, &a) in polygon.iter().enumerate() {
-            let b = polygon[next(k)];
-            let (ha, hb) = (height(a), height(b));
-            if ha >= 0.0 {
-                clipped.push(a);
-            }
-            if (ha >= 0.0) != (hb >= 0.0) {
-                let s = ha / (ha - hb);
-                clipped.push(a + (b - a) * s);
-            }
-        }
+        clip_above(polygon, height, clipped);
         clipped
     };
     let Some(&first) = vertices.first() else { return 0.0 };
@@ -1131,18 +1119,24 @@ fn clip_to_front(polygon: &[DVec3], to: &Patch, front: &mut Vec<DVec3>) -> bool 
     if !(any_front && any_behind) {
         return false;
     }
-    front.clear();
+    clip_above(polygon, height, front);
+    front.len() >= 3
+}
+
+/// Sutherland-Hodgman: writes to `out` the part of the convex `polygon` where `height >= 0` (cut points linear
+/// in the height along each crossing edge).
+fn clip_above(polygon: &[DVec3], height: impl Fn(DVec3) -> f64, out: &mut Vec<DVec3>) {
+    out.clear();
     for (k, &a) in polygon.iter().enumerate() {
-        let b = polygon[(k + 1) % polygon.len()];
+        let b = polygon[if k + 1 == polygon.len() { 0 } else { k + 1 }];
         let (ha, hb) = (height(a), height(b));
         if ha >= 0.0 {
-            front.push(a);
+            out.push(a);
         }
         if (ha >= 0.0) != (hb >= 0.0) {
-            front.push(a + (b - a) * (ha / (ha - hb)));
+            out.push(a + (b - a) * (ha / (ha - hb)));
         }
     }
-    front.len() >= 3
 }
 
 /// Levels of splitting of the near-field quadrature: at most `4^NEAR_FIELD_DEPTH` pieces of the sending patch
