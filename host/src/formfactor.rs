@@ -96,9 +96,9 @@
 //! occlude this pair" is made (an exact one costs O(patches) per pair, more than the rays it saves at the default
 //! ray count), so rays are cast even in convex scenes. Pairs facing away from each other cost only a plane test.
 //! [`FormFactorStats`] counts the kernel evaluations and times both passes; `radiosity bench` reports them
-//! (`bench/REPORT.md`, "Bake throughput"). Measured there on the Cornell box, 1 thread: 85-89 ns per kernel
-//! evaluation against 135-152 ns per occlusion ray; 5.1 evaluations per ray at 498 patches (near pairs are split)
-//! and 1.7 at 1,998, where the kernel pass is 70% and 40% of the time.
+//! (`bench/REPORT.md`, "Bake throughput"). Measured there on the Cornell box, 1 thread: 86-92 ns per kernel
+//! evaluation against 139-155 ns per occlusion ray; 5.1 evaluations per ray at 498 patches (near pairs are split)
+//! and 1.7 at 1,998, where the kernel pass is 70% and 41% of the time.
 //!
 //! # Determinism
 //! Quadrature points are deterministic; the rays of pair `(i, j)` come from a generator seeded by `(seed, i, j)`,
