@@ -48,6 +48,14 @@ pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
     /// Whether the value is usable: finite for f32, not saturated for fixed point.
     #[must_use]
     fn is_usable(self) -> bool;
+    /// Selection rank, an integer ordered like the shooter choice: for a magnitude `self` (`>= 0`, or not
+    /// usable) of slot `slot`, a larger rank means a larger magnitude, every unusable magnitude ranks above every
+    /// usable one, and equal magnitudes rank the lower slot higher. One integer comparison per candidate, so a
+    /// running maximum is a single compare-and-select (no chain of float compares and tie-breaks).
+    type Rank: Copy + Ord + core::fmt::Debug;
+    /// The rank of magnitude `self` held by `slot` (see [`Scalar::Rank`]).
+    #[must_use]
+    fn rank(self, slot: u32) -> Self::Rank;
     /// The smallest solver tolerance that is guaranteed to be reachable, given `units` = `6 L / (1 - rho_max)`
     /// rounded up (module docs): `units` resolution steps for fixed point; zero for `f32`, whose rounding is
     /// relative and does not leave an absolute floor of unshot power.
@@ -90,6 +98,12 @@ impl Scalar for f32 {
     }
     fn is_usable(self) -> bool {
         self.is_finite()
+    }
+    /// The bits of a non-negative f32 order like its value, and infinity and NaN (sign cleared) lie above
+    /// every finite value: bits above, the slot's complement below.
+    type Rank = u64;
+    fn rank(self, slot: u32) -> u64 {
+        (u64::from(self.to_bits() & 0x7fff_ffff) << 32) | u64::from(!slot)
     }
     fn convergence_floor(_units: u64) -> f32 {
         0.0
@@ -195,6 +209,12 @@ impl Scalar for Fixed {
     fn is_usable(self) -> bool {
         self.0 != i64::MAX && self.0 != i64::MIN
     }
+    /// A magnitude is a saturating sum of saturating absolute values: in `0..=i64::MAX`, the unusable one
+    /// `i64::MAX` (a negative value, which a magnitude never is, ranks as its absolute value).
+    type Rank = u128;
+    fn rank(self, slot: u32) -> u128 {
+        (u128::from(self.0.unsigned_abs().min(i64::MAX as u64)) << 32) | u128::from(!slot)
+    }
     fn convergence_floor(units: u64) -> Fixed {
         Fixed(i64::try_from(units).unwrap_or(i64::MAX))
     }
@@ -219,5 +239,46 @@ mod tests {
         assert_eq!(Fixed::from_f32(3.0).div(Fixed(0)), Fixed(0));
         assert_eq!(Fixed::from_f32(3.0).mul_frac(Frac { mantissa: 1, shift: 2 }).to_f32(), 0.75);
         assert_eq!(Fixed::MAX.mul(Fixed::MAX), Fixed::MAX);
+    }
+
+    /// The shooter choice the rank must reproduce: an unusable magnitude above every usable one; otherwise the
+    /// larger magnitude, ties to the lower slot. (Between two unusable magnitudes the rank picks one
+    /// deterministically; the solver reports either as not finite.)
+    fn ranks_above<S: Scalar>(a: u32, ka: S, b: u32, kb: S) -> Option<bool> {
+        match (ka.is_usable(), kb.is_usable()) {
+            (false, false) => None,
+            (false, true) => Some(true),
+            (true, false) => Some(false),
+            (true, true) => Some(ka > kb || (ka == kb && a < b)),
+        }
+    }
+
+    fn check_ranks<S: Scalar>(keys: &[S]) {
+        let slots = [0u32, 1, 7, u32::MAX - 1, u32::MAX];
+        for &ka in keys {
+            for &kb in keys {
+                for &a in &slots {
+                    for &b in &slots {
+                        if a == b {
+                            continue;
+                        }
+                        if let Some(want) = ranks_above(a, ka, b, kb) {
+                            assert_eq!(ka.rank(a) > kb.rank(b), want, "{ka:?}@{a} vs {kb:?}@{b}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn rank_orders_like_the_shooter_choice() {
+        let f =
+            [0.0f32, 1e-45, 1e-38, 0.5, 1.0, 1.0 + f32::EPSILON, 3.0e38, f32::MAX, f32::INFINITY, f32::NAN];
+        check_ranks(&f);
+        // A magnitude is a sum of absolute values: NaN arising from it has its sign cleared by `abs`.
+        assert!((-f32::NAN).abs().rank(0) > f32::MAX.rank(0));
+        let x = [Fixed(0), Fixed(1), Fixed(2), Fixed(1 << 40), Fixed(i64::MAX - 1), Fixed::MAX];
+        check_ranks(&x);
     }
 }

@@ -640,12 +640,11 @@ impl<'b, S: Scalar> Solver<'b, S> {
         magnitude(get3(self.buf.unshot, i))
     }
 
-    /// Whether slot `a` (key `ka`) ranks above slot `b` (key `kb`): a key that is not finite (f32) or
-    /// saturated (fixed point) ranks above every usable one, so an overflow is selected and reported; otherwise
-    /// the larger key, ties to the lower slot. Written without short-circuits so it compiles to selects.
-    fn ranks_above(a: u32, ka: S, b: u32, kb: S) -> bool {
-        let (bad_a, bad_b) = (!ka.is_usable(), !kb.is_usable());
-        (bad_a & !bad_b) | ((bad_a == bad_b) & ((ka > kb) | ((ka == kb) & (a < b))))
+    /// Selection rank of slot `i` ([`Scalar::rank`] of its unshot magnitude): an unusable magnitude (not
+    /// finite for f32, saturated for fixed point) ranks above every usable one, so an overflow is selected and
+    /// reported; otherwise the larger magnitude, ties to the lower slot.
+    fn rank(&self, i: u32) -> S::Rank {
+        self.key(i).rank(i)
     }
 
     /// Slots of block `b`.
@@ -659,12 +658,12 @@ impl<'b, S: Scalar> Solver<'b, S> {
         let range = self.block_range(b);
         let len = range.end - range.start;
         let mut best = range.start;
-        let mut best_key = self.key(best);
+        let mut best_rank = self.rank(best);
         for i in range.start + 1..range.end {
-            let k = self.key(i);
-            if Self::ranks_above(i, k, best, best_key) {
+            let r = self.rank(i);
+            if r > best_rank {
                 best = i;
-                best_key = k;
+                best_rank = r;
             }
         }
         self.set_winner(b, best);
@@ -692,7 +691,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if w == slot {
             self.rescan_block(b)
         } else {
-            if Self::ranks_above(slot, self.key(slot), w, self.key(w)) {
+            if self.rank(slot) > self.rank(w) {
                 self.set_winner(b, slot);
             }
             0
@@ -703,13 +702,13 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// and the blocks scanned (work units).
     fn select(&self) -> (u32, u32) {
         let mut best = self.buf.tree.first().copied().unwrap_or(0);
-        let mut best_key = self.key(best);
+        let mut best_rank = self.rank(best);
         for b in 1..self.blocks {
             let w = self.buf.tree.get(b as usize).copied().unwrap_or(0);
-            let k = self.key(w);
-            if Self::ranks_above(w, k, best, best_key) {
+            let r = self.rank(w);
+            if r > best_rank {
                 best = w;
-                best_key = k;
+                best_rank = r;
             }
         }
         (best, self.blocks)
@@ -733,8 +732,8 @@ impl<'b, S: Scalar> Solver<'b, S> {
         per_entry: u32,
     ) -> bool {
         let Some(mut shot) = self.shot else { return true };
-        // The block in the locals (`u32::MAX`: none), its winner and key.
-        let (mut block, mut winner, mut winner_key) = (u32::MAX, 0u32, S::ZERO);
+        // The block in the locals (`u32::MAX`: none), its winner and the winner's rank.
+        let (mut block, mut winner, mut winner_rank) = (u32::MAX, 0u32, S::ZERO.rank(0));
         // Sweeps run with the selection invalid (rebuilt before the next shot): nothing to maintain. Shooting
         // applies entries only with every block built (`step` finishes a rebuild before resuming a row).
         let maintain = scratch.is_none() && self.tree == TreeState::Valid;
@@ -760,7 +759,10 @@ impl<'b, S: Scalar> Solver<'b, S> {
                     None if !maintain => add3(self.buf.unshot, i, r),
                     None => {
                         let before = get3(self.buf.unshot, i);
-                        add3(self.buf.unshot, i, r);
+                        let after = [0, 1, 2].map(|c| before[c].add(r[c]));
+                        if let Some(v) = self.buf.unshot.get_mut(i as usize) {
+                            *v = after;
+                        }
                         let b = i >> self.block_shift;
                         if b != block {
                             if block != u32::MAX {
@@ -768,23 +770,26 @@ impl<'b, S: Scalar> Solver<'b, S> {
                             }
                             block = b;
                             winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
-                            winner_key = self.key(winner);
+                            winner_rank = self.rank(winner);
                         }
-                        let k = self.key(i);
+                        let rank = magnitude(after).rank(i);
                         if i == winner {
                             // Each channel moved away from zero (or not at all): it stays the winner.
                             let grew = (0..3)
                                 .all(|c| (before[c] >= S::ZERO) == (r[c] >= S::ZERO) || r[c] == S::ZERO);
                             if grew {
-                                winner_key = k;
+                                winner_rank = rank;
                             } else {
                                 *used += self.rescan_block(b);
                                 winner = self.buf.tree.get(b as usize).copied().unwrap_or(i);
-                                winner_key = self.key(winner);
+                                winner_rank = self.rank(winner);
                             }
-                        } else if Self::ranks_above(i, k, winner, winner_key) {
-                            winner = i;
-                            winner_key = k;
+                        } else {
+                            // One integer compare: whether a receiver overtakes its block's winner is
+                            // data-dependent, and a compare-and-select keeps it off the branch predictor.
+                            let above = rank > winner_rank;
+                            winner = if above { i } else { winner };
+                            winner_rank = if above { rank } else { winner_rank };
                         }
                     }
                 }
