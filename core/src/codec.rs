@@ -239,6 +239,9 @@ pub(crate) fn quantize_row(codec: FfCodec, values: &[f32], target: u128, codes: 
     e
 }
 
+/// Row chunk length the writer quantizes at once (and the length of the quantizer's loss cache).
+pub(crate) const QUANT_BLOCK: usize = 1024;
+
 /// [`quantize_row`] with a given row exponent; returns the decoded sum (exact units).
 ///
 /// Slack left after the threshold pass goes to the remaining entries in cyclic order from position `start`
@@ -261,36 +264,45 @@ pub(crate) fn quantize_row_with_exponent(
     if slack == 0 {
         return sum;
     }
-    // Fractional loss of entry k, in 1/2^16 of its code step: loss / step. An entry gets at most one bump, and
-    // only if the bumped value is at most twice the entry: below the float range a step can be many times a
-    // tiny entry, and a transposed (shooting-form) row multiplies that by the area ratio.
-    let frac_loss = |c: u16, v: f32| -> Option<(u32, u128)> {
+    // Fractional loss of entry k, in 1/2^16 of its code step: loss / step, or NO_BUMP. An entry gets at most
+    // one bump, and only if the bumped value is at most twice the entry: below the float range a step can be
+    // many times a tiny entry, and a transposed (shooting-form) row multiplies that by the area ratio.
+    const NO_BUMP: u32 = u32::MAX;
+    let step_of = |c: u16| -> u128 {
+        codec.decode(c.saturating_add(1), e).to_exact().saturating_sub(codec.decode(c, e).to_exact())
+    };
+    let frac_loss = |c: u16, v: f32| -> u32 {
         if c >= codec.max_code() {
-            return None;
+            return NO_BUMP;
         }
         let lo = codec.decode(c, e).to_exact();
         let hi = codec.decode(c + 1, e).to_exact();
         let step = hi.saturating_sub(lo);
         let exact = f32_to_exact(v);
         let loss = exact.saturating_sub(lo);
-        if step == 0 || loss == 0 {
-            return None;
-        }
-        if hi.saturating_sub(exact) > exact {
-            return None;
+        if step == 0 || loss == 0 || hi.saturating_sub(exact) > exact {
+            return NO_BUMP;
         }
         // loss < step, so the quotient fits in 16 bits; scale loss first without overflow (both < 2^101).
         let q = if loss < (1u128 << 110) { (loss << 16) / step } else { loss / (step >> 16).max(1) };
-        Some((q.min(0xffff) as u32, step))
+        q.min(0xffff) as u32
     };
+    // The losses of the rounded-down codes, computed once (a 128-bit division each): the threshold search below
+    // reads them 17 times. Entries past the cache (rows longer than the writer's blocks) are computed as needed.
+    // A bump makes the entry's loss zero, and every pass below visits an entry once, before or after its bump,
+    // so the cached loss of the rounded-down code is the one each pass needs.
+    let mut cache = [NO_BUMP; QUANT_BLOCK];
+    for ((slot, &c), &v) in cache.iter_mut().zip(codes.iter()).zip(values) {
+        *slot = frac_loss(c, v);
+    }
+    let loss_of = |k: usize, c: u16, v: f32| cache.get(k).copied().unwrap_or_else(|| frac_loss(c, v));
     // Find the smallest threshold t such that bumping every entry with frac_loss >= t fits in the slack.
     let cost_at = |t: u32| -> u128 {
         let mut cost: u128 = 0;
-        for (&c, &v) in codes.iter().zip(values) {
-            if let Some((f, step)) = frac_loss(c, v) {
-                if f >= t {
-                    cost = cost.saturating_add(step);
-                }
+        for (k, (&c, &v)) in codes.iter().zip(values).enumerate() {
+            let f = loss_of(k, c, v);
+            if f != NO_BUMP && f >= t {
+                cost = cost.saturating_add(step_of(c));
             }
         }
         cost
@@ -305,9 +317,11 @@ pub(crate) fn quantize_row_with_exponent(
         }
     }
     let t = lo;
-    for (c, &v) in codes.iter_mut().zip(values) {
-        if let Some((f, step)) = frac_loss(*c, v) {
-            if f >= t && step <= slack {
+    for (k, (c, &v)) in codes.iter_mut().zip(values).enumerate() {
+        let f = loss_of(k, *c, v);
+        if f != NO_BUMP && f >= t {
+            let step = step_of(*c);
+            if step <= slack {
                 *c += 1;
                 slack -= step;
                 sum += step;
@@ -319,8 +333,10 @@ pub(crate) fn quantize_row_with_exponent(
     let start = if len == 0 { 0 } else { start % len };
     for k in (start..len).chain(0..start) {
         let (Some(c), Some(&v)) = (codes.get_mut(k), values.get(k)) else { continue };
-        if let Some((f, step)) = frac_loss(*c, v) {
-            if f < t && step <= slack {
+        let f = loss_of(k, *c, v);
+        if f != NO_BUMP && f < t {
+            let step = step_of(*c);
+            if step <= slack {
                 *c += 1;
                 slack -= step;
                 sum += step;

@@ -528,7 +528,7 @@ fn quantize_row_into(
     o: &mut Out<'_>,
     at: usize,
 ) -> u8 {
-    const BLOCK: usize = 1024;
+    const BLOCK: usize = codec::QUANT_BLOCK;
     let mut codes = [0u16; BLOCK];
     let max = values.iter().map(|&v| f32_to_exact(v)).max().unwrap_or(0);
     let e = codec::row_exponent_for(max);

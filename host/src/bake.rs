@@ -321,14 +321,16 @@ pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<S
             incoming[ff.col[k] as usize] += a * ff.value[k];
         }
     }
-    let power = |k: usize| area[row_of[k]] * ff.value[k];
-    let mut order: Vec<usize> = (0..ff.nonzeros()).collect();
-    order.sort_by(|&a, &b| power(a).total_cmp(&power(b)).then(a.cmp(&b)));
+    // Sort keys computed once (the comparison would otherwise fetch two rows' areas per call), then the
+    // position: an unstable sort of unique keys gives the stable order.
+    let mut order: Vec<(i64, usize)> =
+        (0..ff.nonzeros()).map(|k| (total_order_key(area[row_of[k]] * ff.value[k]), k)).collect();
+    order.sort_unstable();
     let row_budget: Vec<f64> = (0..n).map(|i| threshold * ff.row_sum(i)).collect();
     let mut dropped = vec![0.0; n];
     let mut dropped_incoming = vec![0.0; n];
     let mut keep = vec![true; ff.nonzeros()];
-    for k in order {
+    for (_, k) in order {
         let (i, j, f) = (row_of[k], ff.col[k] as usize, ff.value[k]);
         let p = area[i] * f;
         if dropped[i] + f <= row_budget[i] && dropped_incoming[j] + p <= threshold * incoming[j] {
@@ -350,6 +352,12 @@ pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<S
         matrix.row_start.push(matrix.col.len());
     }
     Ok(Sparsified { matrix, dropped, dropped_incoming, incoming })
+}
+
+/// `f64::total_cmp`'s order as an integer: the sign-magnitude bits turned into two's complement.
+fn total_order_key(x: f64) -> i64 {
+    let bits = x.to_bits() as i64;
+    bits ^ ((((bits >> 63) as u64) >> 1) as i64)
 }
 
 /// The shooting form `F~_ij = A_j F_ji / A_i` of shooter rows `ff` with patch areas `area`: the matrix whose
@@ -1215,4 +1223,34 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     };
     let capacities = Capacities::of_table(&table, blob.len());
     Ok(Baked { table: blob, report, capacities, sparse, reachable, static_radiosity: b_static })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::total_order_key;
+
+    #[test]
+    fn total_order_key_orders_like_total_cmp() {
+        let v = [
+            f64::NEG_INFINITY,
+            -1.0,
+            -f64::MIN_POSITIVE,
+            -5e-324,
+            -0.0,
+            0.0,
+            5e-324,
+            f64::MIN_POSITIVE,
+            1.0,
+            1.0 + f64::EPSILON,
+            f64::MAX,
+            f64::INFINITY,
+            f64::NAN,
+            -f64::NAN,
+        ];
+        for a in v {
+            for b in v {
+                assert_eq!(total_order_key(a).cmp(&total_order_key(b)), a.total_cmp(&b), "{a:e} vs {b:e}");
+            }
+        }
+    }
 }

@@ -332,6 +332,35 @@ fn lu_and_gauss_seidel_agree_on_random_sparse_systems() {
     }
 }
 
+/// Gauss-Seidel recomputes the residual only when its a-priori bound (`q` times the sweep's largest change)
+/// allows convergence. The stop must still be decided by the true residual, and the bound must not be so loose
+/// that it costs sweeps: it may stop at most one sweep later than checking the true residual after every sweep.
+/// Capping the sweeps at `k` reports the true residual after `k` sweeps, which finds that first sweep.
+#[test]
+fn gauss_seidel_skips_residual_passes_without_stopping_late() {
+    for (n, per_row, seed) in [(40, 8, 2), (200, 12, 3), (600, 20, 4)] {
+        let (dense, rho, mut e) = random_system(n, per_row, seed);
+        e[0] = [1.0, 1.0, 1.0];
+        let ff = csr(&dense);
+        let system = RadiositySystem::new(&rho, &ff).unwrap();
+        for tolerance in [1e-4, 1e-8, DEFAULT_TOLERANCE] {
+            let gs = gauss_seidel(&system, &e, &GaussSeidelOptions { tolerance, max_sweeps: None }).unwrap();
+            assert!(gs.residual.iter().all(|&r| r <= tolerance), "n={n}: residual {:?}", gs.residual);
+            let first = (1..=gs.sweeps)
+                .find(|&k| {
+                    let capped = GaussSeidelOptions { tolerance, max_sweeps: Some(k) };
+                    gauss_seidel(&system, &e, &capped).is_ok()
+                })
+                .unwrap();
+            assert!(
+                gs.sweeps <= first + 1,
+                "n={n} tol={tolerance:e}: stopped after {} sweeps, the true residual was below after {first}",
+                gs.sweeps
+            );
+        }
+    }
+}
+
 #[test]
 fn method_choice_and_solve_many_reuse_one_factorization() {
     let (dense, rho, e) = random_system(30, 6, 11);
