@@ -176,7 +176,55 @@ impl FfCodec {
     }
 
     /// Largest code whose decoded value is `<= exact` (`exact` in units of `2^-EXACT_SHIFT`).
+    ///
+    /// The decoding rule inverted gives the code directly (the writer calls this once per entry); a few steps
+    /// confirm it against [`FfCodec::decode`], and a binary search takes over if they do not (rows at the
+    /// extremes of the row exponent, where decoding clamps shifts).
     pub(crate) fn round_down(self, exact: u128, row_exponent: u8) -> u16 {
+        let max = u32::from(self.max_code());
+        let value = |c: u32| self.decode(c as u16, row_exponent).to_exact();
+        let mut c = self.code_guess(exact, row_exponent).min(max);
+        for _ in 0..4 {
+            if value(c) > exact {
+                c = c.saturating_sub(1);
+            } else if c < max && value(c + 1) <= exact {
+                c += 1;
+            } else {
+                return c as u16;
+            }
+        }
+        self.round_down_search(exact, row_exponent)
+    }
+
+    /// [`FfCodec::decode`] inverted: with `v = floor(exact * 2^(base - EXACT_SHIFT))` in units of the row's
+    /// subnormal step, `v < 2^M` is the subnormal code `v`; otherwise `x = floor(log2 v) - M + 1` and the mantissa
+    /// is `floor(v / 2^(x-1)) - 2^M`. May exceed the largest code (the caller clamps).
+    fn code_guess(self, exact: u128, row_exponent: u8) -> u32 {
+        let m_bits = self.mantissa_bits().min(16);
+        let e_span = (1i32 << self.exponent_bits.min(4)) - 2;
+        let base = (i32::from(row_exponent) + m_bits as i32 + e_span).max(0) as u32;
+        let v = if base >= EXACT_SHIFT {
+            let up = (base - EXACT_SHIFT).min(127);
+            if exact.leading_zeros() <= up {
+                return u32::MAX;
+            }
+            exact << up
+        } else {
+            exact >> (EXACT_SHIFT - base).min(127)
+        };
+        if v < (1u128 << m_bits) {
+            return v as u32;
+        }
+        let x = (127 - v.leading_zeros()) - m_bits + 1;
+        if x >= 1 << self.exponent_bits.min(4) {
+            return u32::MAX;
+        }
+        let mantissa = (v >> (x - 1)) as u32 - (1u32 << m_bits);
+        (x << m_bits) | mantissa
+    }
+
+    /// [`FfCodec::round_down`] by binary search over the codes.
+    fn round_down_search(self, exact: u128, row_exponent: u8) -> u16 {
         let (mut lo, mut hi) = (0u32, u32::from(self.max_code()));
         // Invariant: decode(lo) <= exact (decode(0) = 0); answer in [lo, hi].
         while lo < hi {
@@ -419,6 +467,31 @@ pub fn encode_emission(v: f32) -> Option<u16> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The inverted decoding rule agrees with the binary search at every code's value, one unit either side,
+    /// and between codes, for every codec and row exponents across the range (0 and the largest included).
+    #[test]
+    fn round_down_matches_the_search() {
+        for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
+            for e in [0u8, 1, 7, 20, 40, 63, MAX_ROW_EXPONENT] {
+                let step = if codec.bits == 16 { 7 } else { 1 };
+                for c in (0..=u32::from(codec.max_code())).step_by(step) {
+                    let v = codec.decode(c as u16, e).to_exact();
+                    let next = codec.decode((c + 1).min(u32::from(codec.max_code())) as u16, e).to_exact();
+                    for x in
+                        [v, v.saturating_sub(1), v + 1, v + (next.saturating_sub(v)) / 2, v.saturating_mul(3)]
+                    {
+                        let want = codec.round_down_search(x, e);
+                        assert_eq!(codec.round_down(x, e), want, "{codec:?} e={e} code {c} exact {x}");
+                        // The guess itself is exact: the confirming steps are one decode each, no search.
+                        let guess = codec.code_guess(x, e).min(u32::from(codec.max_code()));
+                        assert_eq!(guess, u32::from(want), "{codec:?} e={e} code {c} exact {x}: guess");
+                    }
+                }
+                assert_eq!(codec.round_down(u128::MAX, e), codec.max_code());
+            }
+        }
+    }
 
     #[test]
     fn float_codes_are_monotone_and_continuous() {
