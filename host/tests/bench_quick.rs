@@ -88,6 +88,7 @@ fn quick_bench_writes_a_well_formed_report() {
         assert!(shoot.reach(0.1).is_some(), "{}: f32 shooting never reached 10%", s.name);
         for (_, r) in &s.roofline {
             assert!(r.shooting_entries > 0 && r.shooting_entries_per_s.is_finite());
+            assert!(r.rounds >= 1 && r.shooting_over_stream > 0.0 && r.shooting_over_stream.is_finite());
         }
     }
     if std::env::var_os("RADIOSITY_KEEP_BENCH").is_none() {

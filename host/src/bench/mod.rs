@@ -807,7 +807,9 @@ fn run_scene(
         }
         run.transfer(&p, &bake_options, bits, ex, &area)?;
         let tr = Instant::now();
-        let roof = roofline::measure::<f32>(&table, &baked.capacities, 1e-3 * max_power, options.reps)?;
+        // Three rounds per repetition: each round is short (~1 s), and the ratios need several on a shared machine.
+        let rounds = 3 * options.reps;
+        let roof = roofline::measure::<f32>(&table, &baked.capacities, 1e-3 * max_power, rounds)?;
         log(
             options,
             &format!(
@@ -841,44 +843,46 @@ fn bake_throughput(options: &BenchOptions, target: usize) -> Result<BakeThroughp
     let m =
         mesh(&scene, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: usize::MAX / 4 })
             .map_err(|e| BenchError::Options(format!("meshing: {e}")))?;
-    let mut ff = Vec::new();
-    let mut phases = Vec::new();
-    let mut matrix = None;
-    for threads in [1usize, 2] {
-        let mut times = Vec::new();
-        let (mut kernel_times, mut visibility_times) = (Vec::new(), Vec::new());
-        let (mut rays, mut kernels) = (0, 0);
-        for _ in 0..options.reps.min(2) {
-            let (mtx, stats) = compute_form_factors(
-                &m.patches,
-                &FormFactorOptions { threads: Some(threads), ..ffo.clone() },
-            )
-            .map_err(|e| BenchError::Options(format!("form factors: {e}")))?;
-            times.push(stats.elapsed.as_secs_f64());
-            kernel_times.push(stats.kernel_time.as_secs_f64());
-            visibility_times.push(stats.visibility_time.as_secs_f64());
-            rays = stats.rays_cast;
-            kernels = stats.kernel_evaluations;
-            matrix = Some(mtx);
-        }
-        ff.push((threads, rays, device::median(&mut times)));
-        phases.push((
-            threads,
-            kernels,
-            device::median(&mut kernel_times),
-            device::median(&mut visibility_times),
-        ));
-    }
-    let matrix = matrix.unwrap_or_default();
+    // Interleaved rounds: form factors on 1 and 2 threads, then raw Embree on 1 and 2 threads, so both rates of
+    // a ratio are measured minutes apart at most, not in separate blocks (the shared machine's speed drifts).
+    // The first 1-thread run also gives the matrix whose pairs the raw rays join.
+    let rounds = options.reps.clamp(1, 3);
+    let run_ff = |threads: usize| {
+        compute_form_factors(&m.patches, &FormFactorOptions { threads: Some(threads), ..ffo.clone() })
+            .map_err(|e| BenchError::Options(format!("form factors: {e}")))
+    };
+    // Per thread count (index 0: 1 thread, 1: 2 threads): total, kernel-phase and visibility-phase seconds.
+    let mut ff_times: [[Vec<f64>; 3]; 2] = Default::default();
+    let (mut rays_cast, mut kernels) = ([0u64; 2], [0u64; 2]);
+    let mut record = |slot: usize, stats: &crate::formfactor::FormFactorStats| {
+        ff_times[slot][0].push(stats.elapsed.as_secs_f64());
+        ff_times[slot][1].push(stats.kernel_time.as_secs_f64());
+        ff_times[slot][2].push(stats.visibility_time.as_secs_f64());
+        rays_cast[slot] = stats.rays_cast;
+        kernels[slot] = stats.kernel_evaluations;
+    };
+    let (matrix, stats) = run_ff(1)?;
+    record(0, &stats);
     let scene_rt = bakebench::occluder_scene(&m.patches, ffo.robust)?;
     let rays = bakebench::pair_rays(&m.patches, &matrix, ffo.rays_per_pair, scene_rt.offset());
-    let mut raw = Vec::new();
-    for threads in [1usize, 2] {
-        let mut times = Vec::new();
-        for _ in 0..options.reps {
-            times.push(bakebench::time_occlusion(&scene_rt, &rays, threads)?.0);
+    let mut raw_times: [Vec<f64>; 2] = Default::default();
+    for round in 0..rounds {
+        if round > 0 {
+            record(0, &run_ff(1)?.1);
         }
-        raw.push((threads, rays.len(), device::median(&mut times)));
+        record(1, &run_ff(2)?.1);
+        for (slot, threads) in [(0usize, 1usize), (1, 2)] {
+            raw_times[slot].push(bakebench::time_occlusion(&scene_rt, &rays, threads)?.0);
+        }
+    }
+    let mut ff = Vec::new();
+    let mut phases = Vec::new();
+    let mut raw = Vec::new();
+    for (slot, threads) in [(0usize, 1usize), (1, 2)] {
+        let [total, kernel, visibility] = &mut ff_times[slot];
+        ff.push((threads, rays_cast[slot], device::median(total)));
+        phases.push((threads, kernels[slot], device::median(kernel), device::median(visibility)));
+        raw.push((threads, rays.len(), device::median(&mut raw_times[slot])));
     }
     Ok(BakeThroughput {
         scene: format!("cornell-box (~{target} patches)"),

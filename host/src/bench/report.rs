@@ -326,7 +326,8 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
                 );
             }
         }
-        let _ = writeln!(s, "\nRoofline (f32): entries per second of a straight streaming pass (decode + multiply-add, no selection) over the same table, against core's Gauss-Seidel and shooting:\n");
+        let rounds = sc.roofline.first().map_or(0, |(_, rf)| rf.rounds);
+        let _ = writeln!(s, "\nRoofline (f32): entries per second of a straight streaming pass (decode + multiply-add, no selection) over the same table, against core's Gauss-Seidel and shooting. {rounds} rounds, each timing the three loops one after the other over at least 2e7 entries each; rates are medians over the rounds, ratios the medians of each round's own ratios (the machine's speed drifts between rounds, not within one):\n");
         let _ = writeln!(s, "| codec | entries | stream (M/s) | Gauss-Seidel (M/s) | shooting (M/s) | shooting / stream | GS / stream | shooting units per entry |");
         let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
         for (bits, rf) in &sc.roofline {
@@ -338,7 +339,7 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
                 rf.gauss_seidel_entries_per_s / 1e6,
                 rf.shooting_entries_per_s / 1e6,
                 100.0 * rf.shooting_fraction(),
-                100.0 * rf.gauss_seidel_entries_per_s / rf.stream_entries_per_s,
+                100.0 * rf.gauss_seidel_over_stream,
                 rf.shooting_units as f64 / rf.shooting_entries.max(1) as f64
             );
         }
@@ -464,7 +465,9 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
             s,
             "Scene {} ({} patches), form factors at the bake default ({} samples per patch, {} rays per pair). Raw \
              Embree: the same occluder scene and the same number and kind of rays (segments between random points of \
-             every pair with a nonzero form factor, `occluded_many` in packets of 16), timed alone.\n",
+             every pair with a nonzero form factor, `occluded_many` in packets of 16), timed alone. The two are timed in \
+             interleaved rounds (form factors on 1 and 2 threads, then raw Embree on 1 and 2), times are medians over \
+             the rounds.\n",
             b.scene, b.patches, b.samples, b.rays_per_pair
         );
         let _ = writeln!(s, "| threads | form factors: rays | seconds | rays/s | raw Embree: rays | seconds | rays/s | form factors / raw |");

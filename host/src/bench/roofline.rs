@@ -27,25 +27,31 @@ use crate::bake::Capacities;
 pub struct Roofline {
     /// Entries in the table.
     pub entries: u64,
-    /// Streaming pass: entries per second (median).
+    /// Streaming pass: entries per second (median over rounds).
     pub stream_entries_per_s: f64,
-    /// Gauss-Seidel: entries per second (median).
+    /// Gauss-Seidel: entries per second (median over rounds).
     pub gauss_seidel_entries_per_s: f64,
-    /// Shooting: entries per second (median).
+    /// Shooting: entries per second (median over rounds).
     pub shooting_entries_per_s: f64,
-    /// Shooting: entries applied in the timed solve.
+    /// Shooting's rate over the stream's, median of the ratios measured in the same round.
+    pub shooting_over_stream: f64,
+    /// Gauss-Seidel's rate over the stream's, median of the ratios measured in the same round.
+    pub gauss_seidel_over_stream: f64,
+    /// Rounds measured (each times all three loops, one after the other).
+    pub rounds: usize,
+    /// Shooting: entries applied in one timed solve.
     pub shooting_entries: u64,
-    /// Shooting: work units of the timed solve.
+    /// Shooting: work units of one timed solve.
     pub shooting_units: u64,
-    /// Shooting: rows shot.
+    /// Shooting: rows shot in one solve.
     pub shots: u64,
 }
 
 impl Roofline {
-    /// Shooting's entries per second as a fraction of the streaming pass.
+    /// Shooting's entries per second as a fraction of the streaming pass (median of same-round ratios).
     #[must_use]
     pub fn shooting_fraction(&self) -> f64 {
-        self.shooting_entries_per_s / self.stream_entries_per_s
+        self.shooting_over_stream
     }
 }
 
@@ -65,72 +71,38 @@ pub fn stream_pass<S: Scalar>(table: &Table<'_>, power: [S; 3], acc: &mut [[S; 3
     }
 }
 
-/// Measures the three throughputs on `table` in arithmetic `S` (see the module docs), `reps` repetitions each;
+/// Measures the three throughputs on `table` in arithmetic `S` (see the module docs) in `rounds` rounds;
 /// shooting runs to convergence at `tolerance` (power units).
 ///
+/// Each round times the stream, Gauss-Seidel and shooting one after the other, each over at least ~2e7 entries
+/// (repeated passes, sweeps or solves), so the three rates of a round see the same machine: on a shared machine
+/// the speed drifts between rounds, and the ratios are taken within a round before the median over rounds.
+///
 /// # Errors
-/// If the solver cannot be created or a solve makes no progress.
+/// If the solver cannot be created, a solve makes no progress, or shooting is not deterministic.
 pub fn measure<S: Scalar>(
     table: &Table<'_>,
     caps: &Capacities,
     tolerance: f64,
-    reps: usize,
+    rounds: usize,
 ) -> Result<Roofline, BenchError> {
     let n = table.state_count() as usize;
     let entries = u64::from(table.entry_count());
-    let reps = reps.max(1);
+    let rounds = rounds.max(1);
     let config = Config { tolerance: S::from_f32(tolerance as f32), overshoot: 0 };
     let err = |e: radiosity_core::SolverError| BenchError::Solver(format!("roofline: {e}"));
+    let repeats = |per: u64| (2e7 / per.max(1) as f64).ceil().clamp(1.0, 1000.0) as usize;
 
-    // Passes per timing so each timing covers at least ~2e7 entries (timer resolution and noise).
-    let passes = (2e7 / entries.max(1) as f64).ceil().clamp(1.0, 1000.0) as usize;
     let mut acc = vec![[S::from_f32(0.0); 3]; n];
     let p = [S::from_f32(1.0), S::from_f32(0.5), S::from_f32(0.25)];
-    let mut t_stream = Vec::new();
-    for _ in 0..reps {
-        let t0 = Instant::now();
-        for _ in 0..passes {
-            stream_pass(black_box(table), black_box(p), &mut acc);
-        }
-        t_stream.push(t0.elapsed().as_secs_f64() / passes as f64);
-        black_box(&acc);
-    }
-    let stream = entries as f64 / median(&mut t_stream);
+    let mut owned = Owned::<S>::new(caps);
+    let (buffers, _) = owned.split();
+    let mut solver = Solver::new(table, buffers, config).map_err(err)?;
+    let sweep_units = u32::try_from(entries + 2 * n as u64).unwrap_or(u32::MAX);
 
-    // Gauss-Seidel: whole sweeps (budget = rows + entries + scan per sweep).
-    let sweep_units = u64::from(table.entry_count()) + 2 * n as u64;
-    let mut t_gs = Vec::new();
-    for _ in 0..reps {
-        let mut owned = Owned::<S>::new(caps);
-        let (buffers, _) = owned.split();
-        let mut solver = Solver::new(table, buffers, config).map_err(err)?;
-        let t0 = Instant::now();
-        let mut swept = 0usize;
-        for _ in 0..passes.max(2) {
-            let budget = u32::try_from(sweep_units).unwrap_or(u32::MAX);
-            match solver.step_gauss_seidel(table, budget) {
-                Outcome::BudgetSpent { .. } => swept += 1,
-                Outcome::Converged { .. } => {
-                    swept += 1;
-                    break;
-                }
-                Outcome::NoProgress { reason, .. } => {
-                    return Err(BenchError::Solver(format!("roofline Gauss-Seidel: {reason:?}")))
-                }
-            }
-        }
-        t_gs.push(t0.elapsed().as_secs_f64() / swept as f64);
-    }
-    let gauss_seidel = entries as f64 / median(&mut t_gs);
-
-    // Shooting: time the solve; the solver counts the entries it applied.
-    let (mut shooting_entries, mut shooting_units, mut shots) = (0u64, 0u64, 0u64);
-    let mut t_shoot = Vec::new();
-    for rep in 0..reps {
-        let mut owned = Owned::<S>::new(caps);
-        let (buffers, _) = owned.split();
-        let mut solver = Solver::new(table, buffers, config).map_err(err)?;
-        let t0 = Instant::now();
+    // One untimed solve: the entries per solve (for the repeat count) and the determinism reference.
+    let solve = |solver: &mut Solver<'_, S>| -> Result<(u64, u64, u64), BenchError> {
+        solver.reset(table);
         let mut units = 0u64;
         loop {
             let o = solver.step(table, u32::MAX);
@@ -143,22 +115,68 @@ pub fn measure<S: Scalar>(
                 }
             }
         }
-        t_shoot.push(t0.elapsed().as_secs_f64());
-        let run = (solver.entries(), units, u64::from(solver.shots()));
-        if rep > 0 && run != (shooting_entries, shooting_units, shots) {
-            return Err(BenchError::Solver(format!(
-                "roofline: shooting is not deterministic: {run:?} vs {:?}",
-                (shooting_entries, shooting_units, shots)
-            )));
+        Ok((solver.entries(), units, u64::from(solver.shots())))
+    };
+    let reference = solve(&mut solver)?;
+    let (shooting_entries, shooting_units, shots) = reference;
+
+    let (mut stream, mut gs, mut shoot) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut shoot_ratio, mut gs_ratio) = (Vec::new(), Vec::new());
+    for _ in 0..rounds {
+        let passes = repeats(entries);
+        let t0 = Instant::now();
+        for _ in 0..passes {
+            stream_pass(black_box(table), black_box(p), &mut acc);
         }
-        (shooting_entries, shooting_units, shots) = run;
+        let r_stream = (entries * passes as u64) as f64 / t0.elapsed().as_secs_f64();
+        black_box(&acc);
+
+        // Gauss-Seidel: whole sweeps from a cold start (budget = rows + entries + scan per sweep).
+        solver.reset(table);
+        let t0 = Instant::now();
+        let mut swept = 0u64;
+        for _ in 0..passes.max(2) {
+            match solver.step_gauss_seidel(table, sweep_units) {
+                Outcome::BudgetSpent { .. } => swept += 1,
+                Outcome::Converged { .. } => {
+                    swept += 1;
+                    break;
+                }
+                Outcome::NoProgress { reason, .. } => {
+                    return Err(BenchError::Solver(format!("roofline Gauss-Seidel: {reason:?}")))
+                }
+            }
+        }
+        let r_gs = (entries * swept) as f64 / t0.elapsed().as_secs_f64();
+
+        // Shooting: whole solves; the solver counts the entries it applied.
+        let solves = repeats(shooting_entries);
+        let mut seconds = 0.0;
+        for _ in 0..solves {
+            let t0 = Instant::now();
+            let run = solve(&mut solver)?;
+            seconds += t0.elapsed().as_secs_f64();
+            if run != reference {
+                return Err(BenchError::Solver(format!(
+                    "roofline: shooting is not deterministic: {run:?} vs {reference:?}"
+                )));
+            }
+        }
+        let r_shoot = (shooting_entries * solves as u64) as f64 / seconds;
+        stream.push(r_stream);
+        gs.push(r_gs);
+        shoot.push(r_shoot);
+        shoot_ratio.push(r_shoot / r_stream);
+        gs_ratio.push(r_gs / r_stream);
     }
-    let shooting = shooting_entries as f64 / median(&mut t_shoot);
     Ok(Roofline {
         entries,
-        stream_entries_per_s: stream,
-        gauss_seidel_entries_per_s: gauss_seidel,
-        shooting_entries_per_s: shooting,
+        stream_entries_per_s: median(&mut stream),
+        gauss_seidel_entries_per_s: median(&mut gs),
+        shooting_entries_per_s: median(&mut shoot),
+        shooting_over_stream: median(&mut shoot_ratio),
+        gauss_seidel_over_stream: median(&mut gs_ratio),
+        rounds,
         shooting_entries,
         shooting_units,
         shots,
