@@ -112,7 +112,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::embree::{Device, EmbreeError, Ray, SceneOptions, TriangleScene};
-use crate::patch::{Closure, FormFactorMatrix, Patch};
+use crate::patch::{Closure, FormFactorMatrix, Patch, ReciprocityChange};
 
 /// Entries with `F_ij` below this are left out of the reciprocity error (their relative error is dominated by
 /// sampling noise and they carry little energy).
@@ -219,9 +219,9 @@ pub struct FormFactorStats {
 /// How the rows of a closed scene were closed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosureReport {
-    /// Largest relative difference between a pair's two estimates `A_i F_ij`, `A_j F_ji` when they were averaged
-    /// (the matrix is made reciprocal first, see [`FormFactorMatrix::enforce_reciprocity`]).
-    pub reciprocity_change: f64,
+    /// How far apart each pair's two estimates `A_i F_ij`, `A_j F_ji` were when they were averaged (the matrix is
+    /// made reciprocal first, see [`FormFactorMatrix::enforce_reciprocity`]).
+    pub reciprocity_change: ReciprocityChange,
     /// The balancing of the partly visible entries.
     pub balance: Closure,
 }

@@ -62,7 +62,7 @@ impl FormFactorMatrix {
     }
 
     /// Makes the matrix reciprocal, `A_i F_ij = A_j F_ji` exactly, by replacing both sides of every pair with
-    /// their mean, and returns the largest relative change `|A_i F_ij - A_j F_ji| / (A_i F_ij + A_j F_ji)`.
+    /// their mean, and says how far apart the two estimates were ([`ReciprocityChange`]).
     ///
     /// Estimated form factors break reciprocity where the quadrature over the sending patch is poor (a patch
     /// cut by another patch's plane, e.g. a floor patch that runs under a block); averaging the two estimates of
@@ -71,7 +71,7 @@ impl FormFactorMatrix {
     ///
     /// # Panics
     /// If `area.len() != self.n`.
-    pub fn enforce_reciprocity(&mut self, area: &[f64]) -> f64 {
+    pub fn enforce_reciprocity(&mut self, area: &[f64]) -> ReciprocityChange {
         assert_eq!(area.len(), self.n, "one area per patch");
         // Every energy exchange A_i F_ij, once as (i, j) and once as its mirror (j, i), halved.
         let mut exchange: Vec<(u32, u32, f64)> = Vec::with_capacity(2 * self.nonzeros());
@@ -83,7 +83,8 @@ impl FormFactorMatrix {
             }
         }
         exchange.sort_unstable_by_key(|&(i, j, _)| (i, j));
-        let mut max_change: f64 = 0.0;
+        let mut report = ReciprocityChange::default();
+        let (mut one_sided_energy, mut total_energy) = (0.0, 0.0);
         let (mut row_start, mut col, mut value) = (vec![0], Vec::new(), Vec::new());
         let mut k = 0;
         for (i, &a) in area.iter().enumerate() {
@@ -97,9 +98,15 @@ impl FormFactorMatrix {
                     parts += 1;
                     k += 1;
                 }
-                // With both sides present, g0 and the second part are the halves of the two estimates.
-                let change = if parts == 2 { (g0 - (g - g0)).abs() / g } else { 1.0 };
-                max_change = max_change.max(change);
+                // With both sides present, g0 and the second part are the halves of the two estimates. A pair
+                // seen from one side only is visited twice, as (i, j) and (j, i), each time with half its energy.
+                total_energy += g;
+                if parts == 2 {
+                    report.max_change = report.max_change.max((g0 - (g - g0)).abs() / g);
+                } else if i < j as usize {
+                    report.one_sided += 1;
+                    one_sided_energy += 2.0 * g;
+                }
                 col.push(j);
                 value.push(g / a);
             }
@@ -108,7 +115,10 @@ impl FormFactorMatrix {
         self.row_start = row_start;
         self.col = col;
         self.value = value;
-        max_change
+        if total_energy > 0.0 {
+            report.one_sided_share = one_sided_energy / total_energy;
+        }
+        report
     }
 
     /// Scales down every row whose sum exceeds 1 so that no row sum exceeds 1, and says what it did.
@@ -142,6 +152,32 @@ impl FormFactorMatrix {
             }
         }
         clamp
+    }
+}
+
+/// What [`FormFactorMatrix::enforce_reciprocity`] found: how far apart the two estimates of each pair's energy
+/// exchange `A_i F_ij` were before averaging.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReciprocityChange {
+    /// Largest relative difference `|A_i F_ij - A_j F_ji| / (A_i F_ij + A_j F_ji)` over the pairs estimated from
+    /// both sides (0 if none).
+    pub max_change: f64,
+    /// Pairs with an entry on one side only (the other estimate exactly zero, e.g. two nearly coplanar
+    /// neighbours, where one quadrature sees a sliver the other does not); each got its mirror entry.
+    pub one_sided: usize,
+    /// The one-sided pairs' energy `A_i F_ij` as a fraction of all the energy the matrix exchanged.
+    pub one_sided_share: f64,
+}
+
+impl ReciprocityChange {
+    /// Field-wise maximum of two reports (for a matrix made reciprocal twice).
+    #[must_use]
+    pub fn max(self, other: ReciprocityChange) -> ReciprocityChange {
+        ReciprocityChange {
+            max_change: self.max_change.max(other.max_change),
+            one_sided: self.one_sided.max(other.one_sided),
+            one_sided_share: self.one_sided_share.max(other.one_sided_share),
+        }
     }
 }
 

@@ -19,7 +19,7 @@ use crate::lighting::PatchLighting;
 use crate::mesh::{
     mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions,
 };
-use crate::patch::{FormFactorMatrix, Patch, RowClamp};
+use crate::patch::{FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
 use crate::reference::{solve_many, Method, RadiositySystem};
 use crate::scene::Scene;
 
@@ -73,8 +73,8 @@ pub struct Prepared {
     pub stats: FormFactorStats,
     /// Rows that summed to more than 1 (after reciprocity was enforced) and were scaled to 1.
     pub clamp: RowClamp,
-    /// Largest relative difference between the two estimates of a pair's energy exchange, before averaging.
-    pub reciprocity_change: f64,
+    /// How far apart the two estimates of each pair's energy exchange were, before averaging.
+    pub reciprocity_change: ReciprocityChange,
     /// One flag per stored entry of `form_factors`: the pair is partly visible (a shadow boundary crosses it).
     pub partly_visible: Vec<bool>,
     /// The meshing passes: the uniform mesh, then one entry per refinement pass that split patches.
@@ -247,7 +247,7 @@ fn align_flags(from: &FormFactorMatrix, flags: &[bool], to: &FormFactorMatrix) -
         .collect()
 }
 
-fn report_form_factors(stats: &FormFactorStats, reciprocity_change: f64, clamp: &RowClamp) {
+fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityChange, clamp: &RowClamp) {
     eprintln!(
         "form factors: {} patches, {} nonzeros, row sums {:.6}..{:.6}, reciprocity error {:.2e}, {} rays in {:.2} s \
          ({:.2} Mrays/s; {} kernel evaluations {:.2} s, visibility {:.2} s)",
@@ -284,9 +284,18 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: f64, clamp: 
         ),
         None => {}
     }
+    let one_sided = if reciprocity_change.one_sided > 0 {
+        format!(
+            "; {} pairs seen from one side only, {:.1e} of the exchanged energy, were mirrored",
+            reciprocity_change.one_sided, reciprocity_change.one_sided_share
+        )
+    } else {
+        String::new()
+    };
     eprintln!(
         "form factors: reciprocity enforced (each pair's two estimates averaged; largest relative difference \
-         {reciprocity_change:.2e})"
+         {:.2e}{one_sided})",
+        reciprocity_change.max_change
     );
     if clamp.rows > 0 {
         eprintln!(

@@ -35,8 +35,13 @@ fn reciprocity_is_the_mean_of_both_estimates_and_mirrors_one_sided_entries() {
             assert!((area[i] * v - area[j] * f(&m, j, i)).abs() < TOL, "pair ({i}, {j}) not reciprocal");
         }
     }
-    // The one-sided entry is a 100% difference; the (0, 1) pair |0.3 - 0.4| / 0.7.
-    assert!((change - 1.0).abs() < TOL, "largest change {change}");
+    // The (0, 1) pair differs by |0.3 - 0.4| / 0.7; the one-sided (0, 2) carries 0.1 of the 0.8 exchanged.
+    assert!((change.max_change - 0.1 / 0.7).abs() < TOL, "largest change {change:?}");
+    assert_eq!(change.one_sided, 1);
+    assert!((change.one_sided_share - 0.1 / 0.8).abs() < TOL, "one-sided share {change:?}");
+    // Made reciprocal, a second pass finds nothing to change.
+    let again = m.enforce_reciprocity(&area);
+    assert!(again.max_change < TOL && again.one_sided == 0, "{again:?}");
 }
 
 #[test]
