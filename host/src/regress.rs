@@ -25,6 +25,17 @@
 //! unknowns agrees with another to about `n eps`, the faer-style `8 n eps` bound. A degraded codec moves the
 //! quantization component by far more than that (see the tests in `host/tests/check.rs`).
 //!
+//! # Scenes without Monte Carlo noise
+//! A scene where nothing is occluded gives the same form factors at every seed, so `s = 0` and only the floor
+//! is left; yet its components are not smooth in the form factors: sparsification and the codec's rounding make
+//! discrete choices (which entry to drop, which code to bump), and in a symmetric scene many entries tie. A
+//! rounding-level change of the estimator (1e-15..1e-9 relative, measured on such changes) flips some of them
+//! and moves a component by percent, far above `8 n eps`. So where every seed gave the same value, [`update`]
+//! measures the component again at `S` jitters ([`JITTER`]: every pair's `A_i F_ij` scaled by `1 + JITTER u`,
+//! `u` uniform in `[-1, 1)`, the same for both directions so the matrix stays reciprocal) and takes as the noise
+//! the root-mean-square deviation of the jittered values from the unjittered one ([`Stat::jittered`]). The
+//! check itself never jitters.
+//!
 //! # Re-baselining
 //! `radiosity regress --update` re-measures everything (keeping each scene's settings, giving new scenes the
 //! defaults [`SceneSettings::default`]), writes the baseline and prints old and new values side by side;
@@ -45,6 +56,11 @@ use crate::pipeline::{prepare, PrepareOptions};
 
 /// Components the regression tracks, by name ([`crate::check::Component::name`]).
 pub const TRACKED: [&str; 4] = [SPARSIFICATION, QUANTIZATION, "arithmetic (f32)", "arithmetic (fixed)"];
+
+/// Relative size of the form-factor jitter that measures the noise of deterministic components (module docs,
+/// "Scenes without Monte Carlo noise"): `2^-30`, about 9.3e-10, the largest relative change seen from a
+/// rounding-level estimator change (3.0e-9 on the slab) within a factor of a few.
+pub const JITTER: f64 = 1.0 / (1u64 << 30) as f64;
 
 /// Seeds measured by [`update`] unless told otherwise.
 pub const DEFAULT_SEEDS: usize = 5;
@@ -120,8 +136,13 @@ pub struct Stat {
     pub values: Vec<f64>,
     /// Mean over the seeds.
     pub mean: f64,
-    /// Sample standard deviation over the seeds (the Monte Carlo noise).
+    /// Sample standard deviation over the seeds (the Monte Carlo noise), or, when every seed gave the same value,
+    /// the root-mean-square deviation of [`Stat::jittered`] from it.
     pub noise: f64,
+    /// Values at the form-factor jitters `1..=S` (seed 1), measured only when every seed gave the same value
+    /// (module docs, "Scenes without Monte Carlo noise"); empty otherwise.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub jittered: Vec<f64>,
 }
 
 impl Stat {
@@ -133,7 +154,41 @@ impl Stat {
         } else {
             0.0
         };
-        Stat { values, mean, noise: var.sqrt() }
+        Stat { values, mean, noise: var.sqrt(), jittered: Vec::new() }
+    }
+
+    /// Whether every seed gave the same value (no Monte Carlo noise to measure).
+    fn deterministic(&self) -> bool {
+        self.values.windows(2).all(|w| w[0] == w[1])
+    }
+
+    /// Takes the noise from jittered values (see [`Stat::jittered`]).
+    fn with_jitter(mut self, jittered: Vec<f64>) -> Stat {
+        let n = jittered.len().max(1) as f64;
+        self.noise = (jittered.iter().map(|v| (v - self.mean) * (v - self.mean)).sum::<f64>() / n).sqrt();
+        self.jittered = jittered;
+        self
+    }
+}
+
+/// Scales every pair's form factors by `1 + JITTER u` (see [`JITTER`]), `u` in `[-1, 1)` from a hash of
+/// `jitter` and the unordered pair, so `A_i F_ij = A_j F_ji` stays as it was.
+pub fn jitter_form_factors(ff: &mut crate::patch::FormFactorMatrix, jitter: u64) {
+    let mix = |mut z: u64| {
+        // SplitMix64's finalizer (Steele, Lea and Flood, "Fast splittable pseudorandom number generators",
+        // OOPSLA 2014).
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    for i in 0..ff.n {
+        for k in ff.row_start[i]..ff.row_start[i + 1] {
+            let j = ff.col[k] as u64;
+            let (lo, hi) = ((i as u64).min(j), (i as u64).max(j));
+            let z = mix(mix(jitter.wrapping_add(0x9e37_79b9_7f4a_7c15)) ^ (lo << 32 | hi));
+            let u = (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0;
+            ff.value[k] *= 1.0 + JITTER * u;
+        }
     }
 }
 
@@ -239,8 +294,9 @@ pub fn scene_files(dir: &Path) -> Result<Vec<String>, RegressError> {
 /// `(rel_l2, max_rel)` per tracked component name.
 pub type Measured = BTreeMap<String, (f64, f64)>;
 
-/// Measures the tracked components of one scene with one codec at one seed; returns the patch count and
-/// `(rel_l2, max_rel)` per tracked component.
+/// Measures the tracked components of one scene with one codec at one seed, its form factors jittered if
+/// `jitter` is given ([`jitter_form_factors`]); returns the patch count and `(rel_l2, max_rel)` per tracked
+/// component.
 ///
 /// # Errors
 /// [`RegressError::Check`] if preparing or checking fails.
@@ -250,6 +306,7 @@ pub fn measure(
     bits: u32,
     codec: Option<FfCodec>,
     seed: u64,
+    jitter: Option<u64>,
 ) -> Result<(usize, Measured), RegressError> {
     let name = scene.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     let wrap = |source: CheckError| RegressError::Check {
@@ -259,7 +316,10 @@ pub fn measure(
         source: Box::new(source),
     };
     let po = settings.prepare_options(seed);
-    let p = prepare(scene, &po).map_err(|e| wrap(e.into()))?;
+    let mut p = prepare(scene, &po).map_err(|e| wrap(e.into()))?;
+    if let Some(j) = jitter {
+        jitter_form_factors(&mut p.form_factors, j);
+    }
     // Shooting with decoded rows converges to the shooting form `A_j F_ji / A_i` of the decoded table; an
     // entry may be bumped up by one code step (< 2^-M relative for a float code with M mantissa bits, core's
     // codec docs), so its row sums may exceed the original's by that much: allow it in the f64 solves (the
@@ -304,7 +364,7 @@ pub fn update(old: Option<&Baseline>, scenes: &Path, seeds: usize) -> Result<Bas
             let mut values: BTreeMap<String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
             let mut error = None;
             for seed in 1..=seeds as u64 {
-                let (n, m) = match measure(&scenes.join(&name), &settings, bits, None, seed) {
+                let (n, m) = match measure(&scenes.join(&name), &settings, bits, None, seed, None) {
                     Ok(r) => r,
                     Err(RegressError::Check { source, .. }) if seed == 1 => {
                         error = Some(source.to_string());
@@ -319,10 +379,36 @@ pub fn update(old: Option<&Baseline>, scenes: &Path, seeds: usize) -> Result<Bas
                     v.1.push(mx);
                 }
             }
-            let components = values
+            let mut components: BTreeMap<String, ComponentStats> = values
                 .into_iter()
                 .map(|(c, (l2, mx))| (c, ComponentStats { rel_l2: Stat::of(l2), max_rel: Stat::of(mx) }))
                 .collect();
+            // Components without Monte Carlo noise: their noise from jittered form factors (module docs).
+            if components.values().any(|c| c.rel_l2.deterministic() || c.max_rel.deterministic()) {
+                let mut jittered: BTreeMap<String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+                for j in 1..=seeds as u64 {
+                    // A jitter the bake rejects (a borderline codec) is left out of the noise.
+                    let m = match measure(&scenes.join(&name), &settings, bits, None, 1, Some(j)) {
+                        Ok((_, m)) => m,
+                        Err(RegressError::Check { .. }) => continue,
+                        Err(e) => return Err(e),
+                    };
+                    for (c, (l2, mx)) in m {
+                        let v = jittered.entry(c).or_default();
+                        v.0.push(l2);
+                        v.1.push(mx);
+                    }
+                }
+                for (c, stats) in &mut components {
+                    let Some((l2, mx)) = jittered.remove(c) else { continue };
+                    if stats.rel_l2.deterministic() {
+                        stats.rel_l2 = stats.rel_l2.clone().with_jitter(l2);
+                    }
+                    if stats.max_rel.deterministic() {
+                        stats.max_rel = stats.max_rel.clone().with_jitter(mx);
+                    }
+                }
+            }
             let codec = crate::bake::codec_for_bits(bits).map(codec_name).unwrap_or_default();
             entries.push(Entry { scene: name.clone(), bits, codec, patches, settings, components, error });
         }
@@ -488,7 +574,8 @@ pub fn check_baseline(
             Some(c) => codec_name(c),
             None => entry.codec.clone(),
         };
-        let measured = measure(&scenes.join(&entry.scene), &entry.settings, entry.bits, selection.codec, 1);
+        let measured =
+            measure(&scenes.join(&entry.scene), &entry.settings, entry.bits, selection.codec, 1, None);
         let (n, values) = match (measured, &entry.error) {
             (Ok(v), None) => v,
             (Err(RegressError::Check { source, .. }), Some(_)) => {
@@ -668,5 +755,55 @@ pub fn run(args: &RegressArgs) -> Result<RegressReport, RegressError> {
         let baseline = read_baseline(&args.baseline)?;
         let selection = CheckSelection { scene: args.scene.clone(), ..CheckSelection::default() };
         check_baseline(&baseline, &args.scenes, &selection)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{jitter_form_factors, Stat, JITTER};
+    use crate::patch::FormFactorMatrix;
+
+    /// A reciprocal 3-patch matrix (areas 1, 2, 4).
+    fn matrix() -> FormFactorMatrix {
+        // A_0 F_01 = 0.2 = A_1 F_10, A_0 F_02 = 0.4 = A_2 F_20, A_1 F_12 = 0.6 = A_2 F_21.
+        FormFactorMatrix {
+            n: 3,
+            row_start: vec![0, 2, 4, 6],
+            col: vec![1, 2, 0, 2, 0, 1],
+            value: vec![0.2, 0.4, 0.1, 0.3, 0.1, 0.15],
+        }
+    }
+
+    #[test]
+    fn jitter_is_small_reciprocal_and_seeded() {
+        let area = [1.0, 2.0, 4.0];
+        let base = matrix();
+        let mut a = matrix();
+        jitter_form_factors(&mut a, 1);
+        let mut b = matrix();
+        jitter_form_factors(&mut b, 1);
+        let mut c = matrix();
+        jitter_form_factors(&mut c, 2);
+        assert_eq!(a, b, "the same jitter seed gives the same matrix");
+        assert_ne!(a.value, c.value, "another seed another matrix");
+        assert_ne!(a.value, base.value, "the jitter changes the entries");
+        let get = |m: &FormFactorMatrix, i: usize, j: usize| m.row(i).find(|&(k, _)| k == j).unwrap().1;
+        for i in 0..3 {
+            for (j, f) in a.row(i) {
+                let f0 = get(&base, i, j);
+                assert!((f / f0 - 1.0).abs() <= JITTER * (1.0 + 1e-6), "({i}, {j}): {f} vs {f0}");
+                let (g, h) = (area[i] * f, area[j] * get(&a, j, i));
+                assert!((g - h).abs() <= 4.0 * f64::EPSILON * g, "({i}, {j}) not reciprocal: {g} vs {h}");
+            }
+        }
+    }
+
+    #[test]
+    fn jittered_noise_is_the_rms_deviation_from_the_unjittered_value() {
+        let s = Stat::of(vec![2.0; 5]);
+        assert!(s.deterministic() && s.noise == 0.0);
+        let j = s.with_jitter(vec![2.0, 2.0, 2.0, 4.0, 0.0]);
+        assert!((j.noise - (8.0f64 / 5.0).sqrt()).abs() < 1e-15, "{}", j.noise);
+        assert!(!Stat::of(vec![1.0, 2.0]).deterministic());
     }
 }
