@@ -12,7 +12,7 @@
 //! tolerances `>= 6 * L * 2^-32 / (1 - rho_max)` power units, `L` the longest row: above that every shot
 //! removes at least `tolerance * (1 - rho_max) - 3 L` units of unshot magnitude, at least `3 L` units.
 
-use crate::codec::{pow2_f32, Frac};
+use crate::codec::{decode_reflectance, pow2_f32, Frac};
 
 /// Numbers the solver computes with.
 pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
@@ -48,6 +48,15 @@ pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
     /// Whether the value is usable: finite for f32, not saturated for fixed point.
     #[must_use]
     fn is_usable(self) -> bool;
+    /// A reflectance code decoded for the per-entry product ([`Scalar::mul_rho`]): what the solver keeps per
+    /// material so that an entry does not decode it again.
+    type Rho: Copy + Default + core::fmt::Debug;
+    /// Decodes reflectance code `code` (`code / 65536`, see [`crate::codec::decode_reflectance`]).
+    #[must_use]
+    fn rho(code: u16) -> Self::Rho;
+    /// `self * rho`, bit for bit `self.mul_frac(decode_reflectance(code))` for the code `rho` was decoded from.
+    #[must_use]
+    fn mul_rho(self, rho: Self::Rho) -> Self;
     /// Selection rank, an integer ordered like the shooter choice: for a magnitude `self` (`>= 0`, or not
     /// usable) of slot `slot`, a larger rank means a larger magnitude, every unusable magnitude ranks above every
     /// usable one, and equal magnitudes rank the lower slot higher. One integer comparison per candidate, so a
@@ -98,6 +107,14 @@ impl Scalar for f32 {
     }
     fn is_usable(self) -> bool {
         self.is_finite()
+    }
+    /// `code * 2^-16` is exact in f32 (16 significant bits), and `mul_frac` multiplies by that same value.
+    type Rho = f32;
+    fn rho(code: u16) -> f32 {
+        decode_reflectance(code).to_f32()
+    }
+    fn mul_rho(self, rho: f32) -> f32 {
+        self * rho
     }
     /// The bits of a non-negative f32 order like its value, and infinity and NaN (sign cleared) lie above
     /// every finite value: bits above, the slot's complement below.
@@ -209,6 +226,15 @@ impl Scalar for Fixed {
     fn is_usable(self) -> bool {
         self.0 != i64::MAX && self.0 != i64::MIN
     }
+    /// Fixed point rounds the product of the raw code (`mul_frac`): nothing to gain from decoding ahead, so the
+    /// code itself is kept.
+    type Rho = u16;
+    fn rho(code: u16) -> u16 {
+        code
+    }
+    fn mul_rho(self, rho: u16) -> Fixed {
+        self.mul_frac(decode_reflectance(rho))
+    }
     /// A magnitude is a saturating sum of saturating absolute values: in `0..=i64::MAX`, the unusable one
     /// `i64::MAX` (a negative value, which a magnitude never is, ranks as its absolute value).
     type Rank = u128;
@@ -280,5 +306,19 @@ mod tests {
         assert!((-f32::NAN).abs().rank(0) > f32::MAX.rank(0));
         let x = [Fixed(0), Fixed(1), Fixed(2), Fixed(1 << 40), Fixed(i64::MAX - 1), Fixed::MAX];
         check_ranks(&x);
+    }
+
+    /// The decoded reflectance the solver caches multiplies exactly as the code it came from.
+    #[test]
+    fn mul_rho_is_mul_frac_of_the_code() {
+        let xs = [0.0f32, 1e-30, 0.1, 1.0, 3.7, 1e6, -2.5, f32::MAX];
+        for code in (0..=u16::MAX).step_by(7).chain([u16::MAX]) {
+            let frac = decode_reflectance(code);
+            for x in xs {
+                assert_eq!(x.mul_rho(f32::rho(code)).to_bits(), x.mul_frac(frac).to_bits(), "{x} * {code}");
+                let fx = Fixed::from_f32(x);
+                assert_eq!(fx.mul_rho(Fixed::rho(code)), fx.mul_frac(frac), "{x} * {code} (fixed)");
+            }
+        }
     }
 }

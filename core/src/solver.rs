@@ -249,7 +249,7 @@ struct Sweep<S> {
 
 /// Solver state: the current solution of one table, in the caller's buffers.
 #[derive(Debug)]
-pub struct Solver<'b, S> {
+pub struct Solver<'b, S: Scalar> {
     buf: Buffers<'b, S>,
     /// Slots: patches with run-time state (the table's state count); buffers are indexed by slot.
     slots: u32,
@@ -268,7 +268,13 @@ pub struct Solver<'b, S> {
     sweep: Option<Sweep<S>>,
     shots: u32,
     entries: u64,
+    /// Decoded reflectances of materials `0..RHO_CACHE` (kept current with the reflectance buffer), read by
+    /// every form-factor entry; materials beyond it are decoded per entry.
+    rho_cache: [[S::Rho; 3]; RHO_CACHE],
 }
+
+/// Materials whose decoded reflectance the solver keeps (a table rarely has more).
+const RHO_CACHE: usize = 16;
 
 fn get3<S: Scalar>(s: &[[S; 3]], i: u32) -> [S; 3] {
     s.get(i as usize).copied().unwrap_or([S::ZERO; 3])
@@ -364,6 +370,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
             sweep: None,
             shots: 0,
             entries: 0,
+            rho_cache: [[S::Rho::default(); 3]; RHO_CACHE],
         };
         s.reset(table);
         Ok(s)
@@ -407,6 +414,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
             if let Some(r) = self.buf.reflectance.get_mut(m as usize) {
                 *r = table.reflectance(m).unwrap_or([0; 3]);
             }
+        }
+        for m in 0..RHO_CACHE as u32 {
+            self.refresh_rho(m);
         }
         for g in 0..self.groups {
             if let Some(v) = self.buf.intensity.get_mut(g as usize) {
@@ -475,6 +485,26 @@ impl<'b, S: Scalar> Solver<'b, S> {
     /// on the per-entry path).
     fn rho(&self, table: &Table<'_>, slot: u32) -> [Frac; 3] {
         self.rho_of_material(table.slot_material(slot).unwrap_or(0))
+    }
+
+    /// Re-decodes material `m`'s cached reflectance from the reflectance buffer (as [`Solver::rho_of_material`]
+    /// reads it).
+    fn refresh_rho(&mut self, m: u32) {
+        let code = self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]);
+        if let Some(c) = self.rho_cache.get_mut(m as usize) {
+            *c = code.map(S::rho);
+        }
+    }
+
+    /// The reflectance of `slot` for the per-entry product: cached per material, decoded for the rare material
+    /// beyond the cache.
+    #[inline]
+    fn entry_rho(&self, table: &Table<'_>, slot: u32) -> [S::Rho; 3] {
+        let m = table.slot_material(slot).unwrap_or(0);
+        match self.rho_cache.get(m as usize) {
+            Some(r) => *r,
+            None => self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]).map(S::rho),
+        }
     }
 
     fn rho_of_material(&self, m: u32) -> [Frac; 3] {
@@ -744,12 +774,12 @@ impl<'b, S: Scalar> Solver<'b, S> {
                 break;
             }
             if let Some((i, f)) = table.entry(shot.shooter, shot.next) {
-                let rho = self.rho(table, i);
+                let rho = self.entry_rho(table, i);
                 let mut t = [S::ZERO; 3];
                 let mut r = [S::ZERO; 3];
                 for c in 0..3 {
                     t[c] = shot.power[c].mul_frac(f);
-                    r[c] = t[c].mul_frac(rho[c]);
+                    r[c] = t[c].mul_rho(rho[c]);
                 }
                 add3(self.buf.incident, i, t);
                 add3(self.buf.power, i, r);
@@ -1124,6 +1154,7 @@ impl<'b, S: Scalar> Solver<'b, S> {
         if let Some(r) = self.buf.reflectance.get_mut(material as usize) {
             *r = new_codes;
         }
+        self.refresh_rho(material);
         let mut units = 0u32;
         for i in 0..self.slots {
             units = units.saturating_add(1);
