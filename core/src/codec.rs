@@ -156,17 +156,23 @@ impl FfCodec {
         u32::from(self.bits.saturating_sub(self.exponent_bits))
     }
 
+    /// Mantissa bits `M` and the shift of a subnormal code in a row with exponent `row_exponent`:
+    /// `row_exponent + M + 2^E - 2` (see the module docs).
+    fn shape(self, row_exponent: u8) -> (u32, i32) {
+        let m_bits = self.mantissa_bits().min(16);
+        let e_span = (1i32 << self.exponent_bits.min(4)) - 2; // 2^E - 2, -1 for E = 0
+        (m_bits, i32::from(row_exponent) + m_bits as i32 + e_span)
+    }
+
     /// Decodes `code` in a row with exponent `row_exponent` (assumes [`FfCodec::check`] passed; codes above
     /// [`FfCodec::max_code`] are clamped).
     #[must_use]
     #[inline]
     pub fn decode(self, code: u16, row_exponent: u8) -> Frac {
         let code = u32::from(code.min(self.max_code()));
-        let m_bits = self.mantissa_bits().min(16);
-        let e_span = (1i32 << self.exponent_bits.min(4)) - 2; // 2^E - 2, -1 for E = 0
+        let (m_bits, base) = self.shape(row_exponent);
         let x = code >> m_bits;
         let m = code & ((1u32 << m_bits) - 1);
-        let base = i32::from(row_exponent) + m_bits as i32 + e_span;
         if x == 0 {
             Frac { mantissa: m, shift: base.max(0) as u32 }
         } else {
@@ -200,9 +206,8 @@ impl FfCodec {
     /// subnormal step, `v < 2^M` is the subnormal code `v`; otherwise `x = floor(log2 v) - M + 1` and the mantissa
     /// is `floor(v / 2^(x-1)) - 2^M`. May exceed the largest code (the caller clamps).
     fn code_guess(self, exact: u128, row_exponent: u8) -> u32 {
-        let m_bits = self.mantissa_bits().min(16);
-        let e_span = (1i32 << self.exponent_bits.min(4)) - 2;
-        let base = (i32::from(row_exponent) + m_bits as i32 + e_span).max(0) as u32;
+        let (m_bits, base) = self.shape(row_exponent);
+        let base = base.max(0) as u32;
         let v = if base >= EXACT_SHIFT {
             let up = (base - EXACT_SHIFT).min(127);
             if exact.leading_zeros() <= up {
@@ -324,8 +329,8 @@ pub(crate) fn quantize_row_with_exponent(
             return NO_BUMP;
         }
         let lo = codec.decode(c, e).to_exact();
-        let hi = codec.decode(c + 1, e).to_exact();
-        let step = hi.saturating_sub(lo);
+        let step = step_of(c);
+        let hi = lo + step;
         let exact = f32_to_exact(v);
         let loss = exact.saturating_sub(lo);
         if step == 0 || loss == 0 || hi.saturating_sub(exact) > exact {

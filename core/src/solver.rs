@@ -487,10 +487,9 @@ impl<'b, S: Scalar> Solver<'b, S> {
         self.rho_of_material(table.slot_material(slot).unwrap_or(0))
     }
 
-    /// Re-decodes material `m`'s cached reflectance from the reflectance buffer (as [`Solver::rho_of_material`]
-    /// reads it).
+    /// Re-decodes material `m`'s cached reflectance from the reflectance buffer.
     fn refresh_rho(&mut self, m: u32) {
-        let code = self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]);
+        let code = self.reflectance_code(m);
         if let Some(c) = self.rho_cache.get_mut(m as usize) {
             *c = code.map(S::rho);
         }
@@ -503,13 +502,17 @@ impl<'b, S: Scalar> Solver<'b, S> {
         let m = table.slot_material(slot).unwrap_or(0);
         match self.rho_cache.get(m as usize) {
             Some(r) => *r,
-            None => self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]).map(S::rho),
+            None => self.reflectance_code(m).map(S::rho),
         }
     }
 
     fn rho_of_material(&self, m: u32) -> [Frac; 3] {
-        let r = self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]);
-        [decode_reflectance(r[0]), decode_reflectance(r[1]), decode_reflectance(r[2])]
+        self.reflectance_code(m).map(decode_reflectance)
+    }
+
+    /// Current reflectance codes of material `m` (0 outside the buffer).
+    fn reflectance_code(&self, m: u32) -> [u16; 3] {
+        self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3])
     }
 
     /// The radiosity of a patch without state: its static base `E_s + rho G_s` with the current reflectance.

@@ -96,9 +96,9 @@
 //! occlude this pair" is made (an exact one costs O(patches) per pair, more than the rays it saves at the default
 //! ray count), so rays are cast even in convex scenes. Pairs facing away from each other cost only a plane test.
 //! [`FormFactorStats`] counts the kernel evaluations and times both passes; `radiosity bench` reports them
-//! (`bench/REPORT.md`, "Bake throughput"). Measured there on the Cornell box, 1 thread: 86-92 ns per kernel
-//! evaluation against 139-155 ns per occlusion ray; 5.1 evaluations per ray at 498 patches (near pairs are split)
-//! and 1.7 at 1,998, where the kernel pass is 70% and 41% of the time.
+//! (`bench/REPORT.md`, "Bake throughput"). Measured there on the Cornell box, 1 thread (report of a5cb192): 87-94
+//! ns per kernel evaluation against 145-156 ns per occlusion ray; 5.1 evaluations per ray at 498 patches (near
+//! pairs are split) and 1.7 at 1,998, where the kernel pass is 69% and 41% of the time.
 //!
 //! # Determinism
 //! Quadrature points are deterministic; the rays of pair `(i, j)` come from a generator seeded by `(seed, i, j)`,
@@ -813,11 +813,11 @@ fn grid(count: usize) -> (usize, usize) {
 /// SplitMix64 (G. Steele, D. Lea, C. Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014):
 /// tiny, seedable from any 64-bit value, good enough for jitter.
 #[derive(Clone, Debug)]
-struct SplitMix64(u64);
+pub(crate) struct SplitMix64(u64);
 
 impl SplitMix64 {
     /// A generator for one stream, seeded from `seed` and the stream's coordinates.
-    fn for_stream(seed: u64, a: u64, b: u64) -> Self {
+    pub(crate) fn for_stream(seed: u64, a: u64, b: u64) -> Self {
         let mut g = Self(seed);
         let k1 = g.next_u64() ^ a;
         g = Self(k1);
@@ -834,7 +834,7 @@ impl SplitMix64 {
     }
 
     /// Uniform in the open interval (0, 1): never exactly on a stratum's boundary.
-    fn open_unit(&mut self) -> f64 {
+    pub(crate) fn open_unit(&mut self) -> f64 {
         ((self.next_u64() >> 11) as f64 + 0.5) * (1.0 / (1u64 << 53) as f64)
     }
 

@@ -32,7 +32,7 @@
 //! rounding-level change of the estimator (1e-15..1e-9 relative, measured on such changes) flips some of them
 //! and moves a component by percent, far above `8 n eps`. So where every seed gave the same value, [`update`]
 //! measures the component again at `S` jitters ([`JITTER`]: every pair's `A_i F_ij` scaled by `1 + JITTER u`,
-//! `u` uniform in `[-1, 1)`, the same for both directions so the matrix stays reciprocal) and takes as the noise
+//! `u` uniform in `(-1, 1)`, the same for both directions so the matrix stays reciprocal) and takes as the noise
 //! the root-mean-square deviation of the jittered values from the unjittered one ([`Stat::jittered`]). The
 //! check itself never jitters.
 //!
@@ -51,7 +51,7 @@ use thiserror::Error;
 
 use crate::bake::codec_name;
 use crate::check::{check, Arith, CheckError, CheckOptions, QUANTIZATION, SPARSIFICATION};
-use crate::formfactor::FormFactorOptions;
+use crate::formfactor::{FormFactorOptions, SplitMix64};
 use crate::pipeline::{prepare, PrepareOptions};
 
 /// Components the regression tracks, by name ([`crate::check::Component::name`]).
@@ -171,22 +171,14 @@ impl Stat {
     }
 }
 
-/// Scales every pair's form factors by `1 + JITTER u` (see [`JITTER`]), `u` in `[-1, 1)` from a hash of
-/// `jitter` and the unordered pair, so `A_i F_ij = A_j F_ji` stays as it was.
+/// Scales every pair's form factors by `1 + JITTER u` (see [`JITTER`]), `u` in `(-1, 1)` from the form factors'
+/// generator seeded by `jitter` and the unordered pair, so `A_i F_ij = A_j F_ji` stays as it was.
 pub fn jitter_form_factors(ff: &mut crate::patch::FormFactorMatrix, jitter: u64) {
-    let mix = |mut z: u64| {
-        // SplitMix64's finalizer (Steele, Lea and Flood, "Fast splittable pseudorandom number generators",
-        // OOPSLA 2014).
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    };
     for i in 0..ff.n {
         for k in ff.row_start[i]..ff.row_start[i + 1] {
-            let j = ff.col[k] as u64;
-            let (lo, hi) = ((i as u64).min(j), (i as u64).max(j));
-            let z = mix(mix(jitter.wrapping_add(0x9e37_79b9_7f4a_7c15)) ^ (lo << 32 | hi));
-            let u = (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0;
+            let j = ff.col[k] as usize;
+            let (lo, hi) = (i.min(j) as u64, i.max(j) as u64);
+            let u = 2.0 * SplitMix64::for_stream(jitter, lo, hi).open_unit() - 1.0;
             ff.value[k] *= 1.0 + JITTER * u;
         }
     }
