@@ -9,7 +9,7 @@
 //! gives rows with the spread of magnitudes real rows have (1e-5 .. 1e-1), which is what the codecs see.
 
 use radiosity_core::{
-    write_table, Buffers, Config, FfCodec, Outcome, PatchSpec, RowsSpec, Solver, Table, TableSpec,
+    write_table, Config, FfCodec, Outcome, OwnedBuffers, PatchSpec, RowsSpec, Solver, Table, TableSpec,
 };
 
 const K: usize = 8;
@@ -157,24 +157,13 @@ fn main() {
             max_deficit = max_deficit.max((s - sd) / s);
         }
         // Solve with the core solver (f32 path) to a tight tolerance.
-        let mut power = vec![[0.0f32; 3]; n];
-        let mut unshot = vec![[0.0f32; 3]; n];
-        let mut incident = vec![[0.0f32; 3]; n];
-        let mut tree = vec![0u32; radiosity_core::selection_len(n as u32) as usize];
-        let mut reflectance = vec![[0u16; 3]; 1];
-        let buffers = Buffers {
-            power: &mut power,
-            unshot: &mut unshot,
-            incident: &mut incident,
-            tree: &mut tree,
-            intensity: &mut [],
-            reflectance: &mut reflectance,
-        };
+        let mut store = OwnedBuffers::<f32>::for_table(&t);
+        let buffers = store.buffers();
         let mut solver = Solver::new(&t, buffers, Config { tolerance: 1e-9 * area, overshoot: 0 }).unwrap();
-        while !matches!(solver.step(&t, 100_000), Outcome::Converged { .. }) {}
+        while !matches!(solver.step(100_000), Outcome::Converged { .. }) {}
         let (mut num, mut den) = (0.0f32, 0.0f32);
         for (i, r) in reference.iter().enumerate() {
-            let p = solver.power(&t, i as u32).unwrap()[0];
+            let p = solver.power(i as u32).unwrap()[0];
             num += (p - r) * (p - r);
             den += r * r;
         }

@@ -9,8 +9,8 @@
 //! `<= 1e-6` of the emitted power per patch.
 
 use radiosity_core::{
-    write_table, Buffers, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, PatchSpec, RowsSpec,
-    Scalar, Solver, Table, TableSpec,
+    write_table, BufferSizes, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, OwnedBuffers,
+    PatchSpec, RowsSpec, Scalar, Solver, Table, TableSpec,
 };
 
 const K: usize = 6;
@@ -95,28 +95,18 @@ enum Method {
 /// tolerances below it); returns units, rows shot, radiosities and the tolerance used.
 fn solve<S: Scalar>(t: &Table<'_>, method: Method, tolerance: f32) -> (u64, u32, Vec<f32>, f32) {
     let tolerance = tolerance.max(radiosity_core::convergence_floor::<S>(t).to_f32());
-    let n = t.patch_count() as usize;
-    let (mut power, mut unshot, mut incident) =
-        (vec![[S::ZERO; 3]; n], vec![[S::ZERO; 3]; n], vec![[S::ZERO; 3]; n]);
-    let selection = radiosity_core::selection_len(n as u32) as usize;
-    let (mut tree, mut reflectance, mut scratch) =
-        (vec![0u32; selection], vec![[0u16; 3]; 1], vec![[S::ZERO; 3]; n]);
-    let buffers = Buffers {
-        power: &mut power,
-        unshot: &mut unshot,
-        incident: &mut incident,
-        tree: &mut tree,
-        intensity: &mut [],
-        reflectance: &mut reflectance,
-    };
+    let sizes = BufferSizes::of(t);
+    let mut store = OwnedBuffers::<S>::new(sizes);
+    let mut scratch = vec![[S::ZERO; 3]; sizes.slots];
+    let buffers = store.buffers();
     let overshoot = if let Method::Shoot(o) = method { o } else { 0 };
     let mut s = Solver::new(t, buffers, Config { tolerance: S::from_f32(tolerance), overshoot }).unwrap();
     let mut units = 0u64;
     loop {
         let o = match method {
-            Method::Shoot(_) => s.step(t, 10_000),
-            Method::GaussSeidel => s.step_gauss_seidel(t, 10_000),
-            Method::Jacobi => s.step_jacobi(t, &mut scratch, 10_000),
+            Method::Shoot(_) => s.step(10_000),
+            Method::GaussSeidel => s.step_gauss_seidel(10_000),
+            Method::Jacobi => s.step_jacobi(&mut scratch, 10_000),
         };
         units += u64::from(o.used());
         match o {
@@ -125,7 +115,7 @@ fn solve<S: Scalar>(t: &Table<'_>, method: Method, tolerance: f32) -> (u64, u32,
             other => panic!("{other:?}"),
         }
     }
-    let b = (0..n as u32).map(|i| s.radiosity(t, i).unwrap()[0].to_f32()).collect();
+    let b = (0..t.patch_count()).map(|i| s.radiosity(i).unwrap()[0].to_f32()).collect();
     (units, s.shots(), b, tolerance)
 }
 
@@ -166,10 +156,10 @@ fn main() {
     relight_cost();
 }
 
-fn run_to_convergence(s: &mut Solver<'_, f32>, t: &Table<'_>) -> u64 {
+fn run_to_convergence(s: &mut Solver<'_, f32>) -> u64 {
     let mut units = 0u64;
     loop {
-        let o = s.step(t, 10_000);
+        let o = s.step(10_000);
         units += u64::from(o.used());
         if !matches!(o, Outcome::BudgetSpent { .. }) {
             return units;
@@ -179,33 +169,20 @@ fn run_to_convergence(s: &mut Solver<'_, f32>, t: &Table<'_>) -> u64 {
 
 /// Warm start against cold solve: the same cube with the light as a light group, relit after convergence.
 fn relight_cost() {
-    let (bytes, n) = table_bytes(true);
+    let (bytes, _) = table_bytes(true);
     let t = Table::parse(&bytes).unwrap();
-    let (mut power, mut unshot, mut incident) =
-        (vec![[0.0f32; 3]; n], vec![[0.0f32; 3]; n], vec![[0.0f32; 3]; n]);
-    let (mut tree, mut intensity, mut reflectance) = (
-        vec![0u32; radiosity_core::selection_len(n as u32) as usize],
-        vec![[0.0f32; 3]; 1],
-        vec![[0u16; 3]; 1],
-    );
-    let buffers = Buffers {
-        power: &mut power,
-        unshot: &mut unshot,
-        incident: &mut incident,
-        tree: &mut tree,
-        intensity: &mut intensity,
-        reflectance: &mut reflectance,
-    };
+    let mut store = OwnedBuffers::<f32>::for_table(&t);
+    let buffers = store.buffers();
     let tolerance = 1e-6 / (K * K) as f32;
     let mut s = Solver::new(&t, buffers, Config { tolerance, overshoot: 0 }).unwrap();
     println!();
     println!("| shooting, f32, light group relit after convergence | work units |");
     println!("|---|---|");
-    println!("| cold solve, intensity 1 | {} |", run_to_convergence(&mut s, &t));
+    println!("| cold solve, intensity 1 | {} |", run_to_convergence(&mut s));
     for rgb in [[0.9f32, 0.9, 0.9], [0.0; 3], [1.0, 0.2, 0.2]] {
-        let extra = s.set_light(&t, 0, rgb).unwrap();
-        println!("| relight to {rgb:?} (set_light: {extra} units) | {} |", run_to_convergence(&mut s, &t));
+        let extra = s.set_light(0, rgb).unwrap();
+        println!("| relight to {rgb:?} (set_light: {extra} units) | {} |", run_to_convergence(&mut s));
     }
-    s.restart(&t);
-    println!("| cold solve (restart) at [1.0, 0.2, 0.2] | {} |", run_to_convergence(&mut s, &t));
+    s.restart();
+    println!("| cold solve (restart) at [1.0, 0.2, 0.2] | {} |", run_to_convergence(&mut s));
 }

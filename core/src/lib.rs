@@ -82,48 +82,8 @@
 //! the arithmetic terms in [`transfer`]). The basis holds for the table's reflectances only: after
 //! [`Solver::set_reflectance`], or with many groups (the section grows as `patches x groups`), shoot.
 //!
-//! # Table layout (format version 3)
-//! `header | payload | crc32`. The header is postcard (varint integers) with the fields, in order:
-//! `magic: [u8; 4] = "RFT\x1a"`, `version: u16`, `patch_count n: u32`, `state_count s: u32` (patches with
-//! run-time state, `s <= n`; see "Run-time state"), `material_count m: u32`,
-//! `group_count g: u32`, `member_count M: u32`, `entry_count nnz: u32`, `ff_bits: u8` (8 or 16),
-//! `ff_exponent_bits: u8` (0..=4), `index_bytes: u8` (2 if `n <= 65536`, else 4), `base_solved: bool`,
-//! `fingerprint: u64` (the host's scene fingerprint, [`Table::fingerprint`]; not interpreted by core),
-//! `transfer: bool` (the transfer sections are present). Version 1 had neither of the last two fields nor
-//! the transfer sections; version 2 had no `state_count` and no state sections, and its rows were indexed by
-//! patch.
-//! A reader decodes `(magic, version)` first, so an old or new blob gets "unsupported table format version N,
-//! expected M". The payload is these little-endian sections, back to back, unaligned (read bytewise):
-//!
-//! | section | element | count |
-//! |---|---|---|
-//! | patch area | `f32` | `n` |
-//! | patch material | `u16` | `n` |
-//! | static emission | emission code `u16` x 3 | `n` |
-//! | static irradiance | emission code `u16` x 3 | `n` |
-//! | material reflectance | reflectance code `u16` x 3 | `m` |
-//! | group id | `u32` | `g` |
-//! | group default intensity | `f32` x 3 | `g` |
-//! | group member start | `u32` | `g + 1` |
-//! | member patch | index (`index_bytes`) | `M` |
-//! | member emission at unit intensity | emission code `u16` x 3 | `M` |
-//! | state map: patch of each slot, strictly increasing (only if `s < n`) | index (`index_bytes`) | `s` |
-//! | state material: material of each slot's patch (only if `s < n`) | `u16` | `s` |
-//! | row start (per slot) | `u32` | `s + 1` |
-//! | row exponent (per slot) | `u8` | `s` |
-//! | entry receiver (a slot) | index (`index_bytes`) | `nnz` |
-//! | entry form-factor code | `ff_bits / 8` bytes | `nnz` |
-//! | transfer scale exponent `K` (only if `transfer`) | `i8` x 3 | `g` |
-//! | transfer response code (FLOAT16, only if `transfer`), patch-major: patch `i`, group `g` at `i * g_count + g` | `u16` x 3 | `n * g` |
-//!
-//! The trailing CRC-32 (IEEE, `u32` LE) covers header and payload. [`Table::parse`] checks magic, version,
-//! header, quantization parameters, `s <= n`, length, CRC, then content: areas finite and positive; with
-//! `s < n`: the base is solved, the state map strictly increasing and `< n`, each slot's material that of its
-//! patch; offsets starting at 0, monotone and ending at their counts, every index in range (receivers `< s`),
-//! every member a patch with state, receivers strictly increasing within a row, row
-//! exponents `<= 64`, every row's decoded sum `<= 1` (summed exactly in integers), intensities finite, and
-//! with a transfer section: the base is solved and every step exponent is in
-//! [`transfer::TRANSFER_MIN_EXPONENT`]`..=`[`transfer::TRANSFER_MAX_EXPONENT`].
+//! # Table layout
+//! The byte layout (format version 3) is specified in `docs/format.md`, rendered in [`format`]'s docs.
 //!
 //! # Cost model: work units
 //! A work unit is one of: one form-factor entry applied (decode, three multiply-adds into power, unshot and
@@ -216,8 +176,8 @@
 //! # How the host calls the writer
 //! ```
 //! use radiosity_core::{
-//!     required_len, write_table, Buffers, Config, FfCodec, GroupSpec, MemberSpec, Outcome, PatchSpec, RowsSpec,
-//!     Solver, Table, TableSpec,
+//!     required_len, write_table, Config, FfCodec, GroupSpec, MemberSpec, Outcome, OwnedBuffers, PatchSpec,
+//!     RowsSpec, Solver, Table, TableSpec,
 //! };
 //!
 //! // Two patches facing each other: areas 1 and 2, F_01 = 0.4, F_10 = 0.2 (A_0 F_01 = A_1 F_10).
@@ -244,19 +204,11 @@
 //!
 //! // The device side: parse in place, solve in fixed buffers with a per-frame budget.
 //! let table = Table::parse(&blob)?;
-//! let (mut power, mut unshot, mut incident) = ([[0.0f32; 3]; 2], [[0.0f32; 3]; 2], [[0.0f32; 3]; 2]);
-//! let (mut tree, mut intensity, mut reflectance) = ([0u32; 2], [[0.0f32; 3]; 1], [[0u16; 3]; 1]);
-//! let buffers = Buffers {
-//!     power: &mut power,
-//!     unshot: &mut unshot,
-//!     incident: &mut incident,
-//!     tree: &mut tree,
-//!     intensity: &mut intensity,
-//!     reflectance: &mut reflectance,
-//! };
-//! let mut solver = Solver::new(&table, buffers, Config { tolerance: 1e-7, overshoot: 0 })?;
-//! while let Outcome::BudgetSpent { .. } = solver.step(&table, 16) {}
-//! let b0 = solver.radiosity(&table, 0).unwrap()[0];
+//! // Buffers sized by the table (`BufferSizes::of`): `OwnedBuffers` on a host, `StaticBuffers` on a device.
+//! let mut store = OwnedBuffers::<f32>::for_table(&table);
+//! let mut solver = Solver::new(&table, store.buffers(), Config { tolerance: 1e-7, overshoot: 0 })?;
+//! while let Outcome::BudgetSpent { .. } = solver.step(16) {}
+//! let b0 = solver.radiosity(0).unwrap()[0];
 //! // By hand: B_0 = 1 / (1 - 0.5 * 0.5 * 0.4 * 0.2) = 1.0204...
 //! assert!((b0 - 1.0 / 0.98).abs() < 1e-3);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -264,21 +216,25 @@
 #![cfg_attr(not(any(test, feature = "std")), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod base;
 pub mod codec;
 pub mod crc;
+pub mod format;
 pub mod scalar;
 pub mod solver;
-pub mod table;
 pub mod transfer;
-pub mod write;
 
+pub use base::static_radiosity;
 pub use codec::{FfCodec, Frac};
-pub use scalar::{Fixed, Scalar};
-pub use solver::{
-    convergence_floor, selection_len, Buffers, Config, NoProgressReason, Outcome, Solver, SolverError,
-};
-pub use table::{Table, TableError, FORMAT_VERSION, MAGIC};
-pub use transfer::{relight_transfer, static_radiosity, transfer_cost, TransferError};
-pub use write::{
+pub use format::write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };
+pub use format::{Row, SectionSizes, Table, TableError, FORMAT_VERSION, MAGIC};
+pub use scalar::{Fixed, Scalar};
+#[cfg(any(test, feature = "std"))]
+pub use solver::OwnedBuffers;
+pub use solver::{
+    convergence_floor, selection_len, BufferSizes, Buffers, Config, NoProgressReason, Outcome, Solver,
+    SolverError, StaticBuffers,
+};
+pub use transfer::{relight_transfer, transfer_cost, TransferError};

@@ -14,8 +14,34 @@
 
 use crate::codec::{decode_reflectance, pow2_f32, Frac};
 
-/// Numbers the solver computes with.
-pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
+/// The solver's per-entry internals of a [`Scalar`]. Public in a private module, so no other crate can name it,
+/// implement [`Scalar`] or call these.
+pub(crate) mod sealed {
+    /// Reflectance cache and selection rank (see each item).
+    pub trait Internal: Sized {
+        /// A reflectance code decoded for the per-entry product (`mul_rho`): what the solver keeps per
+        /// material so that an entry does not decode it again.
+        type Rho: Copy + Default + core::fmt::Debug;
+        /// Decodes reflectance code `code` (`code / 65536`, see [`crate::codec::decode_reflectance`]).
+        #[must_use]
+        fn rho(code: u16) -> Self::Rho;
+        /// `self * rho`, bit for bit `self.mul_frac(decode_reflectance(code))` for the code `rho` was decoded from.
+        #[must_use]
+        fn mul_rho(self, rho: Self::Rho) -> Self;
+        /// Selection rank, an integer ordered like the shooter choice: for a magnitude `self` (`>= 0`, or not
+        /// usable) of slot `slot`, a larger rank means a larger magnitude, every unusable magnitude ranks above every
+        /// usable one, and equal magnitudes rank the lower slot higher. One integer comparison per candidate, so a
+        /// running maximum is a single compare-and-select (no chain of float compares and tie-breaks).
+        type Rank: Copy + Ord + core::fmt::Debug;
+        /// The rank of magnitude `self` held by `slot` (see `Rank`).
+        #[must_use]
+        fn rank(self, slot: u32) -> Self::Rank;
+    }
+}
+
+/// Numbers the solver computes with: `f32` and [`Fixed`], and only these (the trait is sealed: the solver's
+/// per-entry internals, the reflectance cache and the selection rank, live in a crate-private supertrait).
+pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug + sealed::Internal {
     /// Zero.
     const ZERO: Self;
     /// Sum (saturating for fixed point).
@@ -48,23 +74,6 @@ pub trait Scalar: Copy + PartialEq + PartialOrd + core::fmt::Debug {
     /// Whether the value is usable: finite for f32, not saturated for fixed point.
     #[must_use]
     fn is_usable(self) -> bool;
-    /// A reflectance code decoded for the per-entry product ([`Scalar::mul_rho`]): what the solver keeps per
-    /// material so that an entry does not decode it again.
-    type Rho: Copy + Default + core::fmt::Debug;
-    /// Decodes reflectance code `code` (`code / 65536`, see [`crate::codec::decode_reflectance`]).
-    #[must_use]
-    fn rho(code: u16) -> Self::Rho;
-    /// `self * rho`, bit for bit `self.mul_frac(decode_reflectance(code))` for the code `rho` was decoded from.
-    #[must_use]
-    fn mul_rho(self, rho: Self::Rho) -> Self;
-    /// Selection rank, an integer ordered like the shooter choice: for a magnitude `self` (`>= 0`, or not
-    /// usable) of slot `slot`, a larger rank means a larger magnitude, every unusable magnitude ranks above every
-    /// usable one, and equal magnitudes rank the lower slot higher. One integer comparison per candidate, so a
-    /// running maximum is a single compare-and-select (no chain of float compares and tie-breaks).
-    type Rank: Copy + Ord + core::fmt::Debug;
-    /// The rank of magnitude `self` held by `slot` (see [`Scalar::Rank`]).
-    #[must_use]
-    fn rank(self, slot: u32) -> Self::Rank;
     /// The smallest solver tolerance that is guaranteed to be reachable, given `units` = `6 L / (1 - rho_max)`
     /// rounded up (module docs): `units` resolution steps for fixed point; zero for `f32`, whose rounding is
     /// relative and does not leave an absolute floor of unshot power.
@@ -108,6 +117,12 @@ impl Scalar for f32 {
     fn is_usable(self) -> bool {
         self.is_finite()
     }
+    fn convergence_floor(_units: u64) -> f32 {
+        0.0
+    }
+}
+
+impl sealed::Internal for f32 {
     /// `code * 2^-16` is exact in f32 (16 significant bits), and `mul_frac` multiplies by that same value.
     type Rho = f32;
     fn rho(code: u16) -> f32 {
@@ -121,9 +136,6 @@ impl Scalar for f32 {
     type Rank = u64;
     fn rank(self, slot: u32) -> u64 {
         (u64::from(self.to_bits() & 0x7fff_ffff) << 32) | u64::from(!slot)
-    }
-    fn convergence_floor(_units: u64) -> f32 {
-        0.0
     }
 }
 
@@ -226,6 +238,12 @@ impl Scalar for Fixed {
     fn is_usable(self) -> bool {
         self.0 != i64::MAX && self.0 != i64::MIN
     }
+    fn convergence_floor(units: u64) -> Fixed {
+        Fixed(i64::try_from(units).unwrap_or(i64::MAX))
+    }
+}
+
+impl sealed::Internal for Fixed {
     /// Fixed point rounds the product of the raw code (`mul_frac`): nothing to gain from decoding ahead, so the
     /// code itself is kept.
     type Rho = u16;
@@ -241,13 +259,11 @@ impl Scalar for Fixed {
     fn rank(self, slot: u32) -> u128 {
         (u128::from(self.0.unsigned_abs().min(i64::MAX as u64)) << 32) | u128::from(!slot)
     }
-    fn convergence_floor(units: u64) -> Fixed {
-        Fixed(i64::try_from(units).unwrap_or(i64::MAX))
-    }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::sealed::Internal;
     use super::*;
 
     #[test]

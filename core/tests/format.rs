@@ -6,7 +6,7 @@ mod common;
 use common::{Scene, Store};
 use proptest::prelude::*;
 use radiosity_core::crc::crc32;
-use radiosity_core::table::{IndexArray, OffsetArray, QuantParam};
+use radiosity_core::format::{IndexArray, OffsetArray, QuantParam};
 use radiosity_core::{Config, FfCodec, MemberSpec, Table, TableError, WriteError, FORMAT_VERSION};
 
 /// The tiny table the golden bytes pin: 2 patches, 1 material, 1 light group with 1 member, 2 entries.
@@ -415,10 +415,10 @@ fn exercise(bytes: &[u8]) {
     let mut out = vec![[0.0f32; 3]; t.patch_count() as usize];
     let _ = radiosity_core::relight_transfer(&t, &intensity, &mut out);
     let mut store = Store::<f32>::for_table(&t);
-    let mut s = store.solver(&t, Config { tolerance: 1e-3, overshoot: 0 });
-    let _ = s.step(&t, 500);
-    let _ = s.set_light(&t, 0, [2.0; 3]);
-    let _ = s.step(&t, 500);
+    let mut s = common::solver(&mut store, &t, Config { tolerance: 1e-3, overshoot: 0 });
+    let _ = s.step(500);
+    let _ = s.set_light(0, [2.0; 3]);
+    let _ = s.step(500);
 }
 
 proptest! {

@@ -109,12 +109,12 @@ fn check(scene: &Scene, overshoot: u8, relight: Relight, budget: u32) -> Result<
     let bytes = scene.write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<f32>::for_table(&t);
-    let mut solver = store.solver(&t, Config { tolerance: TOL, overshoot });
+    let mut solver = common::solver(&mut store, &t, Config { tolerance: TOL, overshoot });
     // Solve once, then optionally change a light (negative and positive injections) and solve again: the
     // reference starts from the solver's state at that point.
     let converge = |solver: &mut radiosity_core::Solver<'_, f32>| -> Result<(), TestCaseError> {
         for _ in 0..1_000_000 {
-            let o = solver.step(&t, budget);
+            let o = solver.step(budget);
             prop_assert!(o.used() <= budget, "{o:?}");
             match o {
                 Outcome::Converged { .. } => return Ok(()),
@@ -129,24 +129,24 @@ fn check(scene: &Scene, overshoot: u8, relight: Relight, budget: u32) -> Result<
         Relight::Never => {}
         Relight::Converged(rgb) => {
             converge(&mut solver)?;
-            solver.set_light(&t, 0, rgb).unwrap();
+            solver.set_light(0, rgb).unwrap();
         }
         Relight::MidBuild(rgb) => {
             // The first block is `B` slots (or all of them): a budget of exactly that builds it and stops.
             let first = block_size(t.state_count() as usize).min(t.state_count());
-            prop_assert_eq!(solver.step(&t, first).used(), first);
-            solver.set_light(&t, 0, rgb).unwrap();
+            prop_assert_eq!(solver.step(first).used(), first);
+            solver.set_light(0, rgb).unwrap();
         }
     }
     let s = t.state_count();
-    let unshot: Vec<[f32; 3]> = (0..s).map(|i| solver.unshot(&t, i).unwrap()).collect();
-    let power: Vec<[f32; 3]> = (0..s).map(|i| solver.power(&t, i).unwrap()).collect();
+    let unshot: Vec<[f32; 3]> = (0..s).map(|i| solver.unshot(i).unwrap()).collect();
+    let power: Vec<[f32; 3]> = (0..s).map(|i| solver.power(i).unwrap()).collect();
     let shots_before = solver.shots();
     let (want, want_shots) = naive(&t, unshot, power, overshoot);
     converge(&mut solver)?;
     prop_assert_eq!(solver.shots() - shots_before, want_shots);
     for i in 0..s {
-        prop_assert_eq!(solver.power(&t, i).unwrap(), want[i as usize], "slot {}", i);
+        prop_assert_eq!(solver.power(i).unwrap(), want[i as usize], "slot {}", i);
     }
     Ok(())
 }

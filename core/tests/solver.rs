@@ -69,8 +69,8 @@ fn two_patch<S: Arith>() {
     let bytes = two_patch_scene(1.0).write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
-    converge(&mut solver, &t, 100, 1_000_000);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 100, 1_000_000);
     let b = radiosities(&solver, &t);
     let p = 0.5 * 0.8 * 0.4 * 0.2;
     let b1 = 1.0 / (1.0 - p);
@@ -97,8 +97,8 @@ fn two_patch_scaled<S: Arith>(scale: f32) {
     // enforces: `6 L 2^-32 / (1 - rho_max)` for fixed point, from the table's reflectance codes.
     let tol = (TOL * scale).max(radiosity_core::convergence_floor::<S>(&t).to_f32());
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, Config { tolerance: S::from_f32(tol), overshoot: 0 });
-    converge(&mut solver, &t, 100, 1_000_000);
+    let mut solver = common::solver(&mut store, &t, Config { tolerance: S::from_f32(tol), overshoot: 0 });
+    converge(&mut solver, 100, 1_000_000);
     let b = radiosities(&solver, &t);
     let p = 0.5 * 0.8 * 0.4 * 0.2;
     let b1 = scale / (1.0 - p);
@@ -144,8 +144,8 @@ fn three_patch<S: Arith>() {
     let bytes = three_patch_scene().write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
-    converge(&mut solver, &t, 7, 1_000_000);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 7, 1_000_000);
     check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
 }
 
@@ -154,21 +154,17 @@ fn three_patch_other_methods<S: Arith>() {
     let bytes = three_patch_scene().write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, Config { tolerance: S::from_f32(TOL), overshoot: 64 });
-    converge(&mut solver, &t, 5, 1_000_000);
+    let mut solver = common::solver(&mut store, &t, Config { tolerance: S::from_f32(TOL), overshoot: 64 });
+    converge(&mut solver, 5, 1_000_000);
     check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
 
     for jacobi in [false, true] {
         let mut store = Store::<S>::for_table(&t);
-        let mut solver = store.solver(&t, config());
+        let mut solver = common::solver(&mut store, &t, config());
         let mut scratch = vec![[S::ZERO; 3]; 3];
         let mut total = 0u64;
         loop {
-            let o = if jacobi {
-                solver.step_jacobi(&t, &mut scratch, 4)
-            } else {
-                solver.step_gauss_seidel(&t, 4)
-            };
+            let o = if jacobi { solver.step_jacobi(&mut scratch, 4) } else { solver.step_gauss_seidel(4) };
             assert!(o.used() <= 4, "{o:?}");
             total += u64::from(o.used());
             match o {
@@ -181,7 +177,7 @@ fn three_patch_other_methods<S: Arith>() {
         check_three::<S>(&radiosities(&solver, &t), solver.shots(), 0.0);
         // The result is converged for shooting too: its step finds nothing to shoot after the tree rebuild.
         // 3 slots in blocks of 2: rebuilding the blocks (2 + 1 units), then scanning their 2 winners.
-        assert_eq!(solver.step(&t, 100), Outcome::Converged { used: 5 });
+        assert_eq!(solver.step(100), Outcome::Converged { used: 5 });
     }
 }
 
@@ -196,9 +192,9 @@ fn static_base_costs_nothing<S: Arith>() {
     let bytes = s.write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
+    let mut solver = common::solver(&mut store, &t, config());
     assert_eq!(
-        solver.step(&t, 100),
+        solver.step(100),
         Outcome::Converged { used: 5 },
         "only the block rebuild (3) and selection (2)"
     );
@@ -227,8 +223,8 @@ fn furnace<S: Arith>(rho: f32) {
     let bytes = s.write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
-    converge(&mut solver, &t, 1000, 50_000_000);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 1000, 50_000_000);
     let b = radiosities(&solver, &t);
     let rho_q = radiosity_core::codec::decode_reflectance(t.reflectance(0).unwrap()[0]).to_f32();
     let s_q = t.row_sum(0).unwrap();
@@ -261,17 +257,16 @@ fn ambient_in_furnace<S: Arith>() {
     let bytes = s.write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
+    let mut solver = common::solver(&mut store, &t, config());
     for _ in 0..3 {
-        let o = solver.step(&t, 9);
+        let o = solver.step(9);
         assert!(matches!(o, Outcome::BudgetSpent { .. }), "{o:?}");
-        let amb = solver.ambient(&t);
-        let mean: f32 = (0..n as u32)
-            .map(|i| solver.radiosity_with_ambient(&t, i, amb).unwrap()[0].to_f32())
-            .sum::<f32>()
-            / n as f32;
+        let amb = solver.ambient();
+        let mean: f32 =
+            (0..n as u32).map(|i| solver.radiosity_with_ambient(i, amb).unwrap()[0].to_f32()).sum::<f32>()
+                / n as f32;
         let plain: f32 =
-            (0..n as u32).map(|i| solver.radiosity(&t, i).unwrap()[0].to_f32()).sum::<f32>() / n as f32;
+            (0..n as u32).map(|i| solver.radiosity(i).unwrap()[0].to_f32()).sum::<f32>() / n as f32;
         assert!(plain < 1.9, "state should be unconverged, mean B {plain}");
         // Arithmetic only: a handful of shots on values <= 2.
         assert_close("ambient-corrected mean", mean, 2.0, S::arith(2.0, solver.shots() + 8, 0.5, 1.0));
@@ -290,8 +285,8 @@ fn cold<S: Arith>(scene: &Scene) -> (Vec<[f32; 3]>, u32) {
     let bytes = scene.write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
-    converge(&mut solver, &t, 50, 10_000_000);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 50, 10_000_000);
     (radiosities(&solver, &t), solver.shots())
 }
 
@@ -309,32 +304,32 @@ fn relighting<S: Arith>() {
     let bytes = base.write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
-    converge(&mut solver, &t, 50, 10_000_000);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 50, 10_000_000);
     let (cold_default, k0) = cold::<S>(&base);
     // Two converged solves differ by at most the sum of their truncation and arithmetic terms. rho_max 0.75.
     let tol =
         |shots: u32| move |b: f32| 2.0 * truncation(3, TOL, 0.75, 1.0) + 2.0 * S::arith(b, shots, 0.75, 1.0);
 
-    solver.set_light(&t, 0, [0.0; 3]).unwrap();
-    converge(&mut solver, &t, 50, 10_000_000);
+    solver.set_light(0, [0.0; 3]).unwrap();
+    converge(&mut solver, 50, 10_000_000);
     let (cold_off, _) = cold::<S>(&relight_scene([0.0; 3], [0.25; 3]));
     compare("dimmed to zero", &radiosities(&solver, &t), &cold_off, tol(solver.shots()));
 
-    solver.set_light(&t, 0, [1.0; 3]).unwrap();
-    converge(&mut solver, &t, 50, 10_000_000);
+    solver.set_light(0, [1.0; 3]).unwrap();
+    converge(&mut solver, 50, 10_000_000);
     compare("back to default", &radiosities(&solver, &t), &cold_default, tol(solver.shots().max(k0)));
 
-    solver.set_light(&t, 0, [0.5, 2.0, 0.0]).unwrap();
-    converge(&mut solver, &t, 50, 10_000_000);
+    solver.set_light(0, [0.5, 2.0, 0.0]).unwrap();
+    converge(&mut solver, 50, 10_000_000);
     let (cold_colour, k1) = cold::<S>(&relight_scene([0.5, 2.0, 0.0], [0.25; 3]));
     compare("colour change", &radiosities(&solver, &t), &cold_colour, tol(solver.shots().max(k1)));
 
     // Reflectance edit mid-solve (not converged), then converge: same as the cold solve of the edited scene.
-    solver.set_light(&t, 0, [1.0; 3]).unwrap();
-    let _ = solver.step(&t, 7);
-    solver.set_reflectance(&t, 1, [0.9, 0.0, 0.6]).unwrap();
-    converge(&mut solver, &t, 50, 10_000_000);
+    solver.set_light(0, [1.0; 3]).unwrap();
+    let _ = solver.step(7);
+    solver.set_reflectance(1, [0.9, 0.0, 0.6]).unwrap();
+    converge(&mut solver, 50, 10_000_000);
     let (cold_edit, k2) = cold::<S>(&relight_scene([1.0; 3], [0.9, 0.0, 0.6]));
     let k_edit = solver.shots().max(k2);
     let tol_edit = move |b: f32| 2.0 * truncation(3, TOL, 0.9, 1.0) + 2.0 * S::arith(b, k_edit, 0.9, 1.0);
@@ -347,18 +342,19 @@ fn determinism<S: Arith>() {
     let t = Table::parse(&bytes).unwrap();
     let run = || {
         let mut store = Store::<S>::for_table(&t);
-        let mut solver = store.solver(&t, Config { tolerance: S::from_f32(TOL), overshoot: 32 });
+        let mut solver =
+            common::solver(&mut store, &t, Config { tolerance: S::from_f32(TOL), overshoot: 32 });
         let mut log = Vec::new();
         for k in 0..40u32 {
-            log.push(solver.step(&t, 3 + k % 5));
+            log.push(solver.step(3 + k % 5));
             if k % 7 == 0 {
-                solver.set_light(&t, 0, [k as f32 * 0.1, 1.0, 0.0]).unwrap();
+                solver.set_light(0, [k as f32 * 0.1, 1.0, 0.0]).unwrap();
             }
             if k == 20 {
-                solver.set_reflectance(&t, 2, [0.5, 0.1, 0.2]).unwrap();
+                solver.set_reflectance(2, [0.5, 0.1, 0.2]).unwrap();
             }
         }
-        let state: Vec<_> = (0..3).map(|i| (solver.power(&t, i), solver.unshot(&t, i))).collect();
+        let state: Vec<_> = (0..3).map(|i| (solver.power(i), solver.unshot(i))).collect();
         format!("{log:?} {state:?}")
     };
     assert_eq!(run(), run());
@@ -371,10 +367,10 @@ fn budget_partition_invariance<S: Arith>() {
     let t = Table::parse(&bytes).unwrap();
     let run = |budget: u32, gauss_seidel: bool| {
         let mut store = Store::<S>::for_table(&t);
-        let mut solver = store.solver(&t, config());
+        let mut solver = common::solver(&mut store, &t, config());
         let mut steps = 0;
         loop {
-            let o = if gauss_seidel { solver.step_gauss_seidel(&t, budget) } else { solver.step(&t, budget) };
+            let o = if gauss_seidel { solver.step_gauss_seidel(budget) } else { solver.step(budget) };
             assert!(o.used() <= budget, "{o:?}");
             steps += 1;
             if matches!(o, Outcome::Converged { .. }) {
@@ -382,7 +378,7 @@ fn budget_partition_invariance<S: Arith>() {
             }
             assert!(steps < 10_000_000, "{o:?}");
         }
-        let state: Vec<_> = (0..3).map(|i| (solver.power(&t, i), solver.unshot(&t, i))).collect();
+        let state: Vec<_> = (0..3).map(|i| (solver.power(i), solver.unshot(i))).collect();
         (format!("{state:?}"), steps)
     };
     for gs in [false, true] {
@@ -400,20 +396,20 @@ fn restart_is_cold<S: Arith>() {
     let bytes = relight_scene([1.0; 3], [0.25; 3]).write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
-    converge(&mut solver, &t, 50, 10_000_000);
-    solver.set_light(&t, 0, [1e-3, 0.0, 2.0]).unwrap();
-    solver.set_reflectance(&t, 1, [0.9, 0.0, 0.6]).unwrap();
-    solver.restart(&t);
-    converge(&mut solver, &t, 50, 10_000_000);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 50, 10_000_000);
+    solver.set_light(0, [1e-3, 0.0, 2.0]).unwrap();
+    solver.set_reflectance(1, [0.9, 0.0, 0.6]).unwrap();
+    solver.restart();
+    converge(&mut solver, 50, 10_000_000);
     let edited_bytes = relight_scene([1e-3, 0.0, 2.0], [0.9, 0.0, 0.6]).write();
     let edited = Table::parse(&edited_bytes).unwrap();
     let mut cold_store = Store::<S>::for_table(&edited);
-    let mut cold = cold_store.solver(&edited, config());
-    converge(&mut cold, &edited, 50, 10_000_000);
+    let mut cold = common::solver(&mut cold_store, &edited, config());
+    converge(&mut cold, 50, 10_000_000);
     // Same codes, same intensities, same operations: bit-identical.
-    let a: Vec<_> = (0..3).map(|i| solver.power(&t, i)).collect();
-    let b: Vec<_> = (0..3).map(|i| cold.power(&edited, i)).collect();
+    let a: Vec<_> = (0..3).map(|i| solver.power(i)).collect();
+    let b: Vec<_> = (0..3).map(|i| cold.power(i)).collect();
     assert_eq!(format!("{a:?}"), format!("{b:?}"));
 }
 
@@ -448,17 +444,18 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
     let (full_bytes, part_bytes) = (two_rooms_scene(false).write(), two_rooms_scene(true).write());
     let (full, part) = (Table::parse(&full_bytes).unwrap(), Table::parse(&part_bytes).unwrap());
     assert_eq!((part.patch_count(), part.state_count()), (4, 2));
-    let mut short = Store::<S>::for_table(&part);
-    short.tree.pop();
+    let mut sizes = radiosity_core::BufferSizes::of(&part);
+    assert_eq!(sizes.slots, 2, "buffers hold the slots only");
+    sizes.selection -= 1;
+    let mut short = Store::<S>::new(sizes);
     let err = radiosity_core::Solver::new(&part, short.buffers(), config()).err();
-    assert_eq!(err, Some(SolverError::BufferTooSmall { buffer: "tree", needed: 1, got: 0 }));
+    assert_eq!(err, Some(SolverError::BufferTooSmall { buffer: "selection", needed: 1, got: 0 }));
     let mut store = Store::<S>::for_table(&part);
-    assert_eq!(store.power.len(), 2);
-    let mut solver = store.solver(&part, config());
+    let mut solver = common::solver(&mut store, &part, config());
     let mut full_store = Store::<S>::for_table(&full);
-    let mut full_solver = full_store.solver(&full, config());
-    let units = converge(&mut solver, &part, 50, 100_000);
-    let full_units = converge(&mut full_solver, &full, 50, 100_000);
+    let mut full_solver = common::solver(&mut full_store, &full, config());
+    let units = converge(&mut solver, 50, 100_000);
+    let full_units = converge(&mut full_solver, 50, 100_000);
     assert!(units < full_units, "fewer slots to select from: {units} vs {full_units}");
     assert_eq!(solver.shots(), full_solver.shots());
     let (b, b_full) = (radiosities(&solver, &part), radiosities(&full_solver, &full));
@@ -468,7 +465,7 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
         // Stateless: exactly the decoded static base, E_s + rho G_s (as the transfer basis decodes it).
         let base = radiosity_core::static_radiosity::<S>(&part, i as u32).unwrap().map(|x| x.to_f32());
         assert_eq!(b[i], base, "patch {i}");
-        assert_eq!(solver.unshot(&part, i as u32), Some([S::ZERO; 3]));
+        assert_eq!(solver.unshot(i as u32), Some([S::ZERO; 3]));
         for c in 0..3 {
             // Through the emission codes (2^-11 relative each) and, with state, one division by the area.
             let q = 2f32.powi(-10) * want[i];
@@ -484,13 +481,13 @@ fn stateless_patches_show_the_static_base<S: Arith>() {
             );
         }
     }
-    assert_eq!(solver.radiosity(&part, 4), None);
-    assert_eq!(solver.power(&full, 0), None, "another table");
+    assert_eq!(solver.radiosity(4), None);
+    assert_eq!(solver.power(4), None, "out of range");
     // A light change touches the slots only; a reflectance edit changes a stateless patch's reflection of the
     // static light (E_s + rho' G_s) without propagating it.
-    solver.set_light(&part, 0, [2.0; 3]).unwrap();
-    solver.set_reflectance(&part, 1, [0.4; 3]).unwrap();
-    converge(&mut solver, &part, 50, 100_000);
+    solver.set_light(0, [2.0; 3]).unwrap();
+    solver.set_reflectance(1, [0.4; 3]).unwrap();
+    converge(&mut solver, 50, 100_000);
     let b2 = radiosities(&solver, &part);
     assert_eq!(b2[0], b[0]);
     let rho_q =
@@ -545,61 +542,37 @@ fn small_budgets_and_wrong_tables_are_reported() {
     let bytes = three_patch_scene().write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<f32>::for_table(&t);
-    let mut solver = store.solver(&t, config());
+    let mut solver = common::solver(&mut store, &t, config());
     // 3 slots: blocks of B = 2 (slots 0-1 and 2). Rebuild: 2 + 1 units; selection: 2 blocks; a shot start:
     // 1 + its block's rescan (2 for patch 0, the light); an entry: 1 + B = 3 at worst.
     assert_eq!(
-        solver.step(&t, 0),
+        solver.step(0),
         Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 2 } }
     );
-    assert_eq!(solver.step(&t, 2), Outcome::BudgetSpent { used: 2 });
+    assert_eq!(solver.step(2), Outcome::BudgetSpent { used: 2 });
+    assert_eq!(solver.step(2), Outcome::BudgetSpent { used: 1 }, "block 1, then the selection does not fit");
     assert_eq!(
-        solver.step(&t, 2),
-        Outcome::BudgetSpent { used: 1 },
-        "block 1, then the selection does not fit"
-    );
-    assert_eq!(
-        solver.step(&t, 1),
+        solver.step(1),
         Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 2 } }
     );
-    assert_eq!(solver.step(&t, 4), Outcome::BudgetSpent { used: 2 }, "the selection; the shot needs 3");
+    assert_eq!(solver.step(4), Outcome::BudgetSpent { used: 2 }, "the selection; the shot needs 3");
     assert_eq!(
-        solver.step(&t, 2),
+        solver.step(2),
         Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 3 } }
     );
     assert_eq!(solver.shots(), 0);
-    assert_eq!(
-        solver.step(&t, 3),
-        Outcome::BudgetSpent { used: 3 },
-        "the selection is kept: the shot starts"
-    );
+    assert_eq!(solver.step(3), Outcome::BudgetSpent { used: 3 }, "the selection is kept: the shot starts");
     assert_eq!(solver.shots(), 1);
-    let other = three_patch_scene();
-    let mut other = other;
-    other.materials[0] = [0.1; 3];
-    let other_bytes = other.write();
-    let t2 = Table::parse(&other_bytes).unwrap();
-    assert_eq!(solver.step(&t2, 100), Outcome::NoProgress { used: 0, reason: NoProgressReason::WrongTable });
-    assert_eq!(solver.set_light(&t, 0, [1.0; 3]), Err(SolverError::NoSuchGroup { group: 0 }));
+    assert_eq!(solver.set_light(0, [1.0; 3]), Err(SolverError::NoSuchGroup { group: 0 }));
     let lit_bytes = relight_scene([1.0; 3], [0.25; 3]).write();
     let lit = Table::parse(&lit_bytes).unwrap();
     let mut lit_store = Store::<f32>::for_table(&lit);
-    let mut lit_solver = lit_store.solver(&lit, config());
-    assert_eq!(
-        lit_solver.set_light(&lit, 0, [1.0, f32::NAN, 1.0]),
-        Err(SolverError::BadValue { channel: 1 })
-    );
-    assert_eq!(
-        lit_solver.set_light(&lit, 0, [f32::INFINITY, 1.0, 1.0]),
-        Err(SolverError::BadValue { channel: 0 })
-    );
-    assert_eq!(
-        lit_solver.set_reflectance(&lit, 0, [0.5, 0.5, -0.1]),
-        Err(SolverError::BadValue { channel: 2 })
-    );
-    assert_eq!(lit_solver.set_light(&t, 0, [1.0; 3]), Err(SolverError::WrongTable));
-    assert!(solver.set_reflectance(&t, 0, [1.0, 0.0, 0.0]).is_err(), "reflectance 1 is rejected");
-    assert!(solver.set_reflectance(&t, 3, [0.1; 3]).is_err(), "no material 3");
+    let mut lit_solver = common::solver(&mut lit_store, &lit, config());
+    assert_eq!(lit_solver.set_light(0, [1.0, f32::NAN, 1.0]), Err(SolverError::BadValue { channel: 1 }));
+    assert_eq!(lit_solver.set_light(0, [f32::INFINITY, 1.0, 1.0]), Err(SolverError::BadValue { channel: 0 }));
+    assert_eq!(lit_solver.set_reflectance(0, [0.5, 0.5, -0.1]), Err(SolverError::BadValue { channel: 2 }));
+    assert!(solver.set_reflectance(0, [1.0, 0.0, 0.0]).is_err(), "reflectance 1 is rejected");
+    assert!(solver.set_reflectance(3, [0.1; 3]).is_err(), "no material 3");
 }
 
 /// An empty table converges at once under every method, whatever the tolerance (an empty sweep costs no
@@ -609,11 +582,11 @@ fn empty_table_converges() {
     let bytes = Scene::new(0).write();
     let t = Table::parse(&bytes).unwrap();
     let mut store = Store::<f32>::for_table(&t);
-    let mut solver = store.solver(&t, Config { tolerance: 0.0, overshoot: 0 });
+    let mut solver = common::solver(&mut store, &t, Config { tolerance: 0.0, overshoot: 0 });
     let mut scratch: Vec<[f32; 3]> = Vec::new();
-    assert_eq!(solver.step(&t, 10), Outcome::Converged { used: 0 });
-    assert_eq!(solver.step_gauss_seidel(&t, 10), Outcome::Converged { used: 0 });
-    assert_eq!(solver.step_jacobi(&t, &mut scratch, 10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step(10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step_gauss_seidel(10), Outcome::Converged { used: 0 });
+    assert_eq!(solver.step_jacobi(&mut scratch, 10), Outcome::Converged { used: 0 });
 }
 
 /// A tolerance the arithmetic could never reach is refused when the solver is made, not discovered by a solver
@@ -634,8 +607,8 @@ fn unreachable_tolerances_are_refused() {
         }
         other => panic!("expected ToleranceBelowFloor, got {other:?}"),
     }
-    let mut solver = fixed.solver(&t, Config { tolerance: floor, overshoot: 0 });
-    converge(&mut solver, &t, 100, 1_000_000);
+    let mut solver = common::solver(&mut fixed, &t, Config { tolerance: floor, overshoot: 0 });
+    converge(&mut solver, 100, 1_000_000);
     let mut f = Store::<f32>::for_table(&t);
     let refused = radiosity_core::Solver::new(&t, f.buffers(), Config { tolerance: -1e-30, overshoot: 0 });
     assert!(matches!(refused, Err(SolverError::ToleranceBelowFloor { .. })), "{refused:?}");
@@ -725,7 +698,7 @@ fn budget_and_warm_start<S: Arith>(scene: &Scene, ops: &[Op]) -> Result<(), Test
     let t = Table::parse(&bytes).unwrap();
     let n = t.patch_count() as usize;
     let mut store = Store::<S>::for_table(&t);
-    let mut solver = store.solver(&t, config());
+    let mut solver = common::solver(&mut store, &t, config());
     let mut scratch = vec![[S::ZERO; 3]; n];
     let mut final_scene = scene.clone();
     for op in ops {
@@ -734,16 +707,16 @@ fn budget_and_warm_start<S: Arith>(scene: &Scene, ops: &[Op]) -> Result<(), Test
             Ok(())
         };
         match *op {
-            Op::Shoot(b) => budget_check(solver.step(&t, b), b)?,
-            Op::GaussSeidel(b) => budget_check(solver.step_gauss_seidel(&t, b), b)?,
-            Op::Jacobi(b) => budget_check(solver.step_jacobi(&t, &mut scratch, b), b)?,
+            Op::Shoot(b) => budget_check(solver.step(b), b)?,
+            Op::GaussSeidel(b) => budget_check(solver.step_gauss_seidel(b), b)?,
+            Op::Jacobi(b) => budget_check(solver.step_jacobi(&mut scratch, b), b)?,
             Op::Light(g, rgb) => {
-                if solver.set_light(&t, g, rgb).is_ok() {
+                if solver.set_light(g, rgb).is_ok() {
                     final_scene.groups[g as usize].1 = rgb;
                 }
             }
             Op::Reflectance(m, rgb) => {
-                if solver.set_reflectance(&t, m, rgb).is_ok() {
+                if solver.set_reflectance(m, rgb).is_ok() {
                     final_scene.materials[m as usize] = rgb;
                 }
             }
@@ -751,11 +724,11 @@ fn budget_and_warm_start<S: Arith>(scene: &Scene, ops: &[Op]) -> Result<(), Test
     }
     // Finish: a Jacobi sweep in progress first, then shooting.
     loop {
-        match solver.step(&t, 1000) {
+        match solver.step(1000) {
             Outcome::Converged { .. } => break,
             Outcome::BudgetSpent { .. } => {}
             Outcome::NoProgress { reason: NoProgressReason::JacobiInProgress, .. } => {
-                let o = solver.step_jacobi(&t, &mut scratch, 1000);
+                let o = solver.step_jacobi(&mut scratch, 1000);
                 prop_assert!(o.used() <= 1000);
             }
             other => prop_assert!(false, "{:?}", other),

@@ -4,9 +4,9 @@
 mod common;
 
 use common::{Scene, Store};
+use radiosity_core::codec::transfer::decode_transfer;
 use radiosity_core::crc::crc32;
-use radiosity_core::table::QuantParam;
-use radiosity_core::transfer::decode_transfer;
+use radiosity_core::format::QuantParam;
 use radiosity_core::{
     relight_transfer, transfer_cost, Config, Fixed, MemberSpec, Outcome, Scalar, Table, TableError,
     TransferError, WriteError,
@@ -177,11 +177,11 @@ fn relight_agrees_with_shooting() {
     relight_transfer(&t, &[intensity], &mut out).unwrap();
     let mut store = Store::<f32>::for_table(&t);
     let tolerance = 1e-7f32;
-    let mut solver = store.solver(&t, Config { tolerance, overshoot: 0 });
-    solver.set_light(&t, 0, intensity).unwrap();
-    while let Outcome::BudgetSpent { .. } = solver.step(&t, 64) {}
+    let mut solver = common::solver(&mut store, &t, Config { tolerance, overshoot: 0 });
+    solver.set_light(0, intensity).unwrap();
+    while let Outcome::BudgetSpent { .. } = solver.step(64) {}
     for i in 0..2u32 {
-        let shot = solver.radiosity(&t, i).unwrap();
+        let shot = solver.radiosity(i).unwrap();
         for c in 0..3 {
             let k = t.transfer_exponent(0).unwrap()[c];
             let exact = if i == 0 { b0 } else { 0.125 * b0 };

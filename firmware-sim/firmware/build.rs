@@ -1,9 +1,8 @@
 //! Compiles the table and the relight scripts into the firmware.
 //!
 //! - `RADIOSITY_TABLE` (default `../tables/uniform-enclosure.rft`): the table, `include_bytes!`-ed into flash.
-//!   It is parsed here with core's `Table::parse`, and its counts (the state count for the per-patch buffers)
-//!   size the solver's static buffers, so a baked
-//!   table drops in by changing this one path.
+//!   It is parsed here with core's `Table::parse`, and core's `BufferSizes::of` gives the capacities of the
+//!   solver's `StaticBuffers`, so a baked table drops in by changing this one path.
 //! - `RADIOSITY_SCRIPTS` (default `../../scenes/cornell-box.relight.toml`): the relight scripts, parsed and
 //!   validated with firmware-sim's parser and written out as const data.
 //! - The linker memory map follows the target: `memory-mps2-an386.x` (Cortex-M4, 512 KiB flash / 64 KiB RAM
@@ -48,14 +47,13 @@ fn run() -> Result<(), String> {
         bytes.len(),
         scripts_path.display()
     ));
-    // The per-patch buffers hold the patches with run-time state only (core's crate docs, "Run-time state").
-    code.push_str(&format!("pub const STATE_PATCHES: usize = {};\n", table.state_count()));
+    // The solver's buffer capacities: core's `BufferSizes::of`, the one place they are derived.
+    let sizes = radiosity_core::BufferSizes::of(&table);
     code.push_str(&format!(
-        "pub const SELECTION: usize = {};\n",
-        radiosity_core::selection_len(table.state_count())
+        "/// The solver's buffers for this table (`BufferSizes::of`: {sizes:?}).\n\
+         pub type DeviceBuffers<S> = radiosity_core::StaticBuffers<S, {}, {}, {}, {}>;\n",
+        sizes.slots, sizes.selection, sizes.groups, sizes.materials
     ));
-    code.push_str(&format!("pub const GROUPS: usize = {};\n", table.group_count()));
-    code.push_str(&format!("pub const MATERIALS: usize = {};\n", table.material_count()));
     code.push_str(&format!(
         "pub static TABLE: &[u8] = include_bytes!({:?});\n",
         table_path.display().to_string()

@@ -86,10 +86,10 @@ impl Fnv1a {
 
 /// FNV-1a hash of every patch's radiosity bits (patch order, then R, G, B).
 #[must_use]
-pub fn radiosity_hash<S: Bits>(solver: &Solver<'_, S>, table: &Table<'_>) -> u64 {
+pub fn radiosity_hash<S: Bits>(solver: &Solver<'_, S>) -> u64 {
     let mut h = Fnv1a::NEW;
     for i in 0..solver.patch_count() {
-        for v in solver.radiosity(table, i).unwrap_or([S::ZERO; 3]) {
+        for v in solver.radiosity(i).unwrap_or([S::ZERO; 3]) {
             h.write(v.bits(), S::BYTES);
         }
     }
@@ -203,18 +203,18 @@ impl core::error::Error for RunError {}
 /// change is rejected.
 pub fn apply_intensities<S: Scalar>(
     solver: &mut Solver<'_, S>,
-    table: &Table<'_>,
     intensity: &[[f32; 3]],
     frame: Option<u32>,
 ) -> Result<u32, RunError> {
-    if intensity.len() != table.group_count() as usize {
-        return Err(RunError::GroupCount { frame, table: table.group_count(), script: intensity.len() });
+    let groups = solver.table().group_count();
+    if intensity.len() != groups as usize {
+        return Err(RunError::GroupCount { frame, table: groups, script: intensity.len() });
     }
     let mut units = 0u32;
     for (g, rgb) in (0u32..).zip(intensity) {
         let want = rgb.map(S::from_f32);
         if solver.intensity(g) != Some(want) {
-            let u = solver.set_light(table, g, *rgb).map_err(|error| RunError::Solver { frame, error })?;
+            let u = solver.set_light(g, *rgb).map_err(|error| RunError::Solver { frame, error })?;
             units = units.saturating_add(u);
         }
     }
@@ -228,12 +228,11 @@ pub fn apply_intensities<S: Scalar>(
 /// As [`apply_intensities`].
 pub fn run_frame<S: Scalar>(
     solver: &mut Solver<'_, S>,
-    table: &Table<'_>,
     frame: &Frame<'_>,
     index: u32,
 ) -> Result<(u32, Outcome), RunError> {
-    let light_units = apply_intensities(solver, table, frame.intensity, Some(index))?;
-    Ok((light_units, solver.step(table, frame.budget)))
+    let light_units = apply_intensities(solver, frame.intensity, Some(index))?;
+    Ok((light_units, solver.step(frame.budget)))
 }
 
 /// Boot: resets the solver to the table's cold start, sets the script's initial intensities and solves to
@@ -241,14 +240,10 @@ pub fn run_frame<S: Scalar>(
 ///
 /// # Errors
 /// As [`apply_intensities`], or [`RunError::BootNotConverged`].
-pub fn boot<S: Scalar>(
-    solver: &mut Solver<'_, S>,
-    table: &Table<'_>,
-    script: &Script<'_>,
-) -> Result<u32, RunError> {
-    solver.reset(table);
-    apply_intensities(solver, table, script.initial, None)?;
-    match solver.step(table, script.boot_budget) {
+pub fn boot<S: Scalar>(solver: &mut Solver<'_, S>, script: &Script<'_>) -> Result<u32, RunError> {
+    solver.reset();
+    apply_intensities(solver, script.initial, None)?;
+    match solver.step(script.boot_budget) {
         Outcome::Converged { used } => Ok(used),
         outcome => Err(RunError::BootNotConverged { outcome }),
     }
@@ -277,9 +272,9 @@ pub fn unit_light_power(table: &Table<'_>) -> f32 {
 ///
 /// # Errors
 /// [`RunError::Buffers`], and as [`boot`] and [`run_frame`].
-pub fn run_script<S: Bits, M: Meter>(
-    table: &Table<'_>,
-    buffers: Buffers<'_, S>,
+pub fn run_script<'a, S: Bits, M: Meter>(
+    table: &Table<'a>,
+    buffers: Buffers<'a, S>,
     script: &Script<'_>,
     meter: &mut M,
     mut on_frame: impl FnMut(&FrameRecord<S>, &Solver<'_, S>),
@@ -289,10 +284,10 @@ pub fn run_script<S: Bits, M: Meter>(
     let mut solver = Solver::new(table, buffers, Config { tolerance, overshoot })
         .map_err(|error| RunError::Buffers { error })?;
     let solver = &mut solver;
-    let boot_units = boot(solver, table, script)?;
+    let boot_units = boot(solver, script)?;
     for (index, frame) in (0u32..).zip(script.frames) {
         meter.start();
-        let result = run_frame(solver, table, frame, index);
+        let result = run_frame(solver, frame, index);
         let instructions = meter.stop();
         let (light_units, outcome) = result?;
         let record = FrameRecord {
@@ -301,8 +296,8 @@ pub fn run_script<S: Bits, M: Meter>(
             used: outcome.used(),
             light_units,
             outcome,
-            unshot: solver.total_unshot(table),
-            hash: radiosity_hash(solver, table),
+            unshot: solver.total_unshot(),
+            hash: radiosity_hash(solver),
             instructions,
         };
         on_frame(&record, solver);

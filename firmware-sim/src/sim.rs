@@ -1,12 +1,13 @@
 //! The host simulator: the device loop ([`crate::device`]) on the host, with the firmware's fixed buffers.
 //!
-//! [`DeviceMemory`] holds the solver's buffers, sized once from the table's counts (the same sizes the
-//! firmware's build script gives its statics); after it is created the device loop allocates nothing. Output
+//! The solver's buffers are core's [`OwnedBuffers`], sized once by [`BufferSizes::of`](radiosity_core::BufferSizes::of) (the sizes the
+//! firmware's build script gives its `StaticBuffers`); after they are created the device loop allocates
+//! nothing. Output
 //! (CSV rows, trace lines) is formatted by the caller's closures, outside the device loop.
 
 use std::io::Write;
 
-use radiosity_core::{Buffers, Fixed, Scalar, Solver, Table};
+use radiosity_core::{Fixed, OwnedBuffers, Solver, Table};
 
 use crate::device::{self, write_trace, Bits, Frame, FrameRecord, NoMeter, RunError, Script};
 use crate::script::{OwnedScript, ScriptFile};
@@ -28,59 +29,6 @@ impl Arith {
             "f32" => Some(Arith::F32),
             "fixed" => Some(Arith::Fixed),
             _ => None,
-        }
-    }
-}
-
-/// The solver's buffers, sized from a table's counts once.
-#[derive(Debug)]
-pub struct DeviceMemory<S> {
-    power: Vec<[S; 3]>,
-    unshot: Vec<[S; 3]>,
-    incident: Vec<[S; 3]>,
-    tree: Vec<u32>,
-    intensity: Vec<[S; 3]>,
-    reflectance: Vec<[u16; 3]>,
-}
-
-impl<S: Scalar> DeviceMemory<S> {
-    /// Buffers for `table`: state count (patches with run-time state) for power, unshot and incident power;
-    /// `selection_len` of it for the selection; light-group count for intensities; material count for
-    /// reflectances.
-    #[must_use]
-    pub fn for_table(table: &Table<'_>) -> DeviceMemory<S> {
-        let n = table.state_count() as usize;
-        DeviceMemory {
-            power: vec![[S::ZERO; 3]; n],
-            unshot: vec![[S::ZERO; 3]; n],
-            incident: vec![[S::ZERO; 3]; n],
-            tree: vec![0; radiosity_core::selection_len(table.state_count()) as usize],
-            intensity: vec![[S::ZERO; 3]; table.group_count() as usize],
-            reflectance: vec![[0; 3]; table.material_count() as usize],
-        }
-    }
-
-    /// Bytes of RAM the buffers take (what the firmware's statics take for the same table).
-    #[must_use]
-    pub fn bytes(&self) -> usize {
-        use std::mem::size_of_val;
-        size_of_val(&self.power[..])
-            + size_of_val(&self.unshot[..])
-            + size_of_val(&self.incident[..])
-            + size_of_val(&self.tree[..])
-            + size_of_val(&self.intensity[..])
-            + size_of_val(&self.reflectance[..])
-    }
-
-    /// The buffers, lent to a solver.
-    pub fn buffers(&mut self) -> Buffers<'_, S> {
-        Buffers {
-            power: &mut self.power,
-            unshot: &mut self.unshot,
-            incident: &mut self.incident,
-            tree: &mut self.tree,
-            intensity: &mut self.intensity,
-            reflectance: &mut self.reflectance,
         }
     }
 }
@@ -116,11 +64,10 @@ fn csv_rows<S: Bits>(
     script: &str,
     r: &FrameRecord<S>,
     solver: &Solver<'_, S>,
-    table: &Table<'_>,
 ) -> std::io::Result<()> {
     let u = r.unshot;
     for i in 0..solver.patch_count() {
-        let b = solver.radiosity(table, i).unwrap_or([S::ZERO; 3]);
+        let b = solver.radiosity(i).unwrap_or([S::ZERO; 3]);
         writeln!(
             out,
             "{},{script},{},{},{},{},{},{},{:e},{:e},{:e},{:x},{:x},{:x},{i},{:e},{:e},{:e},{:x},{:x},{:x}",
@@ -176,7 +123,7 @@ impl std::fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
-/// Runs `scripts` on `table` with arithmetic `S` in one [`DeviceMemory`], writing CSV rows to `csv` if given.
+/// Runs `scripts` on `table` with arithmetic `S` in one [`OwnedBuffers`], writing CSV rows to `csv` if given.
 ///
 /// # Errors
 /// [`SimError`].
@@ -185,7 +132,7 @@ pub fn simulate<S: Bits>(
     scripts: &[&Script<'_>],
     mut csv: Option<&mut dyn Write>,
 ) -> Result<Vec<ScriptSummary>, SimError> {
-    let mut memory = DeviceMemory::<S>::for_table(table);
+    let mut memory = OwnedBuffers::<S>::for_table(table);
     let mut out = Vec::new();
     for script in scripts {
         let mut summary = ScriptSummary {
@@ -209,7 +156,7 @@ pub fn simulate<S: Bits>(
             let _ = write_trace(&mut line, script.name, r);
             summary.trace.push(line);
             if let Some(w) = csv.as_deref_mut() {
-                if let Err(e) = csv_rows(w, script.name, r, solver, table) {
+                if let Err(e) = csv_rows(w, script.name, r, solver) {
                     io_error.get_or_insert(e);
                 }
             }

@@ -7,8 +7,9 @@ use std::cell::Cell;
 use firmware_sim::device::{self, Frame, NoMeter, Script};
 use firmware_sim::qemu::{self, QemuLog};
 use firmware_sim::script::ScriptFile;
-use firmware_sim::sim::{self, Arith, DeviceMemory};
+use firmware_sim::sim::{self, Arith};
 use firmware_sim::synthetic;
+use radiosity_core::OwnedBuffers;
 use radiosity_core::{Fixed, Scalar, Table};
 
 /// Counts allocations made by the current thread (tests run on several threads).
@@ -80,7 +81,7 @@ fn boot_and_compare<S: Scalar + device::Bits>() -> f64 {
     let table = Table::parse(&bytes).unwrap();
     let n = table.patch_count() as usize;
     let exact = analytic(n, n / 6);
-    let mut memory = DeviceMemory::<S>::for_table(&table);
+    let mut memory = OwnedBuffers::<S>::for_table(&table);
     let initial = [[1.0f32; 3]];
     let frames = [Frame { budget: 1, intensity: &initial }];
     // Relative tolerance 1e-6 of the light's power: the truncation error is far below the quantization error,
@@ -91,7 +92,7 @@ fn boot_and_compare<S: Scalar + device::Bits>() -> f64 {
     let mut worst = 0.0f64;
     device::run_script(&table, memory.buffers(), &script, &mut NoMeter, |_, solver| {
         for (i, ex) in exact.iter().enumerate() {
-            let b = solver.radiosity(&table, i as u32).unwrap();
+            let b = solver.radiosity(i as u32).unwrap();
             for c in 0..3 {
                 worst = worst.max((f64::from(b[c].to_f32()) - ex[c]).abs() / ex[c]);
             }
@@ -121,7 +122,7 @@ fn device_loop_allocates_nothing() {
     let bytes = committed_table();
     let table = Table::parse(&bytes).unwrap();
     let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml")).unwrap();
-    let mut memory = DeviceMemory::<f32>::for_table(&table);
+    let mut memory = OwnedBuffers::<f32>::for_table(&table);
     // The counter sees this thread's allocations (so the check below can fail).
     let before = ALLOCATIONS.with(Cell::get);
     drop(std::hint::black_box(vec![0u8; 16]));

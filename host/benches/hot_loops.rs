@@ -11,7 +11,6 @@ use radiosity_host::bench::{cornell_table, device::Owned, roofline::stream_pass}
 fn hot_loops(c: &mut Criterion) {
     let baked = cornell_table(250, 16, true).expect("bake the Cornell box");
     let table = Table::parse(&baked.table).expect("baked table parses");
-    let caps = &baked.capacities;
     let entries = u64::from(table.entry_count());
     // Sweeps visit the rows of the patches with run-time state.
     let patches = table.state_count();
@@ -21,24 +20,24 @@ fn hot_loops(c: &mut Criterion) {
     // One budget of 20,000 work units of shooting from the cold start (reset is O(patches) and included).
     g.throughput(Throughput::Elements(20_000));
     g.bench_function("shot (20k units, f32)", |b| {
-        let mut owned = Owned::<f32>::new(caps);
+        let mut owned = Owned::<f32>::new(&table);
         let (buffers, _) = owned.split();
         let mut solver = radiosity_core::Solver::new(&table, buffers, config).expect("solver");
         b.iter(|| {
-            solver.reset(&table);
-            black_box(solver.step(&table, 20_000))
+            solver.reset();
+            black_box(solver.step(20_000))
         });
     });
     // One whole Gauss-Seidel sweep (rows + entries + end scan) from the cold start.
     let sweep = u32::try_from(entries + 2 * u64::from(patches)).unwrap_or(u32::MAX);
     g.throughput(Throughput::Elements(entries));
     g.bench_function("sweep (Gauss-Seidel, f32)", |b| {
-        let mut owned = Owned::<f32>::new(caps);
+        let mut owned = Owned::<f32>::new(&table);
         let (buffers, _) = owned.split();
         let mut solver = radiosity_core::Solver::new(&table, buffers, config).expect("solver");
         b.iter(|| {
-            solver.reset(&table);
-            black_box(solver.step_gauss_seidel(&table, sweep))
+            solver.reset();
+            black_box(solver.step_gauss_seidel(sweep))
         });
     });
     g.throughput(Throughput::Bytes(baked.table.len() as u64));

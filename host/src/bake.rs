@@ -63,7 +63,8 @@ use std::collections::VecDeque;
 use std::fmt;
 
 use radiosity_core::{
-    required_len, write_table, FfCodec, GroupSpec, MemberSpec, PatchSpec, RowsSpec, Table, TableSpec,
+    required_len, write_table, BufferSizes, FfCodec, GroupSpec, MemberSpec, PatchSpec, RowsSpec, Table,
+    TableSpec,
 };
 use serde::Serialize;
 use thiserror::Error;
@@ -566,7 +567,8 @@ impl fmt::Display for BakeReport {
     }
 }
 
-/// Sizes a firmware build needs for one table: every buffer of core's [`radiosity_core::Buffers`] exactly.
+/// What a firmware build needs to know of one table: its counts, the solver's buffer sizes (core's
+/// [`BufferSizes::of`], the one place they are derived) and the transfer relight's needs.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize)]
 pub struct Capacities {
     /// Patches.
@@ -583,20 +585,12 @@ pub struct Capacities {
     pub entries: usize,
     /// Longest row (entries).
     pub max_row_len: usize,
-    /// `Buffers::power` elements (`[S; 3]`).
-    pub power: usize,
-    /// `Buffers::unshot` elements (`[S; 3]`).
-    pub unshot: usize,
-    /// `Buffers::incident` elements (`[S; 3]`).
-    pub incident: usize,
-    /// `Buffers::tree` elements (`u32`).
-    pub tree: usize,
-    /// `Buffers::intensity` elements (`[S; 3]`).
-    pub intensity: usize,
-    /// `Buffers::reflectance` elements (`[u16; 3]`).
-    pub reflectance: usize,
-    /// Jacobi scratch elements (`[S; 3]`), only for [`radiosity_core::Solver::step_jacobi`].
-    pub jacobi_scratch: usize,
+    /// Elements of each solver buffer (and of the Jacobi scratch buffer: `slots`).
+    pub buffers: BufferSizes,
+    /// Bytes of RAM the solver's buffers take with f32 (`BufferSizes::bytes`).
+    pub buffer_bytes_f32: usize,
+    /// Bytes of RAM the solver's buffers take with fixed point.
+    pub buffer_bytes_fixed: usize,
     /// Output elements (`[S; 3]`) of [`radiosity_core::relight_transfer`]: patches with a transfer basis, else 0.
     pub transfer_out: usize,
     /// Work units of one [`radiosity_core::relight_transfer`] ([`radiosity_core::transfer_cost`]); 0 without a
@@ -607,11 +601,10 @@ pub struct Capacities {
 }
 
 impl Capacities {
-    /// The capacities of a parsed table (core's `Solver::new` requirements, read from its buffer checks).
+    /// The capacities of a parsed table.
     #[must_use]
     pub fn of_table(table: &Table<'_>, table_bytes: usize) -> Capacities {
         let n = table.patch_count() as usize;
-        let slots = table.state_count() as usize;
         let max_row_len = (0..table.state_count())
             .filter_map(|i| table.row(i))
             .map(|r| (r.end - r.start) as usize)
@@ -621,21 +614,18 @@ impl Capacities {
             .filter_map(|g| table.group_members(g))
             .map(|r| (r.end - r.start) as usize)
             .sum();
+        let buffers = BufferSizes::of(table);
         Capacities {
             patches: n,
-            state: slots,
+            state: table.state_count() as usize,
             materials: table.material_count() as usize,
             groups: table.group_count() as usize,
             members,
             entries: table.entry_count() as usize,
             max_row_len,
-            power: slots,
-            unshot: slots,
-            incident: slots,
-            tree: radiosity_core::selection_len(table.state_count()) as usize,
-            intensity: table.group_count() as usize,
-            reflectance: table.material_count() as usize,
-            jacobi_scratch: slots,
+            buffers,
+            buffer_bytes_f32: buffers.bytes::<f32>(),
+            buffer_bytes_fixed: buffers.bytes::<radiosity_core::Fixed>(),
             transfer_out: if table.has_transfer() { n } else { 0 },
             transfer_cost: if table.has_transfer() {
                 radiosity_core::transfer_cost(table) as usize
@@ -644,45 +634,6 @@ impl Capacities {
             },
             table_bytes,
         }
-    }
-
-    /// The capacities as a Rust source file of `pub const NAME: usize = value;` items.
-    #[must_use]
-    pub fn to_rust(&self) -> String {
-        let items: [(&str, &str, usize); 17] = [
-            ("PATCHES", "Patches in the table.", self.patches),
-            ("STATE_PATCHES", "Patches with run-time state (the per-patch buffers' length).", self.state),
-            ("MATERIALS", "Materials.", self.materials),
-            ("GROUPS", "Light groups.", self.groups),
-            ("MEMBERS", "Light-group members.", self.members),
-            ("ENTRIES", "Stored form-factor entries.", self.entries),
-            ("MAX_ROW_LEN", "Longest form-factor row.", self.max_row_len),
-            ("POWER_LEN", "`Buffers::power` length.", self.power),
-            ("UNSHOT_LEN", "`Buffers::unshot` length.", self.unshot),
-            ("INCIDENT_LEN", "`Buffers::incident` length.", self.incident),
-            ("TREE_LEN", "`Buffers::tree` length.", self.tree),
-            ("INTENSITY_LEN", "`Buffers::intensity` length.", self.intensity),
-            ("REFLECTANCE_LEN", "`Buffers::reflectance` length.", self.reflectance),
-            ("JACOBI_SCRATCH_LEN", "Scratch length for `Solver::step_jacobi`.", self.jacobi_scratch),
-            (
-                "TRANSFER_OUT_LEN",
-                "Output length for `relight_transfer` (0: no transfer basis).",
-                self.transfer_out,
-            ),
-            (
-                "TRANSFER_COST",
-                "Work units of one `relight_transfer` (0: no transfer basis).",
-                self.transfer_cost,
-            ),
-            ("TABLE_BYTES", "Table size in bytes.", self.table_bytes),
-        ];
-        let mut s = String::from(
-            "//! Capacities of one baked table (generated by `radiosity bake`; do not edit).\n\n",
-        );
-        for (name, doc, v) in items {
-            s.push_str(&format!("/// {doc}\npub const {name}: usize = {v};\n"));
-        }
-        s
     }
 }
 

@@ -1,9 +1,10 @@
 //! `radiosity check`: run the device solver on a baked table and trace its error to its sources.
 //!
 //! The device path is run exactly as firmware runs it: [`radiosity_core::Table::parse`] on the baked bytes,
-//! [`radiosity_core::Solver`] in buffers of the baked [`Capacities`], [`radiosity_core::Solver::step`] (shooting)
-//! with a fixed budget of work units per frame, and [`radiosity_core::Solver::set_light`] for relighting (warm
-//! start). Every frame's radiosity is compared with the exact f64 answer for that frame's light intensities:
+//! [`radiosity_core::Solver`] in buffers of [`radiosity_core::BufferSizes::of`] the table, and every frame
+//! through the firmware's own frame function, [`firmware_sim::device::run_frame`]: the light groups whose
+//! intensity changed are set ([`radiosity_core::Solver::set_light`], warm start), then one step of shooting
+//! with a fixed budget of work units. Every frame's radiosity is compared with the exact f64 answer for that frame's light intensities:
 //! the transfer vectors of the scene's own (unsparsified, unquantized) form-factor matrix, relit
 //! (`B = B_static + sum_g I_g T_g`). Metrics are [`metrics::compare`] (area-weighted relative L2, max per-patch
 //! relative error with its dark-patch floor, luminance).
@@ -39,11 +40,12 @@
 use std::fmt;
 use std::path::Path;
 
-use radiosity_core::{Buffers, Config, FfCodec, Fixed, Outcome, Scalar, Solver, Table};
+use firmware_sim::device::{self, RunError};
+use radiosity_core::{Config, FfCodec, Fixed, Outcome, OwnedBuffers, Scalar, Solver, Table};
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::bake::{self, bake, codec_for_bits, BakeInput, BakeOptions, Capacities};
+use crate::bake::{self, bake, codec_for_bits, BakeInput, BakeOptions};
 use crate::formfactor::compute_form_factors;
 use crate::metrics::{self, ErrorReport};
 use crate::patch::FormFactorMatrix;
@@ -635,7 +637,6 @@ fn device_part(
     let l = &p.lighting;
     let n = p.patches.len();
     let area = &answers.area;
-    let caps = Capacities::of_table(table, table_bytes);
     let max_power = (0..3)
         .map(|c| dec.emission.iter().zip(&dec.area).map(|(e, a)| e[c] * a).sum::<f64>())
         .fold(0.0, f64::max);
@@ -650,7 +651,7 @@ fn device_part(
     }
     let exact: Vec<Vec<[f64; 3]>> =
         schedule.iter().map(|s| answers.tv.relight(s)).collect::<Result<_, _>>()?;
-    let run = Run { table, caps: &caps, area, schedule: &schedule, exact: &exact, options };
+    let run = Run { table, area, schedule: &schedule, exact: &exact, options };
     let mut settings = Vec::new();
     let mut frames = Vec::new();
     let paths: &[&'static str] = match options.arith {
@@ -721,29 +722,17 @@ pub fn device_converged<S: Scalar>(
     table: &Table<'_>,
     tolerance: f64,
 ) -> Result<Result<Radiosity, radiosity_core::NoProgressReason>, CheckError> {
-    let caps = Capacities::of_table(table, 0);
     let n = table.patch_count() as usize;
-    let zero = S::from_f32(0.0);
-    let (mut p, mut u, mut h) =
-        (vec![[zero; 3]; caps.power], vec![[zero; 3]; caps.unshot], vec![[zero; 3]; caps.incident]);
-    let (mut t, mut i, mut r) =
-        (vec![0u32; caps.tree], vec![[zero; 3]; caps.intensity], vec![[0u16; 3]; caps.reflectance]);
-    let buffers = Buffers {
-        power: &mut p,
-        unshot: &mut u,
-        incident: &mut h,
-        tree: &mut t,
-        intensity: &mut i,
-        reflectance: &mut r,
-    };
+    let mut store = OwnedBuffers::<S>::for_table(table);
+    let buffers = store.buffers();
     let config =
         Config { tolerance: S::from_f32(tolerance as f32), overshoot: Config::<S>::RECOMMENDED_OVERSHOOT };
     let mut solver =
         Solver::new(table, buffers, config).map_err(|error| CheckError::Solver { arith: "device", error })?;
     loop {
-        match solver.step(table, u32::MAX) {
+        match solver.step(u32::MAX) {
             Outcome::BudgetSpent { .. } => {}
-            Outcome::Converged { .. } => return Ok(Ok(radiosity(&solver, table, n))),
+            Outcome::Converged { .. } => return Ok(Ok(radiosity(&solver, n))),
             Outcome::NoProgress { reason, .. } => return Ok(Err(reason)),
         }
     }
@@ -800,18 +789,15 @@ pub type Radiosity = Vec<[f64; 3]>;
 
 struct Run<'r> {
     table: &'r Table<'r>,
-    caps: &'r Capacities,
     area: &'r [f64],
     schedule: &'r [Vec<[f64; 3]>],
     exact: &'r [Vec<[f64; 3]>],
     options: &'r CheckOptions,
 }
 
-fn radiosity<S: Scalar>(solver: &Solver<'_, S>, table: &Table<'_>, n: usize) -> Vec<[f64; 3]> {
+fn radiosity<S: Scalar>(solver: &Solver<'_, S>, n: usize) -> Vec<[f64; 3]> {
     (0..n as u32)
-        .map(|i| {
-            solver.radiosity(table, i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3])
-        })
+        .map(|i| solver.radiosity(i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3]))
         .collect()
 }
 
@@ -833,19 +819,8 @@ impl Run<'_> {
         settings: &mut Vec<Setting>,
         frames: &mut Vec<Frame>,
     ) -> Result<(Radiosity, Radiosity), CheckError> {
-        let (table, caps, n) = (self.table, self.caps, self.area.len());
+        let (table, n) = (self.table, self.area.len());
         let err = |error| CheckError::Solver { arith, error };
-        let zero = S::from_f32(0.0);
-        let new_buffers = || {
-            (
-                vec![[zero; 3]; caps.power],
-                vec![[zero; 3]; caps.unshot],
-                vec![[zero; 3]; caps.incident],
-                vec![0u32; caps.tree],
-                vec![[zero; 3]; caps.intensity],
-                vec![[0u16; 3]; caps.reflectance],
-            )
-        };
         let config = Config {
             tolerance: S::from_f32(tolerance as f32),
             overshoot: Config::<S>::RECOMMENDED_OVERSHOOT,
@@ -853,47 +828,33 @@ impl Run<'_> {
 
         // Converged reference of this arithmetic: one unbounded step sequence, cold start.
         let converged = {
-            let (mut p, mut u, mut h, mut t, mut i, mut r) = new_buffers();
-            let buffers = Buffers {
-                power: &mut p,
-                unshot: &mut u,
-                incident: &mut h,
-                tree: &mut t,
-                intensity: &mut i,
-                reflectance: &mut r,
-            };
-            let mut solver = Solver::new(table, buffers, config).map_err(err)?;
-            while let Outcome::BudgetSpent { .. } = solver.step(table, u32::MAX) {}
-            radiosity(&solver, table, n)
+            let mut store = OwnedBuffers::<S>::for_table(table);
+            let mut solver = Solver::new(table, store.buffers(), config).map_err(err)?;
+            while let Outcome::BudgetSpent { .. } = solver.step(u32::MAX) {}
+            radiosity(&solver, n)
         };
 
-        let (mut p, mut u, mut h, mut t, mut i, mut r) = new_buffers();
-        let buffers = Buffers {
-            power: &mut p,
-            unshot: &mut u,
-            incident: &mut h,
-            tree: &mut t,
-            intensity: &mut i,
-            reflectance: &mut r,
-        };
-        let mut solver = Solver::new(table, buffers, config).map_err(err)?;
+        let mut store = OwnedBuffers::<S>::for_table(table);
+        let mut solver = Solver::new(table, store.buffers(), config).map_err(err)?;
         let mut truncated = Vec::new();
         for (s, (intensity, exact)) in self.schedule.iter().zip(self.exact).enumerate() {
+            // The firmware's frame loop: groups whose intensity changed are set, then one bounded step.
+            let intensity_f32: Vec<[f32; 3]> = intensity.iter().map(|rgb| rgb.map(|v| v as f32)).collect();
             let mut relight_work = 0u64;
-            if s > 0 {
-                for (g, rgb) in intensity.iter().enumerate() {
-                    let rgb = rgb.map(|v| v as f32);
-                    relight_work += u64::from(solver.set_light(table, g as u32, rgb).map_err(err)?);
-                }
-            }
             let limit = self.options.frames.unwrap_or(MAX_FRAMES);
             let (mut work, mut count, mut converged_now) = (0u64, 0usize, false);
             let mut last = None;
             while count < limit {
-                let o = solver.step(table, self.options.budget);
+                let frame = device::Frame { budget: self.options.budget, intensity: &intensity_f32 };
+                let (light_units, o) =
+                    device::run_frame(&mut solver, &frame, count as u32).map_err(|e| match e {
+                        RunError::Solver { error, .. } | RunError::Buffers { error } => err(error),
+                        other => CheckError::Options(other.to_string()),
+                    })?;
+                relight_work += u64::from(light_units);
                 count += 1;
                 work += u64::from(o.used());
-                let b = radiosity(&solver, table, n);
+                let b = radiosity(&solver, n);
                 let e = metrics::compare(&b, exact, self.area)?;
                 frames.push(Frame {
                     arith,

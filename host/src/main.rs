@@ -40,8 +40,8 @@ enum Command {
     /// Bake a scene into a table for the device: form factors, sparsify, fold static lights, quantize, write.
     ///
     /// Prints a summary (sizes, energy dropped, error of sparsify + quantize against the f64 solve) and writes
-    /// TABLE plus, beside it, TABLE.capacities.json and TABLE.capacities.rs (the buffer sizes a firmware build
-    /// needs).
+    /// TABLE plus, beside it, TABLE.capacities.json (the counts and buffer sizes a firmware build needs; the
+    /// firmware's build script derives the same sizes from the table itself with core's `BufferSizes::of`).
     Bake {
         #[command(flatten)]
         scene: SceneArgs,
@@ -550,7 +550,6 @@ fn bake_to_files(
         with_suffix(output, ".capacities.json"),
         serde_json::to_string_pretty(&baked.capacities)?.as_bytes(),
     )?;
-    let rust = write(with_suffix(output, ".capacities.rs"), baked.capacities.to_rust().as_bytes())?;
     match format {
         Format::Json => {
             serde_json::to_writer_pretty(&mut *out, &baked.report)?;
@@ -558,7 +557,7 @@ fn bake_to_files(
         }
         Format::Text | Format::Csv => {
             writeln!(out, "{}", baked.report)?;
-            writeln!(out, "wrote {}, {}, {}", table.display(), json.display(), rust.display())?;
+            writeln!(out, "wrote {}, {}", table.display(), json.display())?;
         }
     }
     Ok(())

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use firmware_sim::device::{self, Bits, NoMeter};
 use firmware_sim::qemu::{self, QemuLog, Target};
 use firmware_sim::script::{OwnedScript, ScriptFile};
-use firmware_sim::sim::{self, Arith, DeviceMemory};
+use firmware_sim::sim::{self, Arith};
 use radiosity_core::{Fixed, Table};
 use serde::Serialize;
 use thiserror::Error;
@@ -173,7 +173,7 @@ struct DeviceFrame {
 
 /// Runs `script` through the device loop in arithmetic `S`, collecting every frame's radiosity.
 fn device_frames<S: Bits>(table: &Table<'_>, script: &OwnedScript) -> Result<Vec<DeviceFrame>, RelightError> {
-    let mut memory = DeviceMemory::<S>::for_table(table);
+    let mut memory = radiosity_core::OwnedBuffers::<S>::for_table(table);
     let mut frames = Vec::with_capacity(script.frames.len());
     let n = table.patch_count();
     script
@@ -181,7 +181,7 @@ fn device_frames<S: Bits>(table: &Table<'_>, script: &OwnedScript) -> Result<Vec
             device::run_script(table, memory.buffers(), view, &mut NoMeter, |r, solver| {
                 let b = (0..n)
                     .map(|i| {
-                        let v = solver.radiosity(table, i).unwrap_or([S::ZERO; 3]);
+                        let v = solver.radiosity(i).unwrap_or([S::ZERO; 3]);
                         v.map(|x| f64::from(x.to_f32()))
                     })
                     .collect();

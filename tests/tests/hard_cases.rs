@@ -3,8 +3,8 @@
 //! expected value is exact and every tolerance comes from the codecs' stated bounds (core's crate docs).
 
 use radiosity_core::{
-    required_len, write_table, Buffers, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, PatchSpec,
-    RowsSpec, Scalar, Solver, Table, TableError, TableSpec, FORMAT_VERSION,
+    required_len, write_table, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, OwnedBuffers,
+    PatchSpec, RowsSpec, Scalar, Solver, Table, TableError, TableSpec, FORMAT_VERSION,
 };
 
 /// An analytic closed enclosure: `n` patches of equal area on a sphere, where `F_ij = A_j / A_total = 1/n` for
@@ -46,23 +46,13 @@ fn furnace_table(n: usize, rho: f32, e: f32, group: bool) -> Vec<u8> {
 
 /// Converged radiosity of every patch and the work spent, from a cold start on arithmetic `S`.
 fn solve_cold<S: Scalar>(table: &Table<'_>, tolerance: f32, changes: &[[f32; 3]]) -> (Vec<[f64; 3]>, u64) {
-    let n = table.state_count() as usize;
-    let z = S::from_f32(0.0);
-    let (mut p, mut u, mut h) = (vec![[z; 3]; n], vec![[z; 3]; n], vec![[z; 3]; n]);
-    let (mut t, mut i, mut r) = (vec![0u32; n], vec![[z; 3]; 1], vec![[0u16; 3]; 1]);
-    let buffers = Buffers {
-        power: &mut p,
-        unshot: &mut u,
-        incident: &mut h,
-        tree: &mut t,
-        intensity: &mut i,
-        reflectance: &mut r,
-    };
+    let mut store = OwnedBuffers::<S>::for_table(table);
+    let buffers = store.buffers();
     let config = Config { tolerance: S::from_f32(tolerance), overshoot: 0 };
     let mut solver = Solver::new(table, buffers, config).expect("buffers fit");
     let mut work = 0u64;
     let mut run = |solver: &mut Solver<'_, S>| loop {
-        let o = solver.step(table, 100_000);
+        let o = solver.step(100_000);
         work += u64::from(o.used());
         match o {
             Outcome::BudgetSpent { .. } => {}
@@ -72,11 +62,11 @@ fn solve_cold<S: Scalar>(table: &Table<'_>, tolerance: f32, changes: &[[f32; 3]]
     };
     run(&mut solver);
     for &c in changes {
-        solver.set_light(table, 0, c).expect("group 0 exists");
+        solver.set_light(0, c).expect("group 0 exists");
         run(&mut solver);
     }
     let b = (0..table.patch_count())
-        .map(|k| solver.radiosity(table, k).expect("patch in range").map(|v| f64::from(v.to_f32())))
+        .map(|k| solver.radiosity(k).expect("patch in range").map(|v| f64::from(v.to_f32())))
         .collect();
     (b, work)
 }

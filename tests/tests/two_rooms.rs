@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use radiosity_core::{Buffers, Config, Outcome, Solver, Table};
+use radiosity_core::{Config, Outcome, OwnedBuffers, Solver, Table};
 use radiosity_host::bake::{bake, decode_table, shooting_form, BakeInput, BakeOptions};
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{DenseLu, RadiositySystem};
@@ -37,7 +37,7 @@ fn only_the_dynamically_lit_room_carries_state() {
     for (i, q) in p.patches.iter().enumerate() {
         assert_eq!(table.slot_of(i as u32).is_some(), q.face < ROOM_A_FACES, "patch {i} (face {})", q.face);
     }
-    assert_eq!(baked.capacities.power, room_a);
+    assert_eq!(baked.capacities.buffers.slots, room_a);
 
     // The f64 reference: the shooting form of the sparsified matrix the table was quantized from, all lights
     // at their default intensities.
@@ -48,25 +48,14 @@ fn only_the_dynamically_lit_room_carries_state() {
         DenseLu::factor(system).expect("factor").solve(&p.lighting.default_emission()).expect("solve").b;
 
     // Core's f32 solve, buffers of the baked capacities (room A only).
-    let caps = &baked.capacities;
     let lamp_power: f64 = (0..n).map(|i| p.lighting.unit_emission[i][0] * area[i]).sum();
     let tolerance = 1e-7 * lamp_power;
-    let (mut pw, mut un, mut inc) =
-        (vec![[0.0f32; 3]; caps.power], vec![[0.0f32; 3]; caps.unshot], vec![[0.0f32; 3]; caps.incident]);
-    let (mut tree, mut int, mut refl) =
-        (vec![0u32; caps.tree], vec![[0.0f32; 3]; caps.intensity], vec![[0u16; 3]; caps.reflectance]);
-    let buffers = Buffers {
-        power: &mut pw,
-        unshot: &mut un,
-        incident: &mut inc,
-        tree: &mut tree,
-        intensity: &mut int,
-        reflectance: &mut refl,
-    };
+    let mut store = OwnedBuffers::<f32>::new(baked.capacities.buffers);
+    let buffers = store.buffers();
     let mut solver =
         Solver::new(&table, buffers, Config { tolerance: tolerance as f32, overshoot: 0 }).expect("solver");
-    while let Outcome::BudgetSpent { .. } = solver.step(&table, 1_000_000) {}
-    assert!(matches!(solver.step(&table, 1_000_000), Outcome::Converged { .. }));
+    while let Outcome::BudgetSpent { .. } = solver.step(1_000_000) {}
+    assert!(matches!(solver.step(1_000_000), Outcome::Converged { .. }));
     let shots = f64::from(solver.shots());
 
     // Room A (state): with every form factor within 2^-12 of its value (FLOAT16 entries >= row max / 2^14,
@@ -97,7 +86,7 @@ fn only_the_dynamically_lit_room_carries_state() {
 
     let (mut worst_a, mut worst_b) = (0.0f64, 0.0f64);
     for i in 0..n {
-        let b = solver.radiosity(&table, i as u32).expect("every patch has a radiosity");
+        let b = solver.radiosity(i as u32).expect("every patch has a radiosity");
         for c in 0..3 {
             let err = (f64::from(b[c]) - b_ref[i][c]).abs();
             let bound = if in_a(i) {
@@ -137,7 +126,7 @@ fn only_the_dynamically_lit_room_carries_state() {
         + 1.5 * eps32 * (shots + 1.0 / (1.0 - rho_max)) * b_max;
     let mut worst_dec = 0.0f64;
     for (i, want) in b_dec.iter().enumerate() {
-        let b = solver.radiosity(&table, i as u32).expect("radiosity");
+        let b = solver.radiosity(i as u32).expect("radiosity");
         for c in 0..3 {
             let err = (f64::from(b[c]) - want[c]).abs();
             worst_dec = worst_dec.max(err / bound_arith);

@@ -5,7 +5,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use radiosity_core::{relight_transfer, Buffers, Config, Fixed, Solver, Table};
+use radiosity_core::{relight_transfer, Config, Fixed, OwnedBuffers, Solver, Table};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(t) = Table::parse(data) else { return };
@@ -32,31 +32,18 @@ fuzz_target!(|data: &[u8]| {
         let _ = relight_transfer(&t, &ones, &mut out);
     }
     // Solver buffers hold the patches with run-time state only.
-    let n = t.state_count() as usize;
-    let mut power = vec![[0.0f32; 3]; n];
-    let mut unshot = vec![[0.0f32; 3]; n];
-    let mut incident = vec![[0.0f32; 3]; n];
-    let mut tree = vec![0u32; n];
-    let mut intensity = vec![[0.0f32; 3]; t.group_count() as usize];
-    let mut reflectance = vec![[0u16; 3]; t.material_count() as usize];
-    let buffers = Buffers {
-        power: &mut power,
-        unshot: &mut unshot,
-        incident: &mut incident,
-        tree: &mut tree,
-        intensity: &mut intensity,
-        reflectance: &mut reflectance,
-    };
+    let mut store = OwnedBuffers::<f32>::for_table(&t);
+    let buffers = store.buffers();
     let Ok(mut s) = Solver::new(&t, buffers, Config { tolerance: 1e-3, overshoot: 16 }) else { return };
     for _ in 0..4 {
-        let o = s.step(&t, 1000);
+        let o = s.step(1000);
         assert!(o.used() <= 1000);
     }
-    let _ = s.set_light(&t, 0, [0.0; 3]);
-    let _ = s.set_reflectance(&t, 0, [0.5; 3]);
-    let o = s.step_gauss_seidel(&t, 1000);
+    let _ = s.set_light(0, [0.0; 3]);
+    let _ = s.set_reflectance(0, [0.5; 3]);
+    let o = s.step_gauss_seidel(1000);
     assert!(o.used() <= 1000);
     for i in 0..=t.patch_count() {
-        let _ = (s.radiosity(&t, i), s.power(&t, i), s.unshot(&t, i));
+        let _ = (s.radiosity(i), s.power(i), s.unshot(i));
     }
 });

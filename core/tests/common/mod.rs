@@ -3,8 +3,8 @@
 #![allow(dead_code)]
 
 use radiosity_core::{
-    write_table, Buffers, Config, FfCodec, GroupSpec, MemberSpec, PatchSpec, RowsSpec, Scalar, Solver, Table,
-    TableSpec,
+    write_table, Config, FfCodec, GroupSpec, MemberSpec, OwnedBuffers, PatchSpec, RowsSpec, Scalar, Solver,
+    Table, TableSpec,
 };
 
 /// An owned scene description (what the host would hold before writing a table).
@@ -83,50 +83,19 @@ impl Scene {
     }
 }
 
-/// Owned solver buffers.
-pub struct Store<S> {
-    pub power: Vec<[S; 3]>,
-    pub unshot: Vec<[S; 3]>,
-    pub incident: Vec<[S; 3]>,
-    pub tree: Vec<u32>,
-    pub intensity: Vec<[S; 3]>,
-    pub reflectance: Vec<[u16; 3]>,
-}
+/// Owned solver buffers (core's `OwnedBuffers`), with a shorthand for a solver on them.
+pub type Store<S> = OwnedBuffers<S>;
 
-impl<S: Scalar> Store<S> {
-    pub fn for_table(t: &Table<'_>) -> Store<S> {
-        let n = t.state_count() as usize;
-        Store {
-            power: vec![[S::ZERO; 3]; n],
-            unshot: vec![[S::ZERO; 3]; n],
-            incident: vec![[S::ZERO; 3]; n],
-            tree: vec![0; radiosity_core::selection_len(t.state_count()) as usize],
-            intensity: vec![[S::ZERO; 3]; t.group_count() as usize],
-            reflectance: vec![[0; 3]; t.material_count() as usize],
-        }
-    }
-
-    pub fn buffers(&mut self) -> Buffers<'_, S> {
-        Buffers {
-            power: &mut self.power,
-            unshot: &mut self.unshot,
-            incident: &mut self.incident,
-            tree: &mut self.tree,
-            intensity: &mut self.intensity,
-            reflectance: &mut self.reflectance,
-        }
-    }
-
-    pub fn solver<'b>(&'b mut self, t: &Table<'_>, config: Config<S>) -> Solver<'b, S> {
-        Solver::new(t, self.buffers(), config).expect("buffers sized from the table")
-    }
+/// A solver for `t` on `store`'s buffers; panics (test failure) if the buffers do not fit.
+pub fn solver<'b, S: Scalar>(store: &'b mut Store<S>, t: &Table<'b>, config: Config<S>) -> Solver<'b, S> {
+    Solver::new(t, store.buffers(), config).expect("buffers sized from the table")
 }
 
 /// Steps until converged; panics (test failure) if it does not converge within `max_units`.
-pub fn converge<S: Scalar>(s: &mut Solver<'_, S>, t: &Table<'_>, per_step: u32, max_units: u64) -> u64 {
+pub fn converge<S: Scalar>(s: &mut Solver<'_, S>, per_step: u32, max_units: u64) -> u64 {
     let mut total = 0u64;
     loop {
-        let o = s.step(t, per_step);
+        let o = s.step(per_step);
         assert!(o.used() <= per_step, "budget {per_step} exceeded: {o:?}");
         total += u64::from(o.used());
         match o {
@@ -140,7 +109,7 @@ pub fn converge<S: Scalar>(s: &mut Solver<'_, S>, t: &Table<'_>, per_step: u32, 
 
 /// Radiosity of every patch as f32 triples.
 pub fn radiosities<S: Scalar>(s: &Solver<'_, S>, t: &Table<'_>) -> Vec<[f32; 3]> {
-    (0..t.patch_count()).map(|i| s.radiosity(t, i).unwrap().map(|x| x.to_f32())).collect()
+    (0..t.patch_count()).map(|i| s.radiosity(i).unwrap().map(|x| x.to_f32())).collect()
 }
 
 /// Asserts `|a - b| <= tol` with both values and the difference in the message.

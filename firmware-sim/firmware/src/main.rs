@@ -17,12 +17,12 @@ use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hio};
 use firmware_sim::device::{run_script, write_trace, Bits, Meter};
-use radiosity_core::{Buffers, Scalar, Table};
+use radiosity_core::Table;
 
 mod generated {
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
-use generated::{GROUPS, INSTRUCTIONS_PER_TICK, MATERIALS, SCRIPTS, SELECTION, STATE_PATCHES, TABLE};
+use generated::{DeviceBuffers, INSTRUCTIONS_PER_TICK, SCRIPTS, TABLE};
 
 /// The solver's arithmetic.
 #[cfg(not(feature = "fixed"))]
@@ -115,12 +115,7 @@ impl fmt::Display for Trace<'_> {
 
 #[entry]
 fn main() -> ! {
-    static mut POWER: [[S; 3]; STATE_PATCHES] = [[<S as Scalar>::ZERO; 3]; STATE_PATCHES];
-    static mut UNSHOT: [[S; 3]; STATE_PATCHES] = [[<S as Scalar>::ZERO; 3]; STATE_PATCHES];
-    static mut INCIDENT: [[S; 3]; STATE_PATCHES] = [[<S as Scalar>::ZERO; 3]; STATE_PATCHES];
-    static mut TREE: [u32; SELECTION] = [0; SELECTION];
-    static mut INTENSITY: [[S; 3]; GROUPS] = [[<S as Scalar>::ZERO; 3]; GROUPS];
-    static mut REFLECTANCE: [[u16; 3]; MATERIALS] = [[0; 3]; MATERIALS];
+    static mut BUFFERS: DeviceBuffers<S> = DeviceBuffers::<S>::new();
 
     let Some(mut p) = cortex_m::Peripherals::take() else { fail("peripherals taken twice") };
     p.SYST.set_clock_source(SystClkSource::Core);
@@ -156,15 +151,7 @@ fn main() -> ! {
     };
     let mut failures = 0u32;
     for script in SCRIPTS {
-        let buffers = Buffers {
-            power: &mut POWER[..],
-            unshot: &mut UNSHOT[..],
-            incident: &mut INCIDENT[..],
-            tree: &mut TREE[..],
-            intensity: &mut INTENSITY[..],
-            reflectance: &mut REFLECTANCE[..],
-        };
-        let result = run_script(&table, buffers, script, &mut meter, |record, _| {
+        let result = run_script(&table, BUFFERS.buffers(), script, &mut meter, |record, _| {
             emit(format_args!("{}", Trace(script.name, record)));
         });
         match result {

@@ -7,10 +7,9 @@
 
 use std::time::Instant;
 
-use radiosity_core::{Buffers, Config, NoProgressReason, Outcome, Scalar, Solver, Table};
+use radiosity_core::{Buffers, Config, NoProgressReason, Outcome, OwnedBuffers, Scalar, Solver, Table};
 
 use super::BenchError;
-use crate::bake::Capacities;
 use crate::metrics;
 
 /// Which core step a curve uses.
@@ -53,8 +52,6 @@ pub struct Point {
 pub struct DeviceCase<'a> {
     /// The parsed table.
     pub table: &'a Table<'a>,
-    /// Buffer sizes.
-    pub caps: &'a Capacities,
     /// Patch areas (scene's, f64) for the metrics.
     pub area: &'a [f64],
     /// Solver tolerance in power units (converged = every unshot magnitude below it).
@@ -79,56 +76,31 @@ pub struct StopRule {
     pub plateau_after: u64,
 }
 
-/// Owned solver buffers of the table's capacities.
+/// Solver buffers for a table (core's [`OwnedBuffers`]) plus Jacobi's scratch buffer.
 pub struct Owned<S> {
-    power: Vec<[S; 3]>,
-    unshot: Vec<[S; 3]>,
-    incident: Vec<[S; 3]>,
-    tree: Vec<u32>,
-    intensity: Vec<[S; 3]>,
-    reflectance: Vec<[u16; 3]>,
-    /// Jacobi's scratch buffer.
+    buffers: OwnedBuffers<S>,
+    /// Jacobi's scratch buffer (one element per slot).
     pub scratch: Vec<[S; 3]>,
 }
 
 impl<S: Scalar> Owned<S> {
-    /// Zeroed buffers of the sizes in `caps`.
+    /// Zeroed buffers of the sizes `table` needs ([`radiosity_core::BufferSizes::of`]).
     #[must_use]
-    pub fn new(caps: &Capacities) -> Self {
-        let z = [S::from_f32(0.0); 3];
-        Owned {
-            power: vec![z; caps.power],
-            unshot: vec![z; caps.unshot],
-            incident: vec![z; caps.incident],
-            tree: vec![0; caps.tree],
-            intensity: vec![z; caps.intensity],
-            reflectance: vec![[0; 3]; caps.reflectance],
-            scratch: vec![z; caps.jacobi_scratch.max(caps.patches)],
-        }
+    pub fn new(table: &Table<'_>) -> Self {
+        let sizes = radiosity_core::BufferSizes::of(table);
+        Owned { buffers: OwnedBuffers::new(sizes), scratch: vec![[S::from_f32(0.0); 3]; sizes.slots] }
     }
 
     /// The buffers, borrowed for a solver (the scratch buffer stays separate).
     pub fn split(&mut self) -> (Buffers<'_, S>, &mut [[S; 3]]) {
-        (
-            Buffers {
-                power: &mut self.power,
-                unshot: &mut self.unshot,
-                incident: &mut self.incident,
-                tree: &mut self.tree,
-                intensity: &mut self.intensity,
-                reflectance: &mut self.reflectance,
-            },
-            &mut self.scratch,
-        )
+        (self.buffers.buffers(), &mut self.scratch)
     }
 }
 
 /// Radiosity of every patch, in f64.
 pub fn radiosity<S: Scalar>(solver: &Solver<'_, S>, table: &Table<'_>) -> Vec<[f64; 3]> {
     (0..table.patch_count())
-        .map(|i| {
-            solver.radiosity(table, i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3])
-        })
+        .map(|i| solver.radiosity(i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3]))
         .collect()
 }
 
@@ -136,18 +108,27 @@ fn solver_err(what: &'static str) -> impl Fn(radiosity_core::SolverError) -> Ben
     move |e| BenchError::Solver(format!("{what}: {e}"))
 }
 
+/// The firmware's light change ([`firmware_sim::device::apply_intensities`]): sets the groups whose intensity
+/// differs; returns the units it cost.
+fn apply_intensities<S: Scalar>(
+    solver: &mut Solver<'_, S>,
+    intensity: &[[f32; 3]],
+) -> Result<u32, BenchError> {
+    firmware_sim::device::apply_intensities(solver, intensity, None)
+        .map_err(|e| BenchError::Solver(format!("set_light: {e}")))
+}
+
 /// One step of `step` for at most `budget` units.
 pub fn do_step<S: Scalar>(
     solver: &mut Solver<'_, S>,
-    table: &Table<'_>,
     step: Step,
     scratch: &mut [[S; 3]],
     budget: u32,
 ) -> Outcome {
     match step {
-        Step::Shooting(_) => solver.step(table, budget),
-        Step::GaussSeidel => solver.step_gauss_seidel(table, budget),
-        Step::Jacobi => solver.step_jacobi(table, scratch, budget),
+        Step::Shooting(_) => solver.step(budget),
+        Step::GaussSeidel => solver.step_gauss_seidel(budget),
+        Step::Jacobi => solver.step_jacobi(scratch, budget),
     }
 }
 
@@ -176,7 +157,7 @@ pub fn run_curve<S: Scalar>(
     let mut points: Vec<Point> = Vec::new();
     let mut times: Vec<Vec<f64>> = Vec::new();
     for rep in 0..reps.max(1) {
-        let mut owned = Owned::<S>::new(case.caps);
+        let mut owned = Owned::<S>::new(table);
         let (buffers, scratch) = owned.split();
         let mut solver = Solver::new(table, buffers, config).map_err(solver_err("creating the solver"))?;
         let mut work = 0u64;
@@ -184,19 +165,14 @@ pub fn run_curve<S: Scalar>(
         match start {
             Start::Cold => {}
             Start::Warm(intensity) => {
-                while let Outcome::BudgetSpent { .. } = solver.step(table, u32::MAX) {}
+                while let Outcome::BudgetSpent { .. } = solver.step(u32::MAX) {}
                 let t0 = Instant::now();
-                for (g, rgb) in intensity.iter().enumerate() {
-                    work +=
-                        u64::from(solver.set_light(table, g as u32, *rgb).map_err(solver_err("set_light"))?);
-                }
+                work += u64::from(apply_intensities(&mut solver, intensity)?);
                 seconds += t0.elapsed().as_secs_f64();
             }
             Start::ColdAt(intensity) => {
-                for (g, rgb) in intensity.iter().enumerate() {
-                    let _ = solver.set_light(table, g as u32, *rgb).map_err(solver_err("set_light"))?;
-                }
-                solver.restart(table);
+                apply_intensities(&mut solver, intensity)?;
+                solver.restart();
             }
         }
         let mut rep_times = Vec::new();
@@ -207,7 +183,7 @@ pub fn run_curve<S: Scalar>(
                 let budget =
                     (target.round() as u64).saturating_sub(work).clamp(1, u64::from(u32::MAX)) as u32;
                 let t0 = Instant::now();
-                let o = do_step(&mut solver, table, step, scratch, budget);
+                let o = do_step(&mut solver, step, scratch, budget);
                 seconds += t0.elapsed().as_secs_f64();
                 work += u64::from(o.used());
                 if let Outcome::NoProgress { reason: NoProgressReason::BudgetTooSmall { needed }, .. } = o {
@@ -238,7 +214,7 @@ pub fn run_curve<S: Scalar>(
         } else {
             for &(budget, checkpoint) in &budgets {
                 let t0 = Instant::now();
-                let o = do_step(&mut solver, table, step, scratch, budget);
+                let o = do_step(&mut solver, step, scratch, budget);
                 seconds += t0.elapsed().as_secs_f64();
                 work += u64::from(o.used());
                 if checkpoint {

@@ -760,8 +760,7 @@ fn run_scene(
             .map(|c| dec.emission.iter().zip(&dec.area).map(|(e, a)| e[c] * a).sum::<f64>())
             .fold(0.0, f64::max);
         // Converged = every unshot magnitude below 1e-6 of the emitted power (as `radiosity check`).
-        let case =
-            DeviceCase { table: &table, caps: &baked.capacities, area: &area, tolerance: 1e-6 * max_power };
+        let case = DeviceCase { table: &table, area: &area, tolerance: 1e-6 * max_power };
         let stop = stop_rule(table.entry_count() as usize, n, rho_max, options.quick);
         let cold = Start::Cold;
         let ex = &exact_default;
@@ -809,7 +808,7 @@ fn run_scene(
         let tr = Instant::now();
         // Three rounds per repetition: each round is short (~1 s), and the ratios need several on a shared machine.
         let rounds = 3 * options.reps;
-        let roof = roofline::measure::<f32>(&table, &baked.capacities, 1e-3 * max_power, rounds)?;
+        let roof = roofline::measure::<f32>(&table, 1e-3 * max_power, rounds)?;
         log(
             options,
             &format!(

@@ -20,7 +20,6 @@ use radiosity_core::{Config, Outcome, Scalar, Solver, Table};
 
 use super::device::{median, Owned};
 use super::BenchError;
-use crate::bake::Capacities;
 
 /// Throughputs of one table.
 #[derive(Clone, Debug, PartialEq)]
@@ -80,12 +79,7 @@ pub fn stream_pass<S: Scalar>(table: &Table<'_>, power: [S; 3], acc: &mut [[S; 3
 ///
 /// # Errors
 /// If the solver cannot be created, a solve makes no progress, or shooting is not deterministic.
-pub fn measure<S: Scalar>(
-    table: &Table<'_>,
-    caps: &Capacities,
-    tolerance: f64,
-    rounds: usize,
-) -> Result<Roofline, BenchError> {
+pub fn measure<S: Scalar>(table: &Table<'_>, tolerance: f64, rounds: usize) -> Result<Roofline, BenchError> {
     let n = table.state_count() as usize;
     let entries = u64::from(table.entry_count());
     let rounds = rounds.max(1);
@@ -95,17 +89,17 @@ pub fn measure<S: Scalar>(
 
     let mut acc = vec![[S::from_f32(0.0); 3]; n];
     let p = [S::from_f32(1.0), S::from_f32(0.5), S::from_f32(0.25)];
-    let mut owned = Owned::<S>::new(caps);
+    let mut owned = Owned::<S>::new(table);
     let (buffers, _) = owned.split();
     let mut solver = Solver::new(table, buffers, config).map_err(err)?;
     let sweep_units = u32::try_from(entries + 2 * n as u64).unwrap_or(u32::MAX);
 
     // One untimed solve: the entries per solve (for the repeat count) and the determinism reference.
     let solve = |solver: &mut Solver<'_, S>| -> Result<(u64, u64, u64), BenchError> {
-        solver.reset(table);
+        solver.reset();
         let mut units = 0u64;
         loop {
-            let o = solver.step(table, u32::MAX);
+            let o = solver.step(u32::MAX);
             units += u64::from(o.used());
             match o {
                 Outcome::BudgetSpent { .. } => {}
@@ -132,11 +126,11 @@ pub fn measure<S: Scalar>(
         black_box(&acc);
 
         // Gauss-Seidel: whole sweeps from a cold start (budget = rows + entries + scan per sweep).
-        solver.reset(table);
+        solver.reset();
         let t0 = Instant::now();
         let mut swept = 0u64;
         for _ in 0..passes.max(2) {
-            match solver.step_gauss_seidel(table, sweep_units) {
+            match solver.step_gauss_seidel(sweep_units) {
                 Outcome::BudgetSpent { .. } => swept += 1,
                 Outcome::Converged { .. } => {
                     swept += 1;

@@ -1,51 +1,5 @@
-//! Quantization codecs: form factors, reflectance and emission, as small integer codes.
-//!
-//! Every decoded value is a *dyadic* number `mantissa * 2^-shift` ([`Frac`] for values in `[0, 1]`), so the
-//! f32 path and the integer fixed-point path decode the same code to the same exact value, and the table
-//! parser can sum a row's decoded form factors exactly in integer arithmetic.
-//!
-//! # Form-factor codes ([`FfCodec`])
-//! A row (one shooter) stores a *row exponent* `e` (one byte, `0..=64`) and one code of `bits` = 8 or 16 bits
-//! per entry. The code is a small unsigned float with `exponent_bits` = `E` exponent bits and
-//! `M = bits - E` mantissa bits, placed below the row scale `2^-e`:
-//! - field `x = code >> M`, `m = code & (2^M - 1)`;
-//! - `x == 0` (subnormal): `value = m * 2^-(e + M + 2^E - 2)`;
-//! - `x >= 1` (normal): `value = (2^M + m) * 2^-(e + M + 2^E - 1 - x)`.
-//!
-//! With `E = 0` this is a plain block-linear code `value = q * 2^-(e + bits - 1)`. In both cases code order is
-//! value order, so rounding down is a binary search. The writer picks `e = floor(-log2(row max))`, so the row's
-//! largest entry sits in the top binade `[2^-e, 2^(1-e))`.
-//!
-//! Worst-case error of one entry (round down, or bumped up by one code during slack distribution, so always
-//! less than one code step):
-//! - float code (`E >= 1`): relative error `< 2^-M` for entries `>= row_max * 2^-(2^E - 2)`; below that an
-//!   absolute error `< row_max * 2^-(M + 2^E - 2)`.
-//! - linear code (`E = 0`): absolute error `< row_max * 2^-(bits - 1)`.
-//!
-//! A bump never more than doubles an entry (see below), so a decoded entry is at most twice its true value.
-//!
-//! The crate docs ("Error bounds") give the measured errors of each codec on a closed cube (from the
-//! `codec_error` example) and why [`FfCodec::FLOAT16`] (`E = 4, M = 12`) and [`FfCodec::FLOAT8`]
-//! (`E = 3, M = 5`) are the defaults.
-//!
-//! # Row-sum rounding
-//! The writer rounds every entry down, then spends the remaining slack (exact target minus decoded sum,
-//! with the target capped at 1) on the entries whose fractional rounding loss is largest, one code step each,
-//! never exceeding the target, and only on entries the step at most doubles: below the float range a step can
-//! be many times a tiny entry, and the receiver's incoming (shooting-form) row multiplies the excess by the
-//! sender's area over its own. So every row's decoded sum is `<=` its true sum and `<= 1`, which makes the
-//! solver's iteration matrix `R F` have row sums `< 1` (reflectance codes are `< 1`): shooting converges. The
-//! deficit is less than one code step plus the losses of entries smaller than half a step, which are only
-//! rounded down.
-//!
-//! # Reflectance code
-//! `u16` `q`, `rho = q / 65536`, round to nearest, so `0 <= rho <= 65535/65536 < 1` always; absolute error
-//! `<= 2^-17` (7.6e-6) for inputs in `[0, 65535/65536]`.
-//!
-//! # Emission code (radiometric values: emission, irradiance)
-//! `u16` with 6 exponent bits `x` and 10 mantissa bits `m`: `x == 0`: `m * 2^-40`; else
-//! `(1024 + m) * 2^(x - 41)`. Range `[2^-30, (2 - 2^-10) * 2^32]` = `[9.3e-10, 8.6e9]` with relative error
-//! `<= 2^-11` (4.9e-4, round to nearest); below `2^-30` absolute error `<= 2^-41`. Code 0 is exactly 0.
+//! Form-factor codes: [`FfCodec`] (a small float per entry under a per-row power-of-two scale), the
+//! dyadic [`Frac`] every code decodes to, and the writer's row quantization (module docs of [`crate::codec`]).
 
 /// Fixed-point exponent used for exact sums of decoded form factors: values are held as integers in units of
 /// `2^-EXACT_SHIFT` in a `u128`.
@@ -399,75 +353,6 @@ pub(crate) fn quantize_row_with_exponent(
     sum
 }
 
-/// Decodes a reflectance code: `q / 65536`.
-#[must_use]
-pub fn decode_reflectance(code: u16) -> Frac {
-    Frac { mantissa: u32::from(code), shift: 16 }
-}
-
-/// Encodes a reflectance (round to nearest, clamped to `[0, 65535/65536]`; NaN gives 0).
-#[must_use]
-pub fn encode_reflectance(rho: f32) -> u16 {
-    if rho.is_nan() || rho <= 0.0 {
-        return 0;
-    }
-    let q = rho * 65536.0 + 0.5;
-    if q >= 65535.0 {
-        65535
-    } else {
-        q as u16
-    }
-}
-
-/// Decodes an emission code to `(mantissa, exponent)` with value `mantissa * 2^exponent`.
-#[must_use]
-pub fn decode_emission(code: u16) -> (u32, i32) {
-    let x = i32::from(code >> 10);
-    let m = u32::from(code & 0x3ff);
-    if x == 0 {
-        (m, -40)
-    } else {
-        (1024 + m, x - 41)
-    }
-}
-
-/// Decodes an emission code to f32 (exact).
-#[must_use]
-pub fn decode_emission_f32(code: u16) -> f32 {
-    let (m, e) = decode_emission(code);
-    m as f32 * pow2_f32(e)
-}
-
-/// Largest value the emission code represents: `(2 - 2^-10) * 2^32`.
-pub const EMISSION_MAX: f32 = 2047.0 * 4_194_304.0; // 2047 * 2^22
-
-/// Encodes a non-negative radiometric value (emission, irradiance) to the nearest emission code.
-///
-/// Returns `None` for negative, non-finite or too large (`> EMISSION_MAX`) values.
-#[must_use]
-pub fn encode_emission(v: f32) -> Option<u16> {
-    if !(0.0..=EMISSION_MAX).contains(&v) {
-        return None;
-    }
-    // Largest code with decode <= v (decode is monotone in the code and exact in f32).
-    let (mut lo, mut hi) = (0u32, 0xffffu32);
-    while lo < hi {
-        let mid = lo + (hi - lo).div_ceil(2);
-        if decode_emission_f32(mid as u16) <= v {
-            lo = mid;
-        } else {
-            hi = mid - 1;
-        }
-    }
-    if lo == 0xffff {
-        return Some(0xffff);
-    }
-    let below = decode_emission_f32(lo as u16);
-    let above = decode_emission_f32(lo as u16 + 1);
-    // Both differences are exact: the two neighbours are within a factor 2 of v (Sterbenz).
-    Some(if above - v <= v - below { lo as u16 + 1 } else { lo as u16 })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -518,16 +403,6 @@ mod tests {
         assert_eq!(row_exponent_for(f32_to_exact(0.5)), 1);
         assert_eq!(row_exponent_for(f32_to_exact(0.49)), 2);
         assert_eq!(row_exponent_for(f32_to_exact(1e-30)), MAX_ROW_EXPONENT);
-    }
-
-    #[test]
-    fn emission_code_extremes() {
-        assert_eq!(encode_emission(0.0), Some(0));
-        assert_eq!(decode_emission_f32(encode_emission(EMISSION_MAX).unwrap()), EMISSION_MAX);
-        assert_eq!(encode_emission(EMISSION_MAX * 1.001), None);
-        assert_eq!(encode_emission(-1.0), None);
-        assert_eq!(encode_emission(f32::NAN), None);
-        assert_eq!(decode_emission_f32(encode_emission(1.0).unwrap()), 1.0);
     }
 
     /// Relative error bound of the row codec for entries in the normal range, absolute bound below it.
@@ -590,18 +465,5 @@ mod tests {
             }
         }
 
-        #[test]
-        fn emission_relative_error_bound(v in 1e-9f32..8e9) {
-            let d = decode_emission_f32(encode_emission(v).unwrap());
-            let bound = if v >= pow2_f32(-30) { v * pow2_f32(-11) } else { pow2_f32(-41) };
-            prop_assert!((d - v).abs() <= bound * (1.0 + 1e-6), "v={} d={}", v, d);
-        }
-
-        #[test]
-        fn reflectance_abs_error_bound(rho in 0.0f32..0.99998) {
-            let d = decode_reflectance(encode_reflectance(rho)).to_f32();
-            // 2^-17 from rounding plus the f32 rounding of rho * 65536 (an ulp of values < 65536, 2^-8 / 65536).
-            prop_assert!((d - rho).abs() <= pow2_f32(-17) + pow2_f32(-24), "rho={} d={}", rho, d);
-        }
     }
 }

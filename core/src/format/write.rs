@@ -2,14 +2,15 @@
 //!
 //! Std-free so the host and the device share one implementation of the layout.
 //!
-//! [`Table::parse`]: crate::table::Table::parse
+//! [`Table::parse`]: crate::Table::parse
 
 use core::fmt;
 
+use super::layout::{Header, Layout, MAX_HEADER_LEN};
+use super::{FORMAT_VERSION, MAGIC};
+use crate::codec::transfer::{encode_transfer, transfer_exponent_for, TRANSFER_MAX};
 use crate::codec::{self, f32_to_exact, FfCodec, EXACT_SHIFT};
 use crate::crc::crc32;
-use crate::table::{Header, Layout, FORMAT_VERSION, MAGIC, MAX_HEADER_LEN};
-use crate::transfer::{encode_transfer, transfer_exponent_for, TRANSFER_MAX};
 
 /// One patch as the writer takes it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,7 +82,7 @@ pub struct TableSpec<'a> {
     /// Scene fingerprint stored in the header (identifies the scene and meshing; 0 if none). Core does not
     /// interpret it.
     pub fingerprint: u64,
-    /// Optional transfer basis (see [`crate::transfer`]): the response `T_g` (W/m^2 at unit intensity, RGB,
+    /// Optional transfer basis (see [`crate::codec::transfer`]): the response `T_g` (W/m^2 at unit intensity, RGB,
     /// finite and `>= 0`) of every patch to every light group, patch-major: `transfer[i * groups + g]`,
     /// length patches x groups. Needs `base_solved`.
     pub transfer: Option<&'a [[f32; 3]]>,
