@@ -3,28 +3,11 @@
 
 use glam::Vec3;
 use radiosity_host::embree::{Device, EmbreeError, Ray, SceneOptions, TriangleScene};
+use radiosity_host::rng::SplitMix64;
 
 /// Exact form factor between two facing, aligned unit squares at distance 1 (closed form for parallel
 /// rectangles; e.g. Howell's catalogue of configuration factors, C-11).
 const F_FACING_UNIT_SQUARES: f64 = 0.199825;
-
-/// SplitMix64 (Steele, Lea, Flood 2014): a tiny seeded generator so the tests are reproducible.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-}
 
 /// Appends the quad `a, b, c, d` (counter-clockwise seen from its normal side) as two triangles.
 fn push_quad(vertices: &mut Vec<Vec3>, triangles: &mut Vec<[u32; 3]>, quad: [Vec3; 4]) {
@@ -131,7 +114,7 @@ fn rays_starting_on_a_surface_do_not_hit_it() {
     // just those two squares: neither end surface may count. Also rays leaving the floor upwards and sideways
     // at grazing angles with only tnear = offset. The offset is RELATIVE_OFFSET (2^-13) of the scene scale,
     // about 1000 f32 ulps of the coordinates, so rounding in Embree's hit distance cannot reach past it.
-    let mut rng = SplitMix64(7);
+    let mut rng = SplitMix64::new(7);
     for options in [SceneOptions::default(), SceneOptions { robust: true }] {
         let scene = facing_quads(&[], options);
         let offset = scene.offset();
@@ -174,7 +157,7 @@ fn packets_agree_with_single_rays() {
         Vec3::new(0.25, 1.0, 0.5),
     ];
     let scene = facing_quads(&[plate], SceneOptions::default());
-    let mut rng = SplitMix64(11);
+    let mut rng = SplitMix64::new(11);
     let rays: Vec<Ray> = (0..37)
         .map(|_| Ray::segment(point_on_square(&mut rng, 0.0), point_on_square(&mut rng, 1.0), scene.offset()))
         .collect();
@@ -270,7 +253,7 @@ fn monte_carlo_form_factor_of_facing_unit_squares() {
     // (both of area 1) one sample is g = cos cos / (pi r^2) * V, an unbiased estimate of F. The visibility comes
     // from Embree (16-wide packets); the standard error is the sample standard deviation / sqrt(n).
     let scene = facing_quads(&[], SceneOptions::default());
-    let mut rng = SplitMix64(2024);
+    let mut rng = SplitMix64::new(2024);
     let n = 1 << 15;
     let mut sum = 0.0f64;
     let mut sum_sq = 0.0f64;
