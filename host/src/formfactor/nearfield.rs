@@ -37,18 +37,15 @@ pub(super) fn bounding_sphere(polygon: &[DVec3]) -> (DVec3, f64) {
     (c, polygon.iter().map(|v| v.distance(c)).fold(0.0, f64::max))
 }
 
-/// Whether a receiver inside the sphere `(center, radius)` is nearer to `domain` than `domain`'s own diameter
-/// (measured between bounding spheres, so conservative): then a fixed product rule over `domain` is inaccurate
-/// (its error grows like a power of size / distance).
 /// A pair is in the far field when the gap between the bounding spheres of `i` and `j` is at least this many
 /// diameters of `i`: the kernel then varies on a scale `D` at least that many times `i`'s size `h`, and the
 /// product Gauss-Legendre rule of half the order ([`far_field_order`]) suffices. Its relative error is about
 /// `c (h / D)^(2m)` for `m` points per direction (Davis and Rabinowitz, "Methods of Numerical Integration",
 /// 2nd ed., section 2.7: `f^(2m)` of a kernel falling like `D^-3` is about `(2m + 2)! / 2 D^-(2m)` times it);
 /// with `m = 2`, `c` about 0.1 and `h / D <= 1/5` that is about `1.6e-4`, below the 16-bit codec's `2.4e-4`
-/// and the visibility noise of the default 16 rays per pair. Measured on the Cornell box (282 patches) by the
-/// test `far_field_rule_matches_the_full_rule`: 3% of the entries use it, worst relative change 8.2e-5. The
-/// share grows with the patch count: at about 4,000 patches the form factors take 21 s instead of 35 s.
+/// and the visibility noise of the default 16 rays per pair. The test `far_field_rule_matches_the_full_rule`
+/// checks that bound on the Cornell box; the share of pairs in the far field, and so the time saved, grows with
+/// the patch count.
 pub const FAR_FIELD_GAP: f64 = 5.0;
 
 /// Points per direction of the far-field rule for a full rule of `order` points per direction: half, at least 2
@@ -58,6 +55,9 @@ pub fn far_field_order(order: usize) -> usize {
     order.div_ceil(2).max(2).min(order)
 }
 
+/// Whether a receiver inside the sphere `(center, radius)` is nearer to `domain` than `domain`'s own diameter
+/// (measured between bounding spheres, so conservative): then a fixed product rule over `domain` is inaccurate
+/// (its error grows like a power of size / distance).
 pub(super) fn near(domain: &[DVec3], center: DVec3, radius: f64) -> bool {
     let (c, r) = bounding_sphere(domain);
     c.distance(center) - radius - r < 2.0 * r

@@ -15,7 +15,7 @@ pub enum ClosureMode {
     Off,
 }
 
-/// Settings of [`compute_form_factors`].
+/// Settings of [`super::compute_form_factors`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct FormFactorOptions {
     /// Sample points on each patch `i` (the outer quadrature): a Gauss-Legendre `n × n` rule with
@@ -34,7 +34,7 @@ pub struct FormFactorOptions {
     pub robust: bool,
     /// Whether to detect a closed scene and close its rows.
     pub closure: ClosureMode,
-    /// Integrate pairs in the far field ([`FAR_FIELD_GAP`]) with the lower-order rule ([`far_field_order`]);
+    /// Integrate pairs in the far field ([`super::FAR_FIELD_GAP`]) with the lower-order rule ([`super::far_field_order`]);
     /// `false` uses the full rule everywhere (to measure what the far-field rule changes).
     pub far_field: bool,
 }
