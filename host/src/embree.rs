@@ -57,24 +57,9 @@ pub enum EmbreeError {
         /// Embree's message, empty if it gave none.
         message: String,
     },
-    /// A vertex coordinate is NaN or infinite.
-    #[error("vertex {index} is not finite: {vertex:?}")]
-    NonFiniteVertex {
-        /// Index of the vertex.
-        index: usize,
-        /// The vertex.
-        vertex: [f32; 3],
-    },
-    /// A triangle refers to a vertex that does not exist.
-    #[error("triangle {triangle} refers to vertex {vertex}, but there are only {vertex_count} vertices")]
-    VertexOutOfRange {
-        /// Index of the triangle.
-        triangle: usize,
-        /// The vertex index it holds.
-        vertex: u32,
-        /// Number of vertices given.
-        vertex_count: usize,
-    },
+    /// The mesh is bad (a non-finite vertex, an index out of range), caught before Embree sees it.
+    #[error(transparent)]
+    Input(#[from] MeshInputError),
     /// The device configuration string contains a NUL byte.
     #[error("Embree device configuration contains a NUL byte at {0}")]
     ConfigNul(usize),
@@ -259,7 +244,7 @@ impl Device {
     /// Triangles refer to `vertices` by index. An empty mesh gives an empty scene in which nothing is occluded.
     ///
     /// # Errors
-    /// [`EmbreeError::NonFiniteVertex`] or [`EmbreeError::VertexOutOfRange`] for bad input (checked before Embree
+    /// [`EmbreeError::Input`] for bad input (checked before Embree
     /// sees it); [`EmbreeError::Device`] if Embree reports an error while building.
     pub fn triangle_scene(
         &self,
@@ -267,14 +252,7 @@ impl Device {
         triangles: &[[u32; 3]],
         options: SceneOptions,
     ) -> Result<TriangleScene, EmbreeError> {
-        check_mesh(vertices, triangles).map_err(|e| match e {
-            MeshInputError::NonFiniteVertex { index, vertex } => {
-                EmbreeError::NonFiniteVertex { index, vertex }
-            }
-            MeshInputError::VertexOutOfRange { triangle, vertex, vertex_count } => {
-                EmbreeError::VertexOutOfRange { triangle, vertex, vertex_count }
-            }
-        })?;
+        check_mesh(vertices, triangles)?;
         let device = &self.inner;
         // SAFETY: `device.raw` is a live device.
         let raw = unsafe { sys::rtcNewScene(device.raw) };

@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use radiosity_host::embree::{Device, EmbreeError, Ray, SceneOptions, TriangleScene};
-use radiosity_host::raycast::RayCaster;
+use radiosity_host::raycast::{MeshInputError, RayCaster};
 use radiosity_host::rng::SplitMix64;
 
 /// Exact form factor between two facing, aligned unit squares at distance 1 (closed form for parallel
@@ -231,7 +231,10 @@ fn bad_input_and_embree_errors_are_reported() {
     let device = Device::new().unwrap();
     let err =
         device.triangle_scene(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 3]], Default::default()).unwrap_err();
-    assert_eq!(err, EmbreeError::VertexOutOfRange { triangle: 0, vertex: 3, vertex_count: 3 });
+    assert_eq!(
+        err,
+        EmbreeError::Input(MeshInputError::VertexOutOfRange { triangle: 0, vertex: 3, vertex_count: 3 })
+    );
     assert!(err.to_string().contains("triangle 0 refers to vertex 3"), "{err}");
     let err = device
         .triangle_scene(
@@ -240,7 +243,7 @@ fn bad_input_and_embree_errors_are_reported() {
             Default::default(),
         )
         .unwrap_err();
-    assert!(matches!(err, EmbreeError::NonFiniteVertex { index: 1, .. }), "{err}");
+    assert!(matches!(err, EmbreeError::Input(MeshInputError::NonFiniteVertex { index: 1, .. })), "{err}");
     // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config.
     let err = Device::with_config("threads=abc").unwrap_err();
     assert!(err.to_string().contains("RTC_ERROR_") && err.to_string().contains("threads=abc"), "{err}");
