@@ -310,29 +310,29 @@ pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<S
     if !(0.0..1.0).contains(&threshold) {
         return Err(BakeError::BadThreshold(threshold));
     }
-    let n = ff.n;
+    let n = ff.n();
     if area.len() != n {
         return Err(input_error(format!("{} areas for {n} patches", area.len())));
     }
     let mut row_of = vec![0usize; ff.nonzeros()];
     let mut incoming = vec![0.0; n];
     for (i, &a) in area.iter().enumerate() {
-        for k in ff.row_start[i]..ff.row_start[i + 1] {
+        for k in ff.row_range(i) {
             row_of[k] = i;
-            incoming[ff.col[k] as usize] += a * ff.value[k];
+            incoming[ff.columns()[k] as usize] += a * ff.values()[k];
         }
     }
     // Sort keys computed once (the comparison would otherwise fetch two rows' areas per call), then the
     // position: an unstable sort of unique keys gives the stable order.
     let mut order: Vec<(i64, usize)> =
-        (0..ff.nonzeros()).map(|k| (total_order_key(area[row_of[k]] * ff.value[k]), k)).collect();
+        (0..ff.nonzeros()).map(|k| (total_order_key(area[row_of[k]] * ff.values()[k]), k)).collect();
     order.sort_unstable();
     let row_budget: Vec<f64> = (0..n).map(|i| threshold * ff.row_sum(i)).collect();
     let mut dropped = vec![0.0; n];
     let mut dropped_incoming = vec![0.0; n];
     let mut keep = vec![true; ff.nonzeros()];
     for (_, k) in order {
-        let (i, j, f) = (row_of[k], ff.col[k] as usize, ff.value[k]);
+        let (i, j, f) = (row_of[k], ff.columns()[k] as usize, ff.values()[k]);
         let p = area[i] * f;
         if dropped[i] + f <= row_budget[i] && dropped_incoming[j] + p <= threshold * incoming[j] {
             dropped[i] += f;
@@ -340,18 +340,7 @@ pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<S
             keep[k] = false;
         }
     }
-    let mut matrix = FormFactorMatrix { n, row_start: vec![0], col: Vec::new(), value: Vec::new() };
-    for i in 0..n {
-        let range = ff.row_start[i]..ff.row_start[i + 1];
-        for ((&kept, &j), &f) in keep[range.clone()].iter().zip(&ff.col[range.clone()]).zip(&ff.value[range])
-        {
-            if kept {
-                matrix.col.push(j);
-                matrix.value.push(f);
-            }
-        }
-        matrix.row_start.push(matrix.col.len());
-    }
+    let matrix = ff.retain_entries(|k| keep[k]);
     Ok(Sparsified { matrix, dropped, dropped_incoming, incoming })
 }
 
@@ -366,30 +355,34 @@ fn total_order_key(x: f64) -> i64 {
 /// reciprocal.
 ///
 /// # Panics
-/// If `area` is shorter than `ff.n` or a column is out of range.
+/// If `area` is shorter than `ff.n()`, or an area is zero (the shooting form would not be finite).
 #[must_use]
 pub fn shooting_form(ff: &FormFactorMatrix, area: &[f64]) -> FormFactorMatrix {
-    let n = ff.n;
+    let n = ff.n();
     let mut count = vec![0usize; n + 1];
-    for &j in &ff.col {
+    for &j in ff.columns() {
         count[j as usize + 1] += 1;
     }
     for k in 0..n {
         count[k + 1] += count[k];
     }
     let row_start = count.clone();
-    let mut col = vec![0u32; ff.col.len()];
-    let mut value = vec![0.0; ff.col.len()];
+    let mut col = vec![0u32; ff.nonzeros()];
+    let mut value = vec![0.0; ff.nonzeros()];
+    let mut flags = vec![false; ff.nonzeros()];
     // Rows of `ff` in increasing order fill each transposed row with increasing columns.
     for i in 0..n {
-        for (j, f) in ff.row(i) {
+        for ((&j, &f), &flag) in ff.row_columns(i).iter().zip(ff.row_values(i)).zip(ff.row_flags(i)) {
+            let j = j as usize;
             let at = count[j];
             col[at] = i as u32;
             value[at] = area[i] * f / area[j];
+            flags[at] = flag;
             count[j] += 1;
         }
     }
-    FormFactorMatrix { n, row_start, col, value }
+    FormFactorMatrix::with_flags(n, row_start, col, value, flags)
+        .expect("the transpose of a valid matrix is valid (finite values over positive areas)")
 }
 
 /// Energy dropped by sparsification (fractions of power; see the module docs).
@@ -662,7 +655,7 @@ fn check_input(input: &BakeInput<'_>) -> Result<(), BakeError> {
     let n = input.patches.len();
     let l = input.lighting;
     let lens = [
-        ("form-factor matrix", input.form_factors.n),
+        ("form-factor matrix", input.form_factors.n()),
         ("lighting.rho", l.rho.len()),
         ("lighting.static_emission", l.static_emission.len()),
         ("lighting.unit_emission", l.unit_emission.len()),
@@ -707,7 +700,7 @@ fn to_f32x3(v: [f64; 3]) -> [f32; 3] {
 /// Patches needing run-time state (see the module docs, step 5), breadth-first over the stored rows.
 #[must_use]
 pub fn reachable_patches(sparse: &FormFactorMatrix, group: &[Option<usize>], rho: &[[f64; 3]]) -> Vec<bool> {
-    let mut reached = vec![false; sparse.n];
+    let mut reached = vec![false; sparse.n()];
     let mut queue = VecDeque::new();
     for (i, g) in group.iter().enumerate() {
         if g.is_some() {
@@ -740,7 +733,7 @@ struct SlotRows {
 
 impl SlotRows {
     fn new(ff: &FormFactorMatrix, state: &[bool]) -> SlotRows {
-        let mut slot_of = vec![None; ff.n];
+        let mut slot_of = vec![None; ff.n()];
         let mut patch = Vec::new();
         for (i, _) in state.iter().enumerate().filter(|(_, &s)| s) {
             slot_of[i] = Some(patch.len() as u32);
@@ -778,7 +771,7 @@ fn solve_set(
 ) -> Result<(Vec<Radiosity>, f64), BakeError> {
     let wrap = |source| BakeError::Reference { what, source };
     let system = RadiositySystem::with_row_sum_tolerance(rho, ff, options.row_sum_tolerance).map_err(wrap)?;
-    let method = options.method.unwrap_or_else(|| default_method(ff.n));
+    let method = options.method.unwrap_or_else(|| default_method(ff.n()));
     let solutions = solve_many(system, rhs, &method).map_err(wrap)?;
     let residual = solutions.iter().flat_map(|s| s.residual).fold(0.0, f64::max);
     Ok((solutions.into_iter().map(|s| s.b).collect(), residual))
@@ -864,9 +857,10 @@ pub fn decode_table(table: &Table<'_>) -> Decoded {
         rhs: Vec::with_capacity(n as usize),
         base: Vec::with_capacity(n as usize),
         area: Vec::with_capacity(n as usize),
-        rows: FormFactorMatrix { n: n as usize, row_start: vec![0], col: Vec::new(), value: Vec::new() },
+        rows: FormFactorMatrix::default(),
         state: Vec::with_capacity(n as usize),
     };
+    let (mut row_start, mut col, mut value) = (vec![0], Vec::new(), Vec::new());
     for i in 0..n {
         let m = table.material(i).unwrap_or(0);
         let r = table.reflectance(m).unwrap_or([0; 3]);
@@ -883,13 +877,17 @@ pub fn decode_table(table: &Table<'_>) -> Decoded {
         if let Some(slot) = slot {
             for k in table.row(slot).unwrap_or(0..0) {
                 if let Some((j, f)) = table.entry(slot, k) {
-                    d.rows.col.push(table.slot_patch(j).unwrap_or(0));
-                    d.rows.value.push(f64::from(f.to_f32()));
+                    col.push(table.slot_patch(j).unwrap_or(0));
+                    value.push(f64::from(f.to_f32()));
                 }
             }
         }
-        d.rows.row_start.push(d.rows.col.len());
+        row_start.push(col.len());
     }
+    // `Table::parse` proved every row's receivers strictly increasing and the slot -> patch map increasing and in
+    // range, and decoded codes are finite.
+    d.rows = FormFactorMatrix::new(n as usize, row_start, col, value)
+        .expect("a parsed table's rows form a valid matrix");
     for g in 0..table.group_count() {
         let intensity = table.default_intensity(g).unwrap_or([0.0; 3]);
         for k in table.group_members(g).unwrap_or(0..0) {

@@ -746,7 +746,7 @@ pub fn device_converged<S: Scalar>(
 pub fn form_factor_distance(table: &Table<'_>, p: &Prepared) -> f64 {
     let dec = bake::decode_table(table);
     let (mut moved, mut total) = (0.0, 0.0);
-    for i in 0..p.patches.len().min(dec.rows.n) {
+    for i in 0..p.patches.len().min(dec.rows.n()) {
         if !dec.state[i] {
             continue;
         }

@@ -17,15 +17,20 @@
 //! ```
 //!
 //! # Embree's ray conventions, and how this module handles them
-//! - A ray covers the points `origin + t * direction` for `tnear <= t <= tfar`: both ends are inclusive, so a
-//!   segment that ends exactly on a surface hits it. [`Ray::segment`] therefore pulls both ends in by an absolute
-//!   offset (see [`TriangleScene::offset`]), so a segment from a point on one surface to a point on another is
-//!   tested only between the two surfaces.
+//! - A ray covers the points `origin + t * direction` for `tnear < t <= tfar` (Embree's triangle tests compare
+//!   `tnear < t` and `t <= tfar`): a segment that ends exactly on a surface hits it. [`Ray::segment`] therefore
+//!   pulls both ends in by an absolute offset (see [`TriangleScene::offset`]), so a segment from a point on one
+//!   surface to a point on another is tested only between the two surfaces.
 //! - `tnear` must be `>= 0`; a ray that starts on a surface with `tnear = 0` may hit that surface at `t ~ 0`
 //!   through rounding. The same offset keeps it off its own surface.
+//! - Triangles are two-sided (Embree is built without back-face culling); hits on edges count; degenerate
+//!   triangles are never hit.
 //! - The ray `mask` is set to all ones (`0xFFFF_FFFF`); Embree skips geometry whose mask does not intersect it.
 //! - Occlusion queries report a blocked ray by setting its `tfar` to `-inf`; this module turns that into `bool`s.
 //! - Embree works in `f32`; callers in `f64` convert at the boundary.
+//!
+//! These are the semantics of [`crate::raycast`], whose [`Ray`] this module takes; [`TriangleScene`] is the
+//! production [`RayCaster`], and [`crate::raycast::TriangleBvh`] the pure-Rust one it is tested against.
 #![allow(unsafe_code)]
 
 use std::ffi::{c_char, c_void, CStr, CString};
@@ -34,6 +39,9 @@ use std::sync::{Arc, Mutex};
 
 use embree4_sys as sys;
 use glam::Vec3;
+
+pub use crate::raycast::Ray;
+use crate::raycast::{check_mesh, scene_scale, MeshInputError, RayCaster, RELATIVE_OFFSET};
 
 /// An error reported by Embree, or bad input caught before it reaches Embree.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -49,24 +57,9 @@ pub enum EmbreeError {
         /// Embree's message, empty if it gave none.
         message: String,
     },
-    /// A vertex coordinate is NaN or infinite.
-    #[error("vertex {index} is not finite: {vertex:?}")]
-    NonFiniteVertex {
-        /// Index of the vertex.
-        index: usize,
-        /// The vertex.
-        vertex: [f32; 3],
-    },
-    /// A triangle refers to a vertex that does not exist.
-    #[error("triangle {triangle} refers to vertex {vertex}, but there are only {vertex_count} vertices")]
-    VertexOutOfRange {
-        /// Index of the triangle.
-        triangle: usize,
-        /// The vertex index it holds.
-        vertex: u32,
-        /// Number of vertices given.
-        vertex_count: usize,
-    },
+    /// The mesh is bad (a non-finite vertex, an index out of range), caught before Embree sees it.
+    #[error(transparent)]
+    Input(#[from] MeshInputError),
     /// The device configuration string contains a NUL byte.
     #[error("Embree device configuration contains a NUL byte at {0}")]
     ConfigNul(usize),
@@ -251,7 +244,7 @@ impl Device {
     /// Triangles refer to `vertices` by index. An empty mesh gives an empty scene in which nothing is occluded.
     ///
     /// # Errors
-    /// [`EmbreeError::NonFiniteVertex`] or [`EmbreeError::VertexOutOfRange`] for bad input (checked before Embree
+    /// [`EmbreeError::Input`] for bad input (checked before Embree
     /// sees it); [`EmbreeError::Device`] if Embree reports an error while building.
     pub fn triangle_scene(
         &self,
@@ -259,22 +252,7 @@ impl Device {
         triangles: &[[u32; 3]],
         options: SceneOptions,
     ) -> Result<TriangleScene, EmbreeError> {
-        for (index, v) in vertices.iter().enumerate() {
-            if !v.is_finite() {
-                return Err(EmbreeError::NonFiniteVertex { index, vertex: v.to_array() });
-            }
-        }
-        for (triangle, t) in triangles.iter().enumerate() {
-            for &vertex in t {
-                if vertex as usize >= vertices.len() {
-                    return Err(EmbreeError::VertexOutOfRange {
-                        triangle,
-                        vertex,
-                        vertex_count: vertices.len(),
-                    });
-                }
-            }
-        }
+        check_mesh(vertices, triangles)?;
         let device = &self.inner;
         // SAFETY: `device.raw` is a live device.
         let raw = unsafe { sys::rtcNewScene(device.raw) };
@@ -390,21 +368,6 @@ fn null_buffer(operation: &'static str) -> EmbreeError {
     }
 }
 
-/// The scene's size for offsets: the largest of its bounding-box diagonal and its largest absolute coordinate
-/// (rounding in `f32` grows with the coordinates' magnitude, not only with the scene's extent).
-fn scene_scale(vertices: &[Vec3]) -> f32 {
-    let Some(first) = vertices.first() else { return 1.0 };
-    let (lo, hi) = vertices.iter().fold((*first, *first), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    let diagonal = (hi - lo).length();
-    let magnitude = lo.abs().max(hi.abs()).max_element();
-    let scale = diagonal.max(magnitude);
-    if scale > 0.0 {
-        scale
-    } else {
-        1.0
-    }
-}
-
 /// Options for building a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SceneOptions {
@@ -413,70 +376,21 @@ pub struct SceneOptions {
     pub robust: bool,
 }
 
-/// A ray or segment for Embree queries: the points `origin + t * direction` with `tnear <= t <= tfar`.
-///
-/// A ray with `tnear > tfar`, a non-finite origin or direction, or NaN bounds is empty: it is never occluded and
-/// hits nothing (it is not passed to Embree). A negative `tnear` is raised to 0.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ray {
-    /// Start point.
-    pub origin: Vec3,
-    /// Direction; need not be unit length (then `t` is in units of its length).
-    pub direction: Vec3,
-    /// Smallest `t` tested, `>= 0`.
-    pub tnear: f32,
-    /// Largest `t` tested (inclusive).
-    pub tfar: f32,
-}
-
-impl Ray {
-    /// A ray from `origin` along `direction`, for `tnear <= t <= tfar`.
-    #[must_use]
-    pub fn new(origin: Vec3, direction: Vec3, tnear: f32, tfar: f32) -> Self {
-        Self { origin, direction, tnear, tfar }
-    }
-
-    /// The open segment from `from` to `to`, with `offset` (in scene units) cut from each end.
-    ///
-    /// Use [`TriangleScene::offset`] for `offset`. The direction is `to - from`, so `t` runs from 0 at `from` to 1
-    /// at `to`; `tnear = offset / |to - from|` keeps a ray that starts on a surface from hitting that surface, and
-    /// `tfar = 1 - offset / |to - from|` keeps the surface the segment ends on from counting as an occluder (Embree's
-    /// `tfar` is inclusive). Occluders closer than `offset` to either end are missed. If the segment is shorter
-    /// than `2 * offset`, it is empty (`tnear > tfar`) and never occluded.
-    #[must_use]
-    pub fn segment(from: Vec3, to: Vec3, offset: f32) -> Self {
-        let direction = to - from;
-        let length = direction.length();
-        let cut = if length > 0.0 { offset / length } else { 1.0 };
-        Self { origin: from, direction, tnear: cut, tfar: 1.0 - cut }
-    }
-
-    fn to_raw(self) -> sys::RTCRay {
-        sys::RTCRay {
-            org_x: self.origin.x,
-            org_y: self.origin.y,
-            org_z: self.origin.z,
-            tnear: self.tnear.max(0.0),
-            dir_x: self.direction.x,
-            dir_y: self.direction.y,
-            dir_z: self.direction.z,
-            time: 0.0,
-            tfar: self.tfar,
-            mask: u32::MAX,
-            id: 0,
-            flags: 0,
-        }
-    }
-
-    /// Whether Embree must not see this ray: `tnear > tfar` (empty), or a non-finite origin or direction, or NaN
-    /// bounds. Embree's results for such rays are undefined (it ignores them only in builds with
-    /// `EMBREE_IGNORE_INVALID_RAYS`), so this module never passes them on: they hit nothing.
-    fn is_empty(&self) -> bool {
-        !(self.origin.is_finite()
-            && self.direction.is_finite()
-            && self.tnear.is_finite()
-            && !self.tfar.is_nan())
-            || self.tnear.max(0.0) > self.tfar
+/// The Embree form of `ray` (a negative `tnear` raised to 0, all mask bits set).
+fn to_raw(ray: &Ray) -> sys::RTCRay {
+    sys::RTCRay {
+        org_x: ray.origin.x,
+        org_y: ray.origin.y,
+        org_z: ray.origin.z,
+        tnear: ray.tnear.max(0.0),
+        dir_x: ray.direction.x,
+        dir_y: ray.direction.y,
+        dir_z: ray.direction.z,
+        time: 0.0,
+        tfar: ray.tfar,
+        mask: u32::MAX,
+        id: 0,
+        flags: 0,
     }
 }
 
@@ -531,11 +445,6 @@ impl Drop for TriangleScene {
     }
 }
 
-/// Relative size of [`TriangleScene::offset`]: `2^-13 ~ 1.2e-4` of the scene scale, about 1000 `f32` ulps of the
-/// largest coordinate (Embree's hit distances are accurate to a few ulps of the coordinates involved), and far below
-/// any patch size worth simulating.
-pub const RELATIVE_OFFSET: f32 = 1.0 / 8192.0;
-
 /// Arguments for `rtcOccluded*` as `rtcInitOccludedArguments` (an inline C function the bindings lack) sets them.
 fn occluded_args() -> sys::RTCOccludedArguments {
     sys::RTCOccludedArguments {
@@ -559,20 +468,19 @@ impl TriangleScene {
     }
 
     /// The absolute offset (scene units) to cut from both ends of a segment between two surface points:
-    /// [`RELATIVE_OFFSET`] times the scene scale (the larger of the bounding-box diagonal and the largest absolute
-    /// coordinate). See [`Ray::segment`].
+    /// [`crate::raycast::offset_for`] of the scene's vertices. See [`Ray::segment`].
     #[must_use]
     pub fn offset(&self) -> f32 {
         self.scale * RELATIVE_OFFSET
     }
 
-    /// Whether anything in the scene lies on `ray` (any hit with `tnear <= t <= tfar`).
+    /// Whether anything in the scene lies on `ray` (any hit with `tnear < t <= tfar`).
     #[must_use]
     pub fn occluded(&self, ray: &Ray) -> bool {
         if ray.is_empty() {
             return false;
         }
-        let mut raw = ray.to_raw();
+        let mut raw = to_raw(ray);
         let mut args = occluded_args();
         // SAFETY: `self.raw` is a committed scene (see the `Sync` impl); `raw` and `args` are valid, properly
         // aligned (`RTCRay` is `repr(align(16))`) locals that outlive the call.
@@ -607,7 +515,7 @@ impl TriangleScene {
             if ray.is_empty() {
                 continue;
             }
-            let r = ray.to_raw();
+            let r = to_raw(ray);
             packet.org_x[k] = r.org_x;
             packet.org_y[k] = r.org_y;
             packet.org_z[k] = r.org_z;
@@ -650,14 +558,14 @@ impl TriangleScene {
         }
     }
 
-    /// The closest hit on `ray` within `[tnear, tfar]`, if any.
+    /// The closest hit on `ray` within `(tnear, tfar]`, if any.
     #[must_use]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         if ray.is_empty() {
             return None;
         }
         let mut rayhit = sys::RTCRayHit {
-            ray: ray.to_raw(),
+            ray: to_raw(ray),
             hit: sys::RTCHit {
                 Ng_x: 0.0,
                 Ng_y: 0.0,
@@ -693,5 +601,19 @@ impl TriangleScene {
             barycentric: [hit.u, hit.v],
             normal,
         })
+    }
+}
+
+impl RayCaster for TriangleScene {
+    fn offset(&self) -> f32 {
+        TriangleScene::offset(self)
+    }
+
+    fn occluded(&self, ray: &Ray) -> bool {
+        TriangleScene::occluded(self, ray)
+    }
+
+    fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
+        TriangleScene::occluded_many(self, rays, occluded);
     }
 }

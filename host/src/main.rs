@@ -290,7 +290,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             match format {
                 Format::Csv => {
                     writeln!(out, "i,j,f_ij")?;
-                    for i in 0..p.form_factors.n {
+                    for i in 0..p.form_factors.n() {
                         for (j, f) in p.form_factors.row(i) {
                             writeln!(out, "{i},{j},{f}")?;
                         }
@@ -298,7 +298,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
                 Format::Json => {
                     let rows: Vec<Vec<(usize, f64)>> =
-                        (0..p.form_factors.n).map(|i| p.form_factors.row(i).collect()).collect();
+                        (0..p.form_factors.n()).map(|i| p.form_factors.row(i).collect()).collect();
                     let s = &p.stats;
                     let doc = serde_json::json!({
                         "patches": s.patches,

@@ -475,10 +475,8 @@ pub struct RefineInput<'a> {
     pub emission: &'a [[f64; 3]],
     /// Reflectance per patch.
     pub reflectance: &'a [[f64; 3]],
-    /// The form factors of this mesh.
+    /// The form factors of this mesh, their flags marking partly visible pairs (shadow boundaries).
     pub form_factors: &'a crate::patch::FormFactorMatrix,
-    /// One flag per stored entry of `form_factors`: the pair is partly visible (a shadow boundary).
-    pub partly_visible: &'a [bool],
 }
 
 /// Why a patch is worth splitting: three estimates of how much its radiosity changes across it (W/m^2).
@@ -510,7 +508,7 @@ fn luminance(c: &[f64; 3]) -> f64 {
 /// The [`RefineScore`] of every patch.
 ///
 /// # Panics
-/// If the slices do not all have one entry per patch (and `partly_visible` one per stored entry).
+/// If the slices and the matrix do not all have one entry per patch.
 #[must_use]
 pub fn refine_scores(input: &RefineInput<'_>) -> Vec<RefineScore> {
     let n = input.patches.len();
@@ -518,9 +516,8 @@ pub fn refine_scores(input: &RefineInput<'_>) -> Vec<RefineScore> {
         input.radiosity.len() == n
             && input.emission.len() == n
             && input.reflectance.len() == n
-            && input.form_factors.n == n
-            && input.partly_visible.len() == input.form_factors.nonzeros(),
-        "one value per patch and one flag per form factor"
+            && input.form_factors.n() == n,
+        "one value per patch"
     );
     let b: Vec<f64> = input.radiosity.iter().map(luminance).collect();
     let neighbours = adjacency(input.patches);
@@ -529,19 +526,16 @@ pub fn refine_scores(input: &RefineInput<'_>) -> Vec<RefineScore> {
         .map(|i| {
             let rho = luminance(&input.reflectance[i]);
             let gradient = neighbours[i].iter().map(|&j| (b[i] - b[j]).abs()).fold(0.0, f64::max);
-            let range = ff.row_start[i]..ff.row_start[i + 1];
             let mut shadow = 0.0;
             let mut irradiance = 0.0;
-            for k in range.clone() {
-                let (j, f) = (ff.col[k] as usize, ff.value[k]);
+            for ((j, f), &partly_visible) in ff.row(i).zip(ff.row_flags(i)) {
                 irradiance += f * b[j];
-                if input.partly_visible[k] {
+                if partly_visible {
                     shadow += f * b[j];
                 }
             }
             let mut contact = 0.0f64;
-            for k in range {
-                let (j, f) = (ff.col[k] as usize, ff.value[k]);
+            for (j, f) in ff.row(i) {
                 if touches(&input.patches[i], &input.patches[j]) {
                     contact = contact.max((0.5 - f).max(0.0) * (b[j] - irradiance).abs());
                 }

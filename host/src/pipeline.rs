@@ -14,7 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::formfactor::{estimate_form_factors, FormFactorOptions, FormFactorStats};
+use crate::formfactor::{compute_form_factors, FormFactorOptions, FormFactorStats};
 use crate::lighting::PatchLighting;
 use crate::mesh::{
     mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions,
@@ -67,7 +67,7 @@ pub struct Prepared {
     pub patches: Vec<Patch>,
     /// Reflectance and emission per patch.
     pub lighting: PatchLighting,
-    /// Form factors between the patches.
+    /// Form factors between the patches (reciprocal, rows at most 1), their flags marking partly visible pairs.
     pub form_factors: FormFactorMatrix,
     /// Statistics of the form-factor computation (before rows above 1 were scaled).
     pub stats: FormFactorStats,
@@ -75,8 +75,6 @@ pub struct Prepared {
     pub clamp: RowClamp,
     /// How far apart the two estimates of each pair's energy exchange were, before averaging.
     pub reciprocity_change: ReciprocityChange,
-    /// One flag per stored entry of `form_factors`: the pair is partly visible (a shadow boundary crosses it).
-    pub partly_visible: Vec<bool>,
     /// The meshing passes: the uniform mesh, then one entry per refinement pass that split patches.
     pub mesh_passes: Vec<MeshPass>,
 }
@@ -163,10 +161,9 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
     let mut patches = meshed.patches;
     let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0 }];
     loop {
-        let estimate = estimate_form_factors(&patches, &options.form_factors)
+        let (estimate, stats) = compute_form_factors(&patches, &options.form_factors)
             .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
-        let stats = estimate.stats;
-        let mut form_factors = estimate.matrix.clone();
+        let mut form_factors = estimate.clone();
         let areas: Vec<f64> = patches.iter().map(|q| q.area).collect();
         let mut reciprocity_change = form_factors.enforce_reciprocity(&areas);
         if let Some(c) = &stats.closure {
@@ -191,8 +188,7 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
                 radiosity: &solution[0].b,
                 emission: &emission,
                 reflectance: &lighting.rho,
-                form_factors: &estimate.matrix,
-                partly_visible: &estimate.partly_visible,
+                form_factors: &estimate,
             };
             let scores = refine_scores(&input);
             let passes_left = refine_options.passes + 1 - mesh_passes.len();
@@ -207,9 +203,6 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
                 let counts: Vec<String> = mesh_passes.iter().map(|p| p.patches.to_string()).collect();
                 eprintln!("adaptive meshing: patches per pass {}", counts.join(" -> "));
             }
-            // Form factors and patches are recomputed from the estimate after closure: keep the flags aligned
-            // with the final (reciprocal, clamped) matrix's entries by looking each entry up in the estimate.
-            let partly_visible = align_flags(&estimate.matrix, &estimate.partly_visible, &form_factors);
             return Ok(Prepared {
                 scene,
                 patches,
@@ -218,7 +211,6 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
                 stats,
                 clamp,
                 reciprocity_change,
-                partly_visible,
                 mesh_passes,
             });
         }
@@ -234,19 +226,6 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             );
         }
     }
-}
-
-/// The flags of `from`'s entries carried over to `to`'s entries (an entry `to` has and `from` lacks, a mirror
-/// entry added for reciprocity, takes its mirror's flag; visibility is symmetric).
-fn align_flags(from: &FormFactorMatrix, flags: &[bool], to: &FormFactorMatrix) -> Vec<bool> {
-    let lookup = |i: usize, j: usize| -> Option<bool> {
-        let range = from.row_start[i]..from.row_start[i + 1];
-        from.col[range.clone()].binary_search(&(j as u32)).ok().map(|k| flags[range.start + k])
-    };
-    (0..to.n)
-        .flat_map(|i| to.row(i).map(move |(j, _)| (i, j)).collect::<Vec<_>>())
-        .map(|(i, j)| lookup(i, j).or_else(|| lookup(j, i)).unwrap_or(false))
-        .collect()
 }
 
 fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityChange, clamp: &RowClamp) {

@@ -85,15 +85,7 @@ pub enum ReferenceError {
         /// The offending value.
         value: f64,
     },
-    /// The compressed-row structure of the form-factor matrix is inconsistent.
-    #[error("form-factor matrix is malformed at row {row}: {reason}")]
-    MalformedMatrix {
-        /// Row where the problem was found.
-        row: usize,
-        /// What is wrong.
-        reason: &'static str,
-    },
-    /// A form factor is negative, NaN or infinite.
+    /// A form factor is negative (the matrix's constructor already rejects NaN and infinities).
     #[error("form factor F[{row}][{col}] = {value} is not a finite nonnegative number")]
     FormFactorOutOfRange {
         /// Row (emitting patch).
@@ -228,9 +220,9 @@ impl<'a> RadiositySystem<'a> {
     /// Validates `rho` and `ff`, allowing row sums up to `1 + row_sum_tolerance`.
     ///
     /// # Errors
-    /// A length mismatch, a non-finite or out-of-range reflectance or form factor, a malformed compressed-row
-    /// structure (row starts not increasing, column out of range or not strictly increasing), a row sum above
-    /// `1 + row_sum_tolerance`, or `rho_i * s_i >= 1` for some patch and channel.
+    /// A length mismatch, a non-finite or out-of-range reflectance, a negative form factor, a row sum above
+    /// `1 + row_sum_tolerance`, or `rho_i * s_i >= 1` for some patch and channel. (The matrix's structure and
+    /// finite values are guaranteed by [`FormFactorMatrix::new`].)
     pub fn with_row_sum_tolerance(
         rho: &'a [[f64; 3]],
         ff: &'a FormFactorMatrix,
@@ -239,7 +231,7 @@ impl<'a> RadiositySystem<'a> {
         if !(row_sum_tolerance.is_finite() && row_sum_tolerance >= 0.0) {
             return Err(ReferenceError::InvalidTolerance(row_sum_tolerance));
         }
-        let n = ff.n;
+        let n = ff.n();
         check_len("reflectance", rho, n)?;
         check_finite("reflectance", rho)?;
         for (patch, r) in rho.iter().enumerate() {
@@ -249,48 +241,11 @@ impl<'a> RadiositySystem<'a> {
                 }
             }
         }
-        check_len("form-factor row starts", &ff.row_start, n + 1)?;
-        if ff.col.len() != ff.value.len() {
-            return Err(ReferenceError::LengthMismatch {
-                what: "form-factor values",
-                expected: ff.col.len(),
-                found: ff.value.len(),
-            });
-        }
-        if ff.row_start[0] != 0 {
-            return Err(ReferenceError::MalformedMatrix { row: 0, reason: "first row does not start at 0" });
-        }
-        if ff.row_start[n] != ff.col.len() {
-            return Err(ReferenceError::MalformedMatrix {
-                row: n,
-                reason: "last row end is not the entry count",
-            });
-        }
         let mut contraction = [0.0f64; 3];
         for (row, rho_row) in rho.iter().enumerate() {
-            let (start, end) = (ff.row_start[row], ff.row_start[row + 1]);
-            if start > end {
-                return Err(ReferenceError::MalformedMatrix { row, reason: "row start decreases" });
-            }
-            if end > ff.col.len() {
-                return Err(ReferenceError::MalformedMatrix { row, reason: "row ends past the entries" });
-            }
-            let mut previous: Option<usize> = None;
             let mut sum = 0.0;
-            for k in start..end {
-                let col = ff.col[k] as usize;
-                let value = ff.value[k];
-                if col >= n {
-                    return Err(ReferenceError::MalformedMatrix { row, reason: "column index out of range" });
-                }
-                if previous.is_some_and(|p| p >= col) {
-                    return Err(ReferenceError::MalformedMatrix {
-                        row,
-                        reason: "columns not strictly increasing",
-                    });
-                }
-                previous = Some(col);
-                if !(value.is_finite() && value >= 0.0) {
+            for (col, value) in ff.row(row) {
+                if value < 0.0 {
                     return Err(ReferenceError::FormFactorOutOfRange { row, col, value });
                 }
                 sum += value;
@@ -312,13 +267,13 @@ impl<'a> RadiositySystem<'a> {
     /// Number of patches.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.ff.n
+        self.ff.n()
     }
 
     /// Whether the system has no patches.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.ff.n == 0
+        self.ff.n() == 0
     }
 
     /// Reflectance per patch.

@@ -51,8 +51,9 @@ use thiserror::Error;
 
 use crate::bake::codec_name;
 use crate::check::{check, Arith, CheckError, CheckOptions, QUANTIZATION, SPARSIFICATION};
-use crate::formfactor::{FormFactorOptions, SplitMix64};
+use crate::formfactor::FormFactorOptions;
 use crate::pipeline::{prepare, PrepareOptions};
+use crate::rng::SplitMix64;
 
 /// Components the regression tracks, by name ([`crate::check::Component::name`]).
 pub const TRACKED: [&str; 4] = [SPARSIFICATION, QUANTIZATION, "arithmetic (f32)", "arithmetic (fixed)"];
@@ -174,14 +175,11 @@ impl Stat {
 /// Scales every pair's form factors by `1 + JITTER u` (see [`JITTER`]), `u` in `(-1, 1)` from the form factors'
 /// generator seeded by `jitter` and the unordered pair, so `A_i F_ij = A_j F_ji` stays as it was.
 pub fn jitter_form_factors(ff: &mut crate::patch::FormFactorMatrix, jitter: u64) {
-    for i in 0..ff.n {
-        for k in ff.row_start[i]..ff.row_start[i + 1] {
-            let j = ff.col[k] as usize;
-            let (lo, hi) = (i.min(j) as u64, i.max(j) as u64);
-            let u = 2.0 * SplitMix64::for_stream(jitter, lo, hi).open_unit() - 1.0;
-            ff.value[k] *= 1.0 + JITTER * u;
-        }
-    }
+    ff.map_values(|i, j, f| {
+        let (lo, hi) = (i.min(j) as u64, i.max(j) as u64);
+        let u = 2.0 * SplitMix64::for_stream(jitter, lo, hi).open_unit() - 1.0;
+        f * (1.0 + JITTER * u)
+    });
 }
 
 /// A tracked component's two metrics.
@@ -758,12 +756,13 @@ mod tests {
     /// A reciprocal 3-patch matrix (areas 1, 2, 4).
     fn matrix() -> FormFactorMatrix {
         // A_0 F_01 = 0.2 = A_1 F_10, A_0 F_02 = 0.4 = A_2 F_20, A_1 F_12 = 0.6 = A_2 F_21.
-        FormFactorMatrix {
-            n: 3,
-            row_start: vec![0, 2, 4, 6],
-            col: vec![1, 2, 0, 2, 0, 1],
-            value: vec![0.2, 0.4, 0.1, 0.3, 0.1, 0.15],
-        }
+        FormFactorMatrix::new(
+            3,
+            vec![0, 2, 4, 6],
+            vec![1, 2, 0, 2, 0, 1],
+            vec![0.2, 0.4, 0.1, 0.3, 0.1, 0.15],
+        )
+        .unwrap()
     }
 
     #[test]
@@ -777,9 +776,9 @@ mod tests {
         let mut c = matrix();
         jitter_form_factors(&mut c, 2);
         assert_eq!(a, b, "the same jitter seed gives the same matrix");
-        assert_ne!(a.value, c.value, "another seed another matrix");
-        assert_ne!(a.value, base.value, "the jitter changes the entries");
-        let get = |m: &FormFactorMatrix, i: usize, j: usize| m.row(i).find(|&(k, _)| k == j).unwrap().1;
+        assert_ne!(a.values(), c.values(), "another seed another matrix");
+        assert_ne!(a.values(), base.values(), "the jitter changes the entries");
+        let get = |m: &FormFactorMatrix, i: usize, j: usize| m.get(i, j);
         for i in 0..3 {
             for (j, f) in a.row(i) {
                 let f0 = get(&base, i, j);

@@ -111,7 +111,7 @@ fn assert_closed(p: &Prepared) {
     println!("{s:?}");
     assert_eq!(s.escaped_rays, 0);
     assert!(closure.balance.max_residual <= 1e-9, "{closure:?}");
-    for i in 0..p.form_factors.n {
+    for i in 0..p.form_factors.n() {
         let sum = p.form_factors.row_sum(i);
         assert!((sum - 1.0).abs() <= 1e-4, "row {i} sums to {sum}");
     }
@@ -136,6 +136,6 @@ fn furnace_rows_sum_to_one_and_open_cornell_box_is_not_renormalized() {
     let open = prepare(&scene("cornell-box.obj"), &options(Some(282), 4)).unwrap();
     assert!(open.stats.closure.is_none() && open.stats.escaped_rays > 0, "{:?}", open.stats);
     // The open side lets energy escape: every row is at most 1, most well below.
-    let below = (0..open.form_factors.n).filter(|&i| open.form_factors.row_sum(i) < 0.99).count();
-    assert!(below > open.form_factors.n / 2, "{below} of {} rows below 0.99", open.form_factors.n);
+    let below = (0..open.form_factors.n()).filter(|&i| open.form_factors.row_sum(i) < 0.99).count();
+    assert!(below > open.form_factors.n() / 2, "{below} of {} rows below 0.99", open.form_factors.n());
 }

@@ -20,25 +20,9 @@ use radiosity_host::bake::{
 use radiosity_host::inspect::{inspect, inspect_file, InspectError};
 use radiosity_host::lighting::PatchLighting;
 use radiosity_host::patch::{FormFactorMatrix, Patch};
+use radiosity_host::rng::SplitMix64;
 
 const EPS32: f64 = f32::EPSILON as f64;
-
-/// SplitMix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014).
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-}
 
 /// A square patch of side `sqrt(area)` in the z = 0 plane (only area and material matter to a bake).
 fn patch(k: usize, area: f64, material: usize) -> Patch {
@@ -49,18 +33,7 @@ fn patch(k: usize, area: f64, material: usize) -> Patch {
 }
 
 fn dense_to_csr(rows: &[Vec<f64>]) -> FormFactorMatrix {
-    let n = rows.len();
-    let mut m = FormFactorMatrix { n, row_start: vec![0], col: Vec::new(), value: Vec::new() };
-    for row in rows {
-        for (j, &f) in row.iter().enumerate() {
-            if f > 0.0 {
-                m.col.push(j as u32);
-                m.value.push(f);
-            }
-        }
-        m.row_start.push(m.col.len());
-    }
-    m
+    FormFactorMatrix::from_dense(rows).unwrap()
 }
 
 /// A scene: patches, per-material reflectance, lighting and group names, and its form factors.
@@ -120,17 +93,16 @@ fn furnace(n: usize, rho: f64, e: f64) -> TestScene {
 /// A random open, exactly reciprocal scene: areas in `[0.5, 2)`, symmetric couplings `w_ij` with probability
 /// `density`, `F_ij = w_ij / A_i` scaled so the largest row sum is 0.9 (so `A_i F_ij = A_j F_ji`).
 fn random_scene(seed: u64, n: usize, density: f64) -> TestScene {
-    let mut rng = SplitMix64(seed);
-    let materials: Vec<[f64; 3]> = (0..4)
-        .map(|_| [0.2 + 0.6 * rng.uniform(), 0.2 + 0.6 * rng.uniform(), 0.2 + 0.6 * rng.uniform()])
-        .collect();
-    let area: Vec<f64> = (0..n).map(|_| 0.5 + 1.5 * rng.uniform()).collect();
+    let mut rng = SplitMix64::new(seed);
+    let materials: Vec<[f64; 3]> =
+        (0..4).map(|_| [0.2 + 0.6 * rng.unit(), 0.2 + 0.6 * rng.unit(), 0.2 + 0.6 * rng.unit()]).collect();
+    let area: Vec<f64> = (0..n).map(|_| 0.5 + 1.5 * rng.unit()).collect();
     let mut w = vec![vec![0.0; n]; n];
     for i in 0..n {
         for j in i + 1..n {
-            if rng.uniform() < density {
+            if rng.unit() < density {
                 // Spread over three decades so sparsification has small entries to drop.
-                let v = 10f64.powf(-3.0 * rng.uniform());
+                let v = 10f64.powf(-3.0 * rng.unit());
                 w[i][j] = v;
                 w[j][i] = v;
             }
@@ -269,7 +241,7 @@ fn threshold_zero_drops_nothing() {
 #[test]
 fn energy_dropped_is_the_sum_of_dropped_form_factors() {
     let scene = lit_scene(2, 60, 0.4, [1.0; 3]);
-    let n = scene.ff.n;
+    let n = scene.ff.n();
     let area: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
     let t = 0.05;
     let s = sparsify(&scene.ff, &area, t).unwrap();
@@ -639,10 +611,8 @@ fn static_base_is_a_fixed_point_of_shooting_without_reciprocity() {
     use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
     let mut scene = lit_scene(9, 40, 0.4, [1.0; 3]);
     // Perturb every entry by up to 5%, as a Monte Carlo estimate would (row sums stay <= 0.9 * 1.05).
-    let mut rng = SplitMix64(99);
-    for v in &mut scene.ff.value {
-        *v *= 0.95 + 0.1 * rng.uniform();
-    }
+    let mut rng = SplitMix64::new(99);
+    scene.ff.map_values(|_, _, f| f * (0.95 + 0.1 * rng.unit()));
     let baked = scene.bake(0.05, FfCodec::FLOAT16);
     assert!(baked.report.error.reciprocity.rel_l2 > 1e-3, "the input must not be reciprocal");
     assert!(baked.report.energy_dropped.max_row_fraction > 0.01, "sparsify must drop entries");

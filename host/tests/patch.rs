@@ -1,17 +1,24 @@
 //! Reciprocity enforcement and row clamping of form-factor matrices.
 
-use radiosity_host::patch::{FormFactorMatrix, RowClamp};
+use radiosity_host::patch::{FormFactorMatrix, MatrixError, RowClamp};
 
 fn matrix(n: usize, rows: &[&[(u32, f64)]]) -> FormFactorMatrix {
-    let mut m = FormFactorMatrix { n, row_start: vec![0], col: Vec::new(), value: Vec::new() };
+    let flagged: Vec<Vec<(u32, f64, bool)>> =
+        rows.iter().map(|row| row.iter().map(|&(j, f)| (j, f, false)).collect()).collect();
+    flagged_matrix(n, &flagged)
+}
+
+fn flagged_matrix(n: usize, rows: &[Vec<(u32, f64, bool)>]) -> FormFactorMatrix {
+    let (mut row_start, mut col, mut value, mut flags) = (vec![0], Vec::new(), Vec::new(), Vec::new());
     for row in rows {
-        for &(j, f) in *row {
-            m.col.push(j);
-            m.value.push(f);
+        for &(j, f, flag) in row {
+            col.push(j);
+            value.push(f);
+            flags.push(flag);
         }
-        m.row_start.push(m.col.len());
+        row_start.push(col.len());
     }
-    m
+    FormFactorMatrix::with_flags(n, row_start, col, value, flags).unwrap()
 }
 
 /// Tolerance for a handful of f64 operations on values of order 1.
@@ -67,4 +74,84 @@ fn clamping_scales_only_rows_above_one_and_keeps_reciprocity() {
     assert_eq!(open.clamp_rows_to_one(), RowClamp::default());
     assert_eq!(open, untouched);
     assert_ne!(m, before);
+}
+
+#[test]
+fn the_constructor_rejects_every_malformed_part() {
+    let new =
+        |n, starts: Vec<usize>, col: Vec<u32>, value: Vec<f64>| FormFactorMatrix::new(n, starts, col, value);
+    let good = new(2, vec![0, 1, 2], vec![1, 0], vec![0.1, 0.2]).unwrap();
+    assert_eq!((good.n(), good.nonzeros(), good.get(1, 0), good.get(0, 0)), (2, 2, 0.2, 0.0));
+    assert_eq!(good.flags(), [false, false]);
+    assert_eq!(
+        new(2, vec![0, 1], vec![1], vec![0.1]).unwrap_err(),
+        MatrixError::RowStarts { n: 2, found: 2 }
+    );
+    assert_eq!(
+        new(2, vec![0, 1, 2], vec![1, 0], vec![0.1]).unwrap_err(),
+        MatrixError::LengthMismatch { what: "values", expected: 2, found: 1 }
+    );
+    assert_eq!(
+        FormFactorMatrix::with_flags(1, vec![0, 0], vec![], vec![], vec![true]).unwrap_err(),
+        MatrixError::LengthMismatch { what: "flags", expected: 0, found: 1 }
+    );
+    assert_eq!(
+        new(2, vec![0, 1, 1], vec![1, 0], vec![0.1, 0.2]).unwrap_err(),
+        MatrixError::RowBounds { start: 0, end: 1, entries: 2 }
+    );
+    assert_eq!(
+        new(2, vec![0, 2, 1], vec![1, 0], vec![0.1, 0.2]).unwrap_err(),
+        MatrixError::RowBounds { start: 0, end: 1, entries: 2 }
+    );
+    assert_eq!(
+        new(3, vec![0, 2, 1, 2], vec![1, 2], vec![0.1, 0.2]).unwrap_err(),
+        MatrixError::RowStartDecreases { row: 1 }
+    );
+    assert_eq!(
+        new(2, vec![0, 1, 2], vec![1, 2], vec![0.1, 0.2]).unwrap_err(),
+        MatrixError::ColumnOutOfRange { row: 1, col: 2, n: 2 }
+    );
+    assert_eq!(
+        new(3, vec![0, 2, 2, 2], vec![2, 1], vec![0.1, 0.2]).unwrap_err(),
+        MatrixError::ColumnsNotIncreasing { row: 0, col: 1 }
+    );
+    assert_eq!(
+        new(3, vec![0, 2, 2, 2], vec![1, 1], vec![0.1, 0.2]).unwrap_err(),
+        MatrixError::ColumnsNotIncreasing { row: 0, col: 1 }
+    );
+    assert!(matches!(
+        new(2, vec![0, 1, 2], vec![1, 0], vec![0.1, f64::NAN]).unwrap_err(),
+        MatrixError::NonFinite { row: 1, col: 0, .. }
+    ));
+    assert_eq!(FormFactorMatrix::default(), new(0, vec![0], vec![], vec![]).unwrap());
+    let dense = FormFactorMatrix::from_dense(&[vec![0.0, 0.5], vec![0.25, 0.0]]).unwrap();
+    assert_eq!(dense, new(2, vec![0, 1, 2], vec![1, 0], vec![0.5, 0.25]).unwrap());
+    assert!(matches!(
+        FormFactorMatrix::from_dense(&[vec![0.0, 0.5, 0.1], vec![0.25, 0.0]]).unwrap_err(),
+        MatrixError::ColumnOutOfRange { row: 0, col: 2, n: 2 }
+    ));
+}
+
+/// The partly-visible flags follow their entries through every transform: a mirror entry added for
+/// reciprocity takes its pair's flag, a merged pair is flagged if either side was, dropped entries drop theirs.
+#[test]
+fn flags_follow_their_entries_through_transforms() {
+    let area = [1.0, 1.0, 1.0];
+    let rows = vec![vec![(1, 0.3, true), (2, 0.4, false)], vec![(0, 0.3, false)], vec![]];
+    let mut m = flagged_matrix(3, &rows);
+    m.enforce_reciprocity(&area);
+    let flag = |m: &FormFactorMatrix, i: usize, j: usize| {
+        let k = m.row_columns(i).binary_search(&(j as u32)).unwrap();
+        m.row_flags(i)[k]
+    };
+    assert!(flag(&m, 0, 1) && flag(&m, 1, 0), "either side flagged flags the pair");
+    assert!(!flag(&m, 0, 2) && !flag(&m, 2, 0), "the mirror of an unflagged entry is unflagged");
+    assert_eq!(m.flags().len(), m.nonzeros());
+    m.map_values(|_, _, f| 2.0 * f);
+    assert!((m.get(0, 1) - 0.6).abs() < TOL && flag(&m, 1, 0));
+    let kept = m.retain_entries(|k| m.columns()[k] != 0);
+    assert_eq!(kept.nonzeros(), 2);
+    assert!(flag(&kept, 0, 1) && !flag(&kept, 0, 2));
+    let entries: Vec<(usize, usize, f64)> = kept.entries().collect();
+    assert_eq!(entries.iter().map(|&(i, j, _)| (i, j)).collect::<Vec<_>>(), [(0, 1), (0, 2)]);
 }

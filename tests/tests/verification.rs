@@ -199,7 +199,7 @@ fn singular_pairs_bounded_or_reported() {
     );
     assert!((est - f_fc).abs() <= 1.0 - f_fc, "floor->ceiling {est} vs {f_fc}");
     // Reciprocity after enforcement, to f64 rounding.
-    for i in 0..f.n {
+    for i in 0..f.n() {
         for (j, fij) in f.row(i) {
             let (ai, aj) = (p.patches[i].area, p.patches[j].area);
             let gap = (ai * fij - aj * get(j, i)).abs();

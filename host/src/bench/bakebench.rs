@@ -17,6 +17,7 @@ use super::BenchError;
 use crate::embree::{Ray, TriangleScene};
 use crate::formfactor;
 use crate::patch::{FormFactorMatrix, Patch};
+use crate::rng::SplitMix64;
 
 /// The occluder scene of `patches`, built by the form-factor estimator's own [`formfactor::occluder_scene`].
 ///
@@ -26,26 +27,8 @@ pub fn occluder_scene(patches: &[Patch], robust: bool) -> Result<TriangleScene, 
     formfactor::occluder_scene(patches, robust).map_err(|e| BenchError::Embree(e.to_string()))
 }
 
-/// A small deterministic generator (SplitMix64, Steele, Lea, Flood, "Fast splittable pseudorandom number
-/// generators", OOPSLA 2014).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// A uniformly random point of a convex polygon: a fan triangle chosen by area, then a uniform point in it.
-fn point_in(p: &Patch, rng: &mut Rng) -> DVec3 {
+fn point_in(p: &Patch, rng: &mut SplitMix64) -> DVec3 {
     let v = &p.vertices;
     let tri_area = |k: usize| (v[k] - v[0]).cross(v[k + 1] - v[0]).length() * 0.5;
     let total: f64 = (1..v.len() - 1).map(tri_area).sum();
@@ -62,9 +45,9 @@ fn point_in(p: &Patch, rng: &mut Rng) -> DVec3 {
 /// Rays between pairs with a nonzero form factor (see the module docs).
 #[must_use]
 pub fn pair_rays(patches: &[Patch], ff: &FormFactorMatrix, rays_per_pair: usize, offset: f32) -> Vec<Ray> {
-    let mut rng = Rng(0x5EED);
+    let mut rng = SplitMix64::new(0x5EED);
     let mut rays = Vec::new();
-    for i in 0..ff.n {
+    for i in 0..ff.n() {
         for (j, _) in ff.row(i).filter(|&(j, f)| j > i && f > 0.0) {
             let (pi, pj) = (&patches[i], &patches[j]);
             for _ in 0..rays_per_pair {

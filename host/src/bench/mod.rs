@@ -435,7 +435,7 @@ fn exact_transfer(p: &Prepared) -> Result<TransferVectors, BenchError> {
 /// Size of the f64 CSR matrix the host methods read (values, column indices, row starts).
 fn csr_bytes(p: &Prepared) -> usize {
     let ff = &p.form_factors;
-    ff.value.len() * 8 + ff.col.len() * 4 + ff.row_start.len() * 8
+    ff.values().len() * 8 + ff.columns().len() * 4 + ff.row_starts().len() * 8
 }
 
 struct SceneRun<'a> {

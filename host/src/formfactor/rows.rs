@@ -1,0 +1,288 @@
+//! The two passes over rows: unoccluded form factors (kernels, no rays) and visible fractions (rays), plus the
+//! escape rays that decide whether the scene is closed. Each row's work is independent, so rows run in parallel
+//! and the result does not depend on the thread count.
+
+use std::time::Duration;
+
+use glam::{DVec3, Vec3};
+use indicatif::ProgressBar;
+
+use super::kernel::{point_to_polygon_with, polygon_area};
+use super::nearfield::{
+    clip_to_front, may_see, near, near_field_integral, sliver_strips, Receiver, FAR_FIELD_GAP,
+    NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH,
+};
+use super::options::{FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
+use super::quadrature::{grid, PolygonSampler, Quadrature};
+use crate::patch::Patch;
+use crate::raycast::{Ray, RayCaster};
+use crate::rng::SplitMix64;
+
+/// Unoccluded rows, visibility rows, (escape rays cast, escaped), and (kernel evaluations, wall time of the
+/// kernel phase, wall time of the visibility phase).
+pub(super) type Phases = (Vec<Vec<(u32, f64)>>, Vec<Visibility>, (u64, u64), (u64, Duration, Duration));
+
+pub(super) struct RowContext<'a, C: RayCaster + ?Sized> {
+    pub(super) patches: &'a [Patch],
+    pub(super) samplers: &'a [PolygonSampler],
+    pub(super) quadratures: &'a [Quadrature],
+    /// The lower-order rule of each patch for pairs in the far field ([`FAR_FIELD_GAP`]).
+    pub(super) far_quadratures: &'a [Quadrature],
+    /// Each patch as a receiver of the near-field quadrature.
+    pub(super) receivers: &'a [Receiver<'a>],
+    pub(super) rule: &'a [(f64, f64)],
+    pub(super) scene: &'a C,
+    pub(super) options: &'a FormFactorOptions,
+    pub(super) progress: &'a ProgressBar,
+    /// Diagonal of the patches' bounding box.
+    pub(super) scene_size: f64,
+}
+
+impl<C: RayCaster + ?Sized> RowContext<'_, C> {
+    /// `(rays cast, rays escaped)` for [`ESCAPE_RAYS_PER_PATCH`] cosine-distributed rays from stratified points of
+    /// patch `i` in stratified directions (Malley's method: a stratified point on the unit disk lifted to the
+    /// hemisphere), each tested against everything out to 4 times the scene's size.
+    pub(super) fn escaping_rays(&self, i: usize) -> (u64, u64) {
+        let p = &self.patches[i];
+        let mut rng = SplitMix64::for_stream(self.options.seed ^ 0x5EED_E5CA_9E00_0000, i as u64, u64::MAX);
+        let mut origins = Vec::new();
+        self.samplers[i].stratified(ESCAPE_RAYS_PER_PATCH, &mut rng, &mut origins);
+        rng.shuffle(&mut origins);
+        let (a, b) = grid(ESCAPE_RAYS_PER_PATCH);
+        // An orthonormal frame around the normal (Duff et al., "Building an orthonormal basis, revisited", 2017).
+        let n = p.normal;
+        let sign = 1.0f64.copysign(n.z);
+        let c = -1.0 / (sign + n.z);
+        let d = n.x * n.y * c;
+        let t1 = DVec3::new(1.0 + sign * n.x * n.x * c, sign * d, -sign * n.x);
+        let t2 = DVec3::new(d, sign + n.y * n.y * c, -n.y);
+        let offset = self.scene.offset();
+        let far = 4.0 * self.scene_size as f32;
+        let mut rays = Vec::with_capacity(a * b);
+        for (k, x) in origins.iter().enumerate() {
+            let (s, t) = (
+                ((k % a) as f64 + rng.open_unit()) / a as f64,
+                ((k / a) as f64 + rng.open_unit()) / b as f64,
+            );
+            let (r, phi) = (s.sqrt(), std::f64::consts::TAU * t);
+            let dir = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - s).max(0.0).sqrt();
+            rays.push(Ray::new(x.as_vec3(), dir.normalize().as_vec3(), offset, far));
+        }
+        let mut occluded = vec![false; rays.len()];
+        self.scene.occluded_many(&rays, &mut occluded);
+        // A ray through a crack between triangles (f32 rounding at T-junctions of neighbouring faces' patches) is
+        // not an opening: an escaped ray counts only if two rays from a nearby point, tilted by 1e-3 rad either
+        // way (far wider than an f32 crack, far narrower than a real opening), escape too.
+        let mut escaped = 0;
+        for (ray, _) in rays.iter().zip(&occluded).filter(|(_, &o)| !o) {
+            let d = ray.direction;
+            let tilt = (t1 * 1e-3 + t2 * 1e-3).as_vec3();
+            // Also from a point moved 1 % of the way to the centroid: a ray that starts within the ray offset of a
+            // contact edge can slip past the touching face's edge, which is no opening either.
+            let origin = (ray.origin.as_dvec3() * 0.99 + p.centroid * 0.01).as_vec3();
+            let again = [
+                Ray::new(origin, (d + tilt).normalize(), ray.tnear, ray.tfar),
+                Ray::new(origin, (d - tilt).normalize(), ray.tnear, ray.tfar),
+            ];
+            if !self.scene.occluded(&again[0]) && !self.scene.occluded(&again[1]) {
+                escaped += 1;
+            }
+        }
+        (rays.len() as u64, escaped)
+    }
+
+    /// `U_ij` for every `j` that `i` can see, sorted by `j`, and the kernel evaluations that took.
+    pub(super) fn unoccluded_row(&self, i: usize) -> (Vec<(u32, f64)>, u64) {
+        let patch_i = &self.patches[i];
+        let mut clipped = Vec::new();
+        let mut front = Vec::new();
+        let mut strips = Vec::new();
+        let mut row = Vec::new();
+        let mut kernels = 0u64;
+        for (j, patch_j) in self.patches.iter().enumerate() {
+            if j == i || !may_see(patch_i, patch_j) {
+                continue;
+            }
+            let mut kernel = |x: &DVec3| {
+                kernels += 1;
+                point_to_polygon_with(*x, patch_i.normal, &patch_j.vertices, patch_j.normal, &mut clipped)
+            };
+            // If j's plane cuts i, the kernel is zero on the part of i behind it and has a kink along the cut,
+            // which slows the quadrature; integrate over the front part only (exactly clipped) instead.
+            let domain: &[DVec3] = if clip_to_front(&patch_i.vertices, patch_j, &mut front) {
+                &front
+            } else {
+                &patch_i.vertices
+            };
+            let receiver = &self.receivers[j];
+            let is_near = near(domain, receiver.center, receiver.radius);
+            let u: f64 = if is_near && sliver_strips(domain, &mut strips) {
+                // Near field of a sliver sender: the kernel varies on the scale of the sliver's width (its points
+                // are that close to j) along its whole length, and near j's edges along it too; integrate over
+                // short pieces of it.
+                strips
+                    .iter()
+                    .map(|piece| {
+                        near_field_integral(
+                            piece,
+                            receiver,
+                            self.rule,
+                            patch_i.normal,
+                            0,
+                            SLIVER_DEPTH,
+                            &mut kernel,
+                        )
+                    })
+                    .sum::<f64>()
+                    / patch_i.area
+            } else if is_near {
+                // Near field: j is closer to (part of) i than i's own size, so the kernel varies on a scale the
+                // fixed rule cannot resolve; split the domain towards j.
+                near_field_integral(
+                    domain,
+                    receiver,
+                    self.rule,
+                    patch_i.normal,
+                    NEAR_FIELD_MAX_DEPTH,
+                    SLIVER_DEPTH,
+                    &mut kernel,
+                ) / patch_i.area
+            } else if domain.len() == patch_i.vertices.len() && std::ptr::eq(domain, &patch_i.vertices[..]) {
+                let own = &self.receivers[i];
+                let gap = own.center.distance(receiver.center) - own.radius - receiver.radius;
+                let far = self.options.far_field && gap >= FAR_FIELD_GAP * 2.0 * own.radius;
+                let Quadrature { points, weights } =
+                    if far { &self.far_quadratures[i] } else { &self.quadratures[i] };
+                points.iter().zip(weights).map(|(x, w)| w * kernel(x)).sum()
+            } else {
+                let part = Quadrature::new(domain, self.rule);
+                let fraction = polygon_area(domain) / patch_i.area;
+                fraction * part.points.iter().zip(&part.weights).map(|(x, w)| w * kernel(x)).sum::<f64>()
+            };
+            if u > 0.0 {
+                row.push((j as u32, u));
+            }
+        }
+        self.progress.inc(1);
+        (row, kernels)
+    }
+
+    /// Visible fractions of the pairs `(i, j)`, `j > i`, for which `U_ij > 0` or `U_ji > 0`.
+    ///
+    /// Visibility and the ray weight `cos θ_x cos θ_y / r²` are symmetric in `x` and `y`, so one estimate serves
+    /// `F_ij` and `F_ji`: reciprocity then holds up to the quadrature error of `U`, and each pair costs its rays once.
+    ///
+    /// `row` is `i`'s unoccluded row; `needed` comes with the `j > i` whose unoccluded rows hold `i`.
+    pub(super) fn visibility_row(&self, i: usize, row: &[(u32, f64)], mut needed: Vec<u32>) -> Visibility {
+        needed.extend(row.iter().map(|&(j, _)| j).filter(|&j| j as usize > i));
+        needed.sort_unstable();
+        needed.dedup();
+
+        let patch_i = &self.patches[i];
+        let offset = f64::from(self.scene.offset());
+        let rays_per_pair = self.options.rays_per_pair;
+        let mut result =
+            Visibility { fractions: Vec::with_capacity(needed.len()), rays: 0, pairs_assumed_visible: 0 };
+        let (mut origins, mut targets) = (Vec::new(), Vec::new());
+        let (mut rays, mut weights, mut occluded) = (Vec::new(), Vec::new(), Vec::new());
+        for j in needed {
+            let patch_j = &self.patches[j as usize];
+            // Stratified points on i paired with stratified points on j through random permutations of both (the
+            // pairs are stratified in each patch and random across them).
+            let mut rng = SplitMix64::for_stream(self.options.seed, i as u64, u64::from(j));
+            self.samplers[i].stratified(rays_per_pair, &mut rng, &mut origins);
+            self.samplers[j as usize].stratified(rays_per_pair, &mut rng, &mut targets);
+            rng.shuffle(&mut origins);
+            rng.shuffle(&mut targets);
+            rays.clear();
+            weights.clear();
+            for (x, y) in origins.iter().zip(&targets).take(rays_per_pair) {
+                let d = *y - *x;
+                let r2 = d.length_squared();
+                // cos θ_x cos θ_y / r² (π cancels in the ratio); zero where either point is behind the other's
+                // plane, where the integrand vanishes.
+                let w = (patch_i.normal.dot(d) * -patch_j.normal.dot(d)).max(0.0) / (r2 * r2);
+                if w > 0.0 && w.is_finite() {
+                    rays.push(segment(*x, *y, offset));
+                    weights.push(w);
+                }
+            }
+            occluded.clear();
+            occluded.resize(rays.len(), false);
+            self.scene.occluded_many(&rays, &mut occluded);
+            result.rays += rays.len() as u64;
+            let total: f64 = weights.iter().sum();
+            let visible: f64 =
+                weights.iter().zip(&occluded).filter(|(_, &blocked)| !blocked).map(|(w, _)| w).sum();
+            let fraction = if total > 0.0 {
+                visible / total
+            } else {
+                // Every ray fell where the kernel vanishes (j mostly behind i's horizon): no evidence either way;
+                // NaN marks it, and the pair is taken as visible.
+                result.pairs_assumed_visible += 1;
+                f64::NAN
+            };
+            result.fractions.push((j, fraction));
+        }
+        self.progress.inc(1);
+        result
+    }
+}
+
+/// The visible fractions a row computed: for pairs `(i, j)` with `j > i`, sorted by `j`.
+pub(super) struct Visibility {
+    pub(super) fractions: Vec<(u32, f64)>,
+    pub(super) rays: u64,
+    pub(super) pairs_assumed_visible: u64,
+}
+
+impl Visibility {
+    /// The visible fraction of pair `(i, j)` (this row is `i < j`); 1 if `j` needed none, which cannot happen for
+    /// an entry of either unoccluded row since phase 2 covers both.
+    pub(super) fn fraction_for(&self, j: u32) -> f64 {
+        match self.fractions.binary_search_by_key(&j, |&(c, _)| c) {
+            Ok(k) => self.fractions[k].1,
+            Err(_) => 1.0,
+        }
+    }
+}
+
+/// Visible fractions looked up in row-major order (rows ascending, columns ascending within a row) in O(1)
+/// amortized: pair `(i, j)` lives in row `min(i, j)`, and both that row's own lookups (`j > i`) and the later rows'
+/// lookups into it (`j < i`, with `i` ascending) ask for ascending keys, so a cursor per row only moves forward.
+pub(super) struct FractionWalk<'a> {
+    pub(super) visibility: &'a [Visibility],
+    /// Per row `r`: the cursor of the lookups from rows below it (`j = r < i`).
+    pub(super) below: Vec<usize>,
+}
+
+impl<'a> FractionWalk<'a> {
+    pub(super) fn new(visibility: &'a [Visibility]) -> Self {
+        FractionWalk { visibility, below: vec![0; visibility.len()] }
+    }
+
+    /// `v_ij` as [`Visibility::fraction_for`] gives it; `own` is row `i`'s cursor into its own fractions (start
+    /// each row at 0).
+    pub(super) fn get(&mut self, i: usize, j: usize, own: &mut usize) -> f64 {
+        let (row, cursor, key) = if j > i {
+            (&self.visibility[i].fractions, own, j)
+        } else {
+            (&self.visibility[j].fractions, &mut self.below[j], i)
+        };
+        while row.get(*cursor).is_some_and(|&(c, _)| (c as usize) < key) {
+            *cursor += 1;
+        }
+        match row.get(*cursor) {
+            Some(&(c, v)) if c as usize == key => v,
+            _ => 1.0,
+        }
+    }
+}
+
+pub(super) fn segment(x: DVec3, y: DVec3, offset: f64) -> Ray {
+    // Offsets are computed in f64 from the f64 segment length, then the ray is handed to Embree in f32.
+    let length = (y - x).length();
+    let cut = if length > 0.0 { offset / length } else { 1.0 };
+    let from: Vec3 = x.as_vec3();
+    Ray::new(from, y.as_vec3() - from, cut as f32, (1.0 - cut) as f32)
+}

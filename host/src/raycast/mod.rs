@@ -1,0 +1,129 @@
+//! Occlusion queries behind one trait, so the form-factor estimator is independent of the ray caster.
+//!
+//! [`RayCaster`] is what the estimator asks of a scene: is anything on this segment, for batches of segments,
+//! and the offset by which segments between two surface points are shortened. Two casters implement it:
+//! - [`crate::embree::TriangleScene`], Embree's BVH and packet traversal: the production caster.
+//! - [`TriangleBvh`], a small pure-Rust BVH with an f64 ray-triangle test: no native library, so unit tests of
+//!   everything that only needs occlusion run without Embree, and a test checks Embree against it.
+//!
+//! # Semantics (Embree's, which every caster follows)
+//! - A [`Ray`] covers `origin + t * direction` for `tnear < t <= tfar`: `tnear` is exclusive, `tfar`
+//!   inclusive, so a segment that ends exactly on a surface hits it. [`Ray::segment`] therefore pulls both ends
+//!   in by an absolute offset ([`offset_for`]), so a segment from a point on one surface to a point on another
+//!   is tested only between the two surfaces, and a ray that starts on a surface does not hit it through rounding.
+//! - A negative `tnear` counts as 0. A ray with `tnear > tfar`, a non-finite origin or direction, or NaN bounds
+//!   is empty ([`Ray::is_empty`]): it is never occluded.
+//! - Triangles are two-sided (no back-face culling); a hit on a triangle's edge or vertex counts; degenerate
+//!   (zero-area) triangles are never hit.
+//! - Casters differ only for rays that pass within rounding of a triangle's edge or end within rounding of a
+//!   surface: Embree tests in `f32`, [`TriangleBvh`] in `f64` from the same `f32` data.
+
+mod bvh;
+
+pub(crate) use bvh::check_mesh;
+pub use bvh::{MeshInputError, TriangleBvh};
+
+use glam::Vec3;
+
+/// A ray or segment for occlusion queries: the points `origin + t * direction` with `tnear < t <= tfar`.
+///
+/// A ray with `tnear > tfar`, a non-finite origin or direction, or NaN bounds is empty: it is never occluded and
+/// hits nothing. A negative `tnear` is raised to 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start point.
+    pub origin: Vec3,
+    /// Direction; need not be unit length (then `t` is in units of its length).
+    pub direction: Vec3,
+    /// Bound below which nothing is tested (exclusive), `>= 0`.
+    pub tnear: f32,
+    /// Largest `t` tested (inclusive).
+    pub tfar: f32,
+}
+
+impl Ray {
+    /// A ray from `origin` along `direction`, for `tnear < t <= tfar`.
+    #[must_use]
+    pub fn new(origin: Vec3, direction: Vec3, tnear: f32, tfar: f32) -> Self {
+        Self { origin, direction, tnear, tfar }
+    }
+
+    /// The open segment from `from` to `to`, with `offset` (in scene units) cut from each end.
+    ///
+    /// Use [`RayCaster::offset`] for `offset`. The direction is `to - from`, so `t` runs from 0 at `from` to 1 at
+    /// `to`; `tnear = offset / |to - from|` keeps a ray that starts on a surface from hitting that surface, and
+    /// `tfar = 1 - offset / |to - from|` keeps the surface the segment ends on from counting as an occluder
+    /// (`tfar` is inclusive). Occluders closer than `offset` to either end are missed. If the segment is shorter
+    /// than `2 * offset`, it is empty (`tnear > tfar`) and never occluded.
+    #[must_use]
+    pub fn segment(from: Vec3, to: Vec3, offset: f32) -> Self {
+        let direction = to - from;
+        let length = direction.length();
+        let cut = if length > 0.0 { offset / length } else { 1.0 };
+        Self { origin: from, direction, tnear: cut, tfar: 1.0 - cut }
+    }
+
+    /// Whether the ray tests nothing: `tnear > tfar` (after raising a negative `tnear` to 0), a non-finite
+    /// origin or direction, or NaN bounds. Casters never report such a ray as occluded (Embree's results for
+    /// them would be undefined, so they are not passed to it).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        !(self.origin.is_finite()
+            && self.direction.is_finite()
+            && self.tnear.is_finite()
+            && !self.tfar.is_nan())
+            || self.tnear.max(0.0) > self.tfar
+    }
+}
+
+/// Relative size of the segment offset ([`offset_for`]): `2^-13 ~ 1.2e-4` of the scene scale, about 1000 `f32`
+/// ulps of the largest coordinate (Embree's hit distances are accurate to a few ulps of the coordinates
+/// involved), and far below any patch size worth simulating.
+pub const RELATIVE_OFFSET: f32 = 1.0 / 8192.0;
+
+/// The scene's size for offsets: the largest of its bounding-box diagonal and its largest absolute coordinate
+/// (rounding in `f32` grows with the coordinates' magnitude, not only with the scene's extent); 1 for an empty
+/// or single-point scene.
+#[must_use]
+pub fn scene_scale(vertices: &[Vec3]) -> f32 {
+    let Some(first) = vertices.first() else { return 1.0 };
+    let (lo, hi) = vertices.iter().fold((*first, *first), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let diagonal = (hi - lo).length();
+    let magnitude = lo.abs().max(hi.abs()).max_element();
+    let scale = diagonal.max(magnitude);
+    if scale > 0.0 {
+        scale
+    } else {
+        1.0
+    }
+}
+
+/// The absolute offset (scene units) to cut from both ends of a segment between two surface points of a scene
+/// with these vertices: [`RELATIVE_OFFSET`] times [`scene_scale`]. Every caster's [`RayCaster::offset`] is this,
+/// so the same segments give the same rays whatever the caster.
+#[must_use]
+pub fn offset_for(vertices: &[Vec3]) -> f32 {
+    scene_scale(vertices) * RELATIVE_OFFSET
+}
+
+/// Occlusion queries on a fixed triangle scene, from any number of threads (see the module docs for the
+/// semantics every implementation follows).
+pub trait RayCaster: Sync {
+    /// The absolute offset (scene units) to cut from both ends of a segment between two surface points
+    /// ([`offset_for`] of the scene's vertices); pass it to [`Ray::segment`].
+    fn offset(&self) -> f32;
+
+    /// Whether anything in the scene lies on `ray` (a hit with `tnear < t <= tfar`); `false` for an empty ray.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// Tests any number of rays; `occluded[k]` is set for `rays[k]`.
+    ///
+    /// # Panics
+    /// If `occluded.len() != rays.len()`.
+    fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(rays.len(), occluded.len(), "one output per ray");
+        for (ray, out) in rays.iter().zip(occluded) {
+            *out = self.occluded(ray);
+        }
+    }
+}
