@@ -4,20 +4,22 @@
 //! with this crate's writer; the device parses it in place (it stays in flash) and relights the scene with
 //! bounded progressive-refinement shooting, a fixed number of work units per frame.
 //!
-//! # Layers
-//! Like smoltcp's wire -> storage -> socket -> iface, each layer uses only the ones before it:
+//! # Layers and module map
+//! Like smoltcp's wire -> storage -> socket -> iface, each layer uses only the ones before it (no module
+//! imports one after it; `python3 ../shared/tools/modcycles.py core/src` checks for cycles):
 //!
-//! 1. **Table format** ([`table`], [`write`](mod@write), [`crc`]): the byte layout, [`Table::parse`] (the one checked
-//!    constructor: after it succeeds no accessor panics) and [`write_table`] (used by the host).
-//! 2. **Codecs** ([`codec`]): form-factor, reflectance and emission codes and their error bounds.
-//! 3. **Solver state** ([`Solver`], [`Buffers`], arithmetic in [`scalar`]): power, unshot power, incident
-//!    power per patch with run-time state, light-group intensities and material reflectances, all in
-//!    caller-supplied buffers.
-//! 4. **Steps** ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]): at most `budget`
-//!    work units each, reporting an [`Outcome`].
-//! 5. **Relighting** ([`Solver::set_light`], [`Solver::set_reflectance`]): changes injected as unshot power into
-//!    the current solution (warm start). Its peer, when the table carries a transfer basis:
-//!    [`relight_transfer`] (module [`transfer`]), `B = B_static + sum_g I_g T_g` in one bounded pass.
+//! | layer | modules | what lives there | a change of this kind goes here |
+//! |---|---|---|---|
+//! | 0. checksum | [`crc`] | CRC-32 | |
+//! | 1. codecs | [`codec`] (`ff`, `radiometric`, [`codec::transfer`]) | form-factor, reflectance, emission and transfer-response codes, their error bounds, the writer's row rounding | a new code or quantizer |
+//! | 2. format | [`format`] (`layout`, `error`, `parse`, `view`, [`format::write`]) | the byte layout (`docs/format.md`), [`Table::parse`] (the one checked constructor: after it succeeds no accessor panics), read views ([`Row`]), [`write_table`] | a new section or field (and a version bump) |
+//! | 3. arithmetic | [`scalar`] | [`Scalar`] (sealed): `f32` and [`Fixed`] | a new number type |
+//! | 4. static base | [`base`] | [`static_radiosity`]: `E_s + rho G_s`, for the solver and the transfer relight | |
+//! | 5. solver | [`solver`] (`buffers`, `config`, state in `mod`, `selection`, `shoot`, `sweep`, `relight`) | [`Solver`] holding its [`Table`], buffers sized by [`BufferSizes::of`] (`OwnedBuffers` on a host, `std` feature, [`StaticBuffers`] on a device), bounded steps ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]) reporting an [`Outcome`], relighting ([`Solver::set_light`], [`Solver::set_reflectance`]) | a new step, selection rule or state |
+//! | 6. transfer relight | [`transfer`] | [`relight_transfer`]: `B = B_static + sum_g I_g T_g` in one bounded pass, the peer of shooting | |
+//!
+//! The solver holds a copy of the parsed [`Table`] (a handful of slices into the blob, which stays in
+//! flash) for its lifetime, so no call can pass another table and no call pays for checking that it did.
 //!
 //! # Physics conventions (units)
 //! - Diffuse surfaces only, static geometry, RGB. Patch `i`: area `A_i` (scene units squared), reflectance
@@ -94,7 +96,7 @@
 //! - Shooting ([`Solver::step`]): the shooter is the slot with the largest unshot magnitude `|r| + |g| + |b|`
 //!   (ties to the lower slot). Here and in the sweeps, `n` and "patch" count the patches with run-time state
 //!   only (the state count `s`). The slots are cut into blocks of `B` consecutive slots (`B` the power of two
-//!   at or above `sqrt(n)`), and the caller's `tree` buffer ([`selection_len`] entries) holds each block's
+//!   at or above `sqrt(n)`), and the caller's selection buffer ([`Buffers::selection`], [`selection_len`] entries) holds each block's
 //!   winner. Building it costs `n` units (inside step budgets, resumable block by block); a selection scans the
 //!   `ceil(n / B)` winners; a shot costs 1 unit plus a rescan of the shooter's block (`<= B`); each entry costs
 //!   1 unit, plus a rescan of its block when the receiver was the block's winner and moved towards zero in some

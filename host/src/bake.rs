@@ -69,7 +69,7 @@ use radiosity_core::{
 use serde::Serialize;
 use thiserror::Error;
 
-use crate::inspect::{SectionBytes, TableCounts};
+use crate::inspect::SectionBytes;
 use crate::lighting::PatchLighting;
 use crate::metrics::{self, ErrorReport, MetricsError};
 use crate::patch::{FormFactorMatrix, Patch};
@@ -223,18 +223,6 @@ pub fn codec_for_bits(bits: u32) -> Result<FfCodec, BakeError> {
         16 => Ok(FfCodec::FLOAT16),
         8 => Ok(FfCodec::FLOAT8),
         _ => Err(BakeError::BadBits(bits)),
-    }
-}
-
-/// Name of a codec for reports (`FLOAT16`, `FLOAT8`, `LINEAR16`, `LINEAR8`, or `E{x}M{y}`).
-#[must_use]
-pub fn codec_name(codec: FfCodec) -> String {
-    match codec {
-        FfCodec::FLOAT16 => "FLOAT16".into(),
-        FfCodec::FLOAT8 => "FLOAT8".into(),
-        FfCodec::LINEAR16 => "LINEAR16".into(),
-        FfCodec::LINEAR8 => "LINEAR8".into(),
-        c => format!("E{}M{}", c.exponent_bits, c.bits.saturating_sub(c.exponent_bits)),
     }
 }
 
@@ -473,7 +461,7 @@ pub struct BakeReport {
     pub table_entries: usize,
     /// Energy dropped by sparsification.
     pub energy_dropped: EnergyDropped,
-    /// Codec name ([`codec_name`]).
+    /// Codec name (core's `Display` of `FfCodec`).
     pub codec: String,
     /// Bits per form-factor code.
     pub ff_bits: u8,
@@ -1119,8 +1107,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         sparsify_quantize: metrics::compare(&b_dec, &b_ref, &area)?,
     };
 
-    let counts = TableCounts::of(&table);
-    let table_bytes = SectionBytes::new(&counts, blob.len());
+    let table_bytes = SectionBytes::of(&table);
     let transfer = match &transfer {
         Some(tv) => {
             Some(transfer_report(&table, tv, &lighting.default_intensity, &b_ref, &area, &table_bytes)?)
@@ -1150,7 +1137,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         nonzeros_after: nnz,
         table_entries: slots.receiver.len(),
         energy_dropped,
-        codec: codec_name(options.codec),
+        codec: options.codec.to_string(),
         ff_bits: options.codec.bits,
         bytes_per_entry: if slots.receiver.is_empty() {
             0.0

@@ -436,7 +436,7 @@ pub fn check(
         dec.solution(answers.solve(&dec.rho, &bake::shooting_form(&dec.rows, &dec.area), &dec.rhs)?);
     components.push(Component {
         name: QUANTIZATION.into(),
-        compares: format!("f64, decoded {} table vs sparsified f64 matrix", bake::codec_name(table.codec())),
+        compares: format!("f64, decoded {} table vs sparsified f64 matrix", table.codec()),
         error: metrics::compare(&b_dec, &b_sparse, area)?,
     });
     device_part(p, &table, baked.table.len(), &answers, &dec, &b_dec, options, components)
@@ -702,7 +702,7 @@ fn device_part(
         patches: n,
         entries: table.entry_count() as usize,
         table_bytes,
-        codec: bake::codec_name(table.codec()),
+        codec: table.codec().to_string(),
         budget: options.budget,
         frames_per_setting: options.frames,
         tolerance,

@@ -1,8 +1,7 @@
 //! Inspecting a table: validates it with core's [`Table::parse`] and reports its header, counts, section sizes
 //! and statistics, for a terminal ([`fmt::Display`]) or as JSON (serde).
 //!
-//! Section sizes follow core's documented layout (crate docs, "Table layout"); the header's size is what is
-//! left of the blob after the payload and the 4-byte CRC.
+//! Section sizes are core's [`Table::section_sizes`] (the layout of `docs/format.md`), grouped.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -11,8 +10,6 @@ use radiosity_core::codec::decode_emission_f32;
 use radiosity_core::{Table, TableError, FORMAT_VERSION};
 use serde::Serialize;
 use thiserror::Error;
-
-use crate::bake::codec_name;
 
 /// The counts of a table that fix its section sizes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -93,41 +90,24 @@ pub struct SectionBytes {
 }
 
 impl SectionBytes {
-    /// Section sizes of a table of `total` bytes with `counts`.
+    /// Section sizes of a parsed table, grouped from core's [`Table::section_sizes`].
     #[must_use]
-    pub fn new(c: &TableCounts, total: usize) -> SectionBytes {
-        let patches = c.patches * (4 + 2 + 6 + 6);
-        let materials = c.materials * 6;
-        let groups = c.groups * (4 + 12) + (c.groups + 1) * 4;
-        let members = c.members * (c.index_bytes + 6);
-        let state_map = if c.state < c.patches { c.state * (c.index_bytes + 2) } else { 0 };
-        let rows = (c.state + 1) * 4 + c.state;
-        let entry_receivers = c.entries * c.index_bytes;
-        let entry_codes = c.entries * c.code_bytes;
-        let transfer = if c.transfer { c.groups * 3 + c.patches * c.groups * 6 } else { 0 };
-        let payload = patches
-            + materials
-            + groups
-            + members
-            + state_map
-            + rows
-            + entry_receivers
-            + entry_codes
-            + transfer;
+    pub fn of(table: &Table<'_>) -> SectionBytes {
+        let s = table.section_sizes();
         SectionBytes {
-            header: total.saturating_sub(payload + 4),
-            patches,
-            materials,
-            groups,
-            members,
-            state_map,
-            rows,
-            entry_receivers,
-            entry_codes,
-            transfer,
-            payload,
-            crc: 4,
-            total,
+            header: s.header,
+            patches: s.patch_area + s.patch_material + s.base_emission + s.base_irradiance,
+            materials: s.reflectance,
+            groups: s.group_id + s.group_intensity + s.group_start,
+            members: s.member_patch + s.member_emission,
+            state_map: s.state_patch + s.state_material,
+            rows: s.row_start + s.row_exponent,
+            entry_receivers: s.entry_receiver,
+            entry_codes: s.entry_code,
+            transfer: s.transfer_exponent + s.transfer_code,
+            payload: s.payload(),
+            crc: s.crc,
+            total: s.total(),
         }
     }
 }
@@ -362,7 +342,7 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
         })
         .collect();
     let codec = table.codec();
-    let bytes_of = SectionBytes::new(&counts, bytes.len());
+    let bytes_of = SectionBytes::of(&table);
     let transfer = table.has_transfer().then(|| TransferInfo {
         bytes: bytes_of.transfer,
         scale: (0..table.group_count())
@@ -386,7 +366,7 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
         crc: table.crc(),
         fingerprint: table.fingerprint(),
         counts,
-        codec: codec_name(codec),
+        codec: codec.to_string(),
         ff_bits: codec.bits,
         ff_exponent_bits: codec.exponent_bits,
         base_solved: table.base_solved(),

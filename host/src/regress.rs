@@ -49,7 +49,6 @@ use radiosity_core::FfCodec;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::bake::codec_name;
 use crate::check::{check, Arith, CheckError, CheckOptions, QUANTIZATION, SPARSIFICATION};
 use crate::formfactor::FormFactorOptions;
 use crate::pipeline::{prepare, PrepareOptions};
@@ -399,7 +398,7 @@ pub fn update(old: Option<&Baseline>, scenes: &Path, seeds: usize) -> Result<Bas
                     }
                 }
             }
-            let codec = crate::bake::codec_for_bits(bits).map(codec_name).unwrap_or_default();
+            let codec = crate::bake::codec_for_bits(bits).map(|c| c.to_string()).unwrap_or_default();
             entries.push(Entry { scene: name.clone(), bits, codec, patches, settings, components, error });
         }
     }
@@ -561,7 +560,7 @@ pub fn check_baseline(
             continue;
         }
         let codec = match selection.codec {
-            Some(c) => codec_name(c),
+            Some(c) => c.to_string(),
             None => entry.codec.clone(),
         };
         let measured =

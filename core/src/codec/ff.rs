@@ -66,6 +66,19 @@ pub enum CodecParamError {
     ExponentBits(u8),
 }
 
+/// The codec's name: `FLOAT16`, `FLOAT8`, `LINEAR16`, `LINEAR8`, or `E{exponent bits}M{mantissa bits}`.
+impl core::fmt::Display for FfCodec {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            FfCodec::FLOAT16 => f.write_str("FLOAT16"),
+            FfCodec::FLOAT8 => f.write_str("FLOAT8"),
+            FfCodec::LINEAR16 => f.write_str("LINEAR16"),
+            FfCodec::LINEAR8 => f.write_str("LINEAR8"),
+            c => write!(f, "E{}M{}", c.exponent_bits, c.bits.saturating_sub(c.exponent_bits)),
+        }
+    }
+}
+
 impl FfCodec {
     /// 16-bit small float, 4 exponent bits, 12 mantissa bits (relative error `< 2^-12`). The default.
     pub const FLOAT16: FfCodec = FfCodec { bits: 16, exponent_bits: 4 };
