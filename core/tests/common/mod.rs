@@ -3,8 +3,8 @@
 #![allow(dead_code)]
 
 use radiosity_core::{
-    write_table, Config, FfCodec, GroupSpec, MemberSpec, OwnedBuffers, PatchSpec, RowsSpec, Scalar, Solver,
-    Table, TableSpec,
+    write_table, Config, FfCodec, Fixed, GroupSpec, MemberSpec, OwnedBuffers, PatchSpec, RowsSpec, Scalar,
+    Solver, Table, TableSpec,
 };
 
 /// An owned scene description (what the host would hold before writing a table).
@@ -121,3 +121,59 @@ pub fn assert_close(what: &str, actual: f32, expected: f32, tol: f32) {
 
 /// Fixed-point resolution, as a tolerance unit.
 pub const FIXED_EPS: f32 = 1.0 / 4_294_967_296.0;
+
+/// The arithmetic error term of each path (see `solver.rs`'s module docs for the derivation).
+pub trait Arith: Scalar {
+    /// Arithmetic error of `B` after `shots` shots.
+    fn arith(b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32;
+    /// Representation error of an input value (`from_f32`).
+    fn input(v: f32) -> f32;
+}
+
+impl Arith for f32 {
+    fn arith(b: f32, shots: u32, rho_max: f32, _area_min: f32) -> f32 {
+        3.0 * f32::EPSILON / 2.0 * (shots as f32 + 1.0 / (1.0 - rho_max)) * b.abs()
+    }
+    fn input(_v: f32) -> f32 {
+        0.0
+    }
+}
+
+impl Arith for Fixed {
+    fn arith(_b: f32, shots: u32, rho_max: f32, area_min: f32) -> f32 {
+        2.0 * FIXED_EPS * shots as f32 / ((1.0 - rho_max) * area_min)
+    }
+    fn input(_v: f32) -> f32 {
+        FIXED_EPS / 2.0
+    }
+}
+
+/// The truncation error term: `n * tol / ((1 - rho_max) A_min)` (see `solver.rs`'s module docs).
+pub fn truncation(n: usize, tol: f32, rho_max: f32, area_min: f32) -> f32 {
+    n as f32 * tol / ((1.0 - rho_max) * area_min)
+}
+
+/// The solver tolerance of the hand-made tests (power units).
+pub const TOL: f32 = 1e-6;
+
+/// Plain shooting at [`TOL`].
+pub fn config<S: Scalar>() -> Config<S> {
+    Config { tolerance: S::from_f32(TOL), overshoot: 0 }
+}
+
+pub fn cold<S: Arith>(scene: &Scene) -> (Vec<[f32; 3]>, u32) {
+    let bytes = scene.write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = solver(&mut store, &t, config());
+    converge(&mut solver, 50, 10_000_000);
+    (radiosities(&solver, &t), solver.shots())
+}
+
+pub fn compare(what: &str, a: &[[f32; 3]], b: &[[f32; 3]], tol: impl Fn(f32) -> f32) {
+    for (x, y) in a.iter().zip(b) {
+        for c in 0..3 {
+            assert_close(what, x[c], y[c], tol(y[c]));
+        }
+    }
+}
