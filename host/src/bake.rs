@@ -74,7 +74,7 @@ use crate::lighting::PatchLighting;
 use crate::metrics::{self, ErrorReport, MetricsError};
 use crate::patch::{FormFactorMatrix, Patch};
 use crate::reference::{
-    solve_many, transfer_vectors, GaussSeidelOptions, LightGroupEmission, Method, RadiositySystem,
+    solve_many, transfer_vectors, GaussSeidelOptions, LightGroupEmission, Method, Radiosity, RadiositySystem,
     ReferenceError, TransferVectors,
 };
 use crate::scene::Scene;
@@ -745,9 +745,6 @@ impl SlotRows {
     }
 }
 
-/// Radiosity per patch (W/m^2, RGB).
-type Radiosity = Vec<[f64; 3]>;
-
 /// Solves `B = E + R F B` for each right-hand side (one factorization for all with the dense method); returns
 /// each solution and the largest relative residual.
 fn solve_set(
@@ -1020,12 +1017,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         let system =
             RadiositySystem::with_row_sum_tolerance(&lighting.rho, &sparse_shoot, options.row_sum_tolerance)
                 .map_err(|source| BakeError::Reference { what: "transfer basis", source })?;
-        let lights = LightGroupEmission {
-            static_emission: &lighting.static_emission,
-            unit_emission: &lighting.unit_emission,
-            group: &lighting.group,
-            group_count: ids.len(),
-        };
+        let lights = LightGroupEmission::of(lighting);
         let method = options.method.unwrap_or_else(|| default_method(n));
         Some(
             transfer_vectors(system, &lights, &method)

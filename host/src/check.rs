@@ -50,9 +50,7 @@ use crate::formfactor::compute_form_factors;
 use crate::metrics::{self, ErrorReport};
 use crate::patch::FormFactorMatrix;
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
-use crate::reference::{
-    solve_many, transfer_vectors, LightGroupEmission, Method, RadiositySystem, TransferVectors,
-};
+use crate::reference::{exact_transfer, solve_many, Method, Radiosity, RadiositySystem, TransferVectors};
 
 /// Arithmetic paths of the device solver to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -332,13 +330,7 @@ impl SceneAnswers {
     fn new(p: &Prepared, options: &CheckOptions) -> Result<SceneAnswers, CheckError> {
         let l = &p.lighting;
         let method = Method::for_size(p.patches.len());
-        let lights = LightGroupEmission {
-            static_emission: &l.static_emission,
-            unit_emission: &l.unit_emission,
-            group: &l.group,
-            group_count: l.dynamic_groups.len(),
-        };
-        let tv = transfer_vectors(RadiositySystem::new(&l.rho, &p.form_factors)?, &lights, &method)?;
+        let tv = exact_transfer(l, &p.form_factors, &method)?;
         Ok(SceneAnswers {
             area: p.patches.iter().map(|q| q.area).collect(),
             method,
@@ -783,9 +775,6 @@ pub const QUANTIZATION: &str = "quantization";
 pub const ITERATION_TRUNCATION: &str = "iteration truncation";
 /// See [`FORM_FACTOR_ESTIMATION`] (table input only).
 pub const TABLE_VS_SCENE: &str = "table vs scene matrix";
-
-/// Per-patch RGB radiosity.
-pub type Radiosity = Vec<[f64; 3]>;
 
 struct Run<'r> {
     table: &'r Table<'r>,

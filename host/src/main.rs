@@ -12,7 +12,7 @@ use radiosity_host::output::{write_patch_csv, Format};
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
-use radiosity_host::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem};
+use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
 use radiosity_host::view;
 
@@ -358,15 +358,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         Command::Solve { scene, format } => {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let l = &p.lighting;
-            let system = RadiositySystem::new(&l.rho, &p.form_factors)?;
-            let method = Method::for_size(p.patches.len());
-            let lights = LightGroupEmission {
-                static_emission: &l.static_emission,
-                unit_emission: &l.unit_emission,
-                group: &l.group,
-                group_count: l.dynamic_groups.len(),
-            };
-            let tv = transfer_vectors(system, &lights, &method)?;
+            let tv = exact_transfer(l, &p.form_factors, &Method::for_size(p.patches.len()))?;
             let b = tv.relight(&l.default_intensity)?;
             let e = l.default_emission();
             match format {

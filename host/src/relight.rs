@@ -28,7 +28,7 @@ use crate::picture::render::{trace_view, write_frame_sequence, Frame};
 use crate::picture::shading::{ShadingOptions, SmoothShader};
 use crate::picture::PictureError;
 use crate::pipeline::Prepared;
-use crate::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem, ReferenceError};
+use crate::reference::{exact_transfer, Method, ReferenceError};
 use crate::view::{default_camera, PatchTracer, ViewError};
 
 /// Why a relight run failed.
@@ -145,22 +145,6 @@ pub struct RelightReport {
     pub first_script: String,
 }
 
-/// The transfer vectors of the scene's own matrix: the exact answer for any light intensities.
-///
-/// # Errors
-/// [`ReferenceError`] if the system is invalid or the solve fails.
-pub fn exact_transfer(p: &Prepared) -> Result<crate::reference::TransferVectors, ReferenceError> {
-    let l = &p.lighting;
-    let system = RadiositySystem::new(&l.rho, &p.form_factors)?;
-    let lights = LightGroupEmission {
-        static_emission: &l.static_emission,
-        unit_emission: &l.unit_emission,
-        group: &l.group,
-        group_count: l.dynamic_groups.len(),
-    };
-    transfer_vectors(system, &lights, &Method::for_size(p.patches.len()))
-}
-
 /// One frame of the device loop: what it spent and the radiosity of every patch (f64, table order).
 struct DeviceFrame {
     frame: u32,
@@ -256,7 +240,7 @@ pub fn relight(
         )));
     }
 
-    let tv = exact_transfer(p)?;
+    let tv = exact_transfer(&p.lighting, &p.form_factors, &Method::for_size(p.patches.len()))?;
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let mut rows = Vec::new();
     let mut first_script_frames = Vec::new();

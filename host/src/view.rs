@@ -22,7 +22,7 @@ use crate::picture::render::{render, Colouring, Frame, Hit, View};
 use crate::picture::shading::{ShadingOptions, SmoothShader};
 use crate::picture::{PictureError, RgbImage};
 use crate::pipeline::Prepared;
-use crate::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem, ReferenceError};
+use crate::reference::{exact_transfer, Method, ReferenceError};
 
 /// Errors of the view glue; each wraps the module that failed.
 #[derive(Debug, thiserror::Error)]
@@ -103,14 +103,7 @@ impl PatchTracer {
 /// [`ViewError::Reference`] if the system is invalid or the solve fails.
 pub fn solve_default(prepared: &Prepared) -> Result<Vec<[f64; 3]>, ViewError> {
     let l = &prepared.lighting;
-    let system = RadiositySystem::new(&l.rho, &prepared.form_factors)?;
-    let lights = LightGroupEmission {
-        static_emission: &l.static_emission,
-        unit_emission: &l.unit_emission,
-        group: &l.group,
-        group_count: l.dynamic_groups.len(),
-    };
-    let tv = transfer_vectors(system, &lights, &Method::for_size(prepared.patches.len()))?;
+    let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
     Ok(tv.relight(&l.default_intensity)?)
 }
 

@@ -46,12 +46,7 @@ fn f64_basis(p: &Prepared, baked: &Baked) -> TransferVectors {
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let shoot = shooting_form(&baked.sparse.matrix, &area);
     let system = RadiositySystem::with_row_sum_tolerance(&p.lighting.rho, &shoot, 1e-4).unwrap();
-    let lights = LightGroupEmission {
-        static_emission: &p.lighting.static_emission,
-        unit_emission: &p.lighting.unit_emission,
-        group: &p.lighting.group,
-        group_count: p.lighting.dynamic_groups.len(),
-    };
+    let lights = LightGroupEmission::of(&p.lighting);
     transfer_vectors(system, &lights, &Method::for_size(area.len())).unwrap()
 }
 

@@ -8,9 +8,10 @@ use std::path::PathBuf;
 
 use radiosity_core::{FfCodec, Fixed, Scalar, Table};
 use radiosity_host::bake::{bake, decode_table, BakeInput, BakeOptions, DEFAULT_ROW_SUM_TOLERANCE};
-use radiosity_host::check::{check, device_converged, CheckOptions, Radiosity};
+use radiosity_host::check::{check, device_converged, CheckOptions};
 use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
-use radiosity_host::reference::{transfer_vectors, LightGroupEmission, Method, RadiositySystem};
+use radiosity_host::reference::Radiosity;
+use radiosity_host::view::solve_default;
 
 fn scene(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes").join(name)
@@ -22,16 +23,7 @@ fn options(no_subdivide: bool, samples: usize, rays: usize) -> PrepareOptions {
 
 /// Exact f64 radiosity of the scene's own matrix at its default intensities.
 fn exact(p: &Prepared) -> Radiosity {
-    let l = &p.lighting;
-    let lights = LightGroupEmission {
-        static_emission: &l.static_emission,
-        unit_emission: &l.unit_emission,
-        group: &l.group,
-        group_count: l.dynamic_groups.len(),
-    };
-    let system = RadiositySystem::new(&l.rho, &p.form_factors).expect("system");
-    let tv = transfer_vectors(system, &lights, &Method::for_size(p.patches.len())).expect("solve");
-    tv.relight(&l.default_intensity).expect("relight")
+    solve_default(p).expect("solve")
 }
 
 fn bake_table(p: &Prepared, threshold: f64) -> Vec<u8> {

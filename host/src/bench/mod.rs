@@ -34,10 +34,7 @@ use crate::formfactor::{compute_form_factors, FormFactorOptions};
 use crate::mesh::{mesh, MeshOptions};
 use crate::metrics;
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
-use crate::reference::{
-    gauss_seidel, transfer_vectors, DenseLu, GaussSeidelOptions, LightGroupEmission, Method, RadiositySystem,
-    TransferVectors,
-};
+use crate::reference::{exact_transfer, gauss_seidel, DenseLu, GaussSeidelOptions, Method, RadiositySystem};
 use crate::scene::Scene;
 use device::{run_curve, DeviceCase, Start, Step, StopRule};
 
@@ -418,20 +415,6 @@ fn prepare_at(
     Ok(p)
 }
 
-/// The exact answer's transfer vectors on the scene's own matrix (f64 Gauss-Seidel to residual `1e-12`: the
-/// forward error is at most `(1 + q) / (1 - q) * 1e-12`, `2e-10` at `q = 0.99`).
-fn exact_transfer(p: &Prepared) -> Result<TransferVectors, BenchError> {
-    let l = &p.lighting;
-    let lights = LightGroupEmission {
-        static_emission: &l.static_emission,
-        unit_emission: &l.unit_emission,
-        group: &l.group,
-        group_count: l.dynamic_groups.len(),
-    };
-    let system = RadiositySystem::new(&l.rho, &p.form_factors)?;
-    Ok(transfer_vectors(system, &lights, &Method::GaussSeidel(GaussSeidelOptions::default()))?)
-}
-
 /// Size of the f64 CSR matrix the host methods read (values, column indices, row starts).
 fn csr_bytes(p: &Prepared) -> usize {
     let ff = &p.form_factors;
@@ -720,7 +703,10 @@ fn run_scene(
             t0.elapsed().as_secs_f64()
         ),
     );
-    let tv = exact_transfer(&p)?;
+    // The exact answer's transfer vectors on the scene's own matrix (f64 Gauss-Seidel to residual `1e-12`: the
+    // forward error is at most `(1 + q) / (1 - q) * 1e-12`, `2e-10` at `q = 0.99`).
+    let exact = Method::GaussSeidel(GaussSeidelOptions::default());
+    let tv = exact_transfer(&p.lighting, &p.form_factors, &exact)?;
     let exact_default = tv.relight(&p.lighting.default_intensity)?;
     let changed = changed_intensity(&p);
     let exact_changed = tv.relight(&changed)?;

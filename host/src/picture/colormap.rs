@@ -9,12 +9,12 @@
 //! control points and the segments between them are inside the sRGB gamut (a test checks that no channel clips).
 //!
 //! [`ErrorScale`] maps error values (linear or log) onto the ramp; [`ErrorScale::legend`] draws a legend strip
-//! (colour bar, tick marks and tick labels in DejaVu Sans, see [`super::plot::ensure_font`]) and
+//! (colour bar, tick marks and tick labels in DejaVu Sans, see [`super::text`]) and
 //! [`ErrorScale::legend_json`] gives the same ticks as data.
 
 use plotters::prelude::*;
 
-use super::plot::{ensure_font, FONT_FAMILY};
+use super::text::{ensure_font, format_tick, FONT_FAMILY};
 use super::tonemap::srgb_encode_u8;
 use super::{PictureError, RgbImage};
 
@@ -197,26 +197,6 @@ impl ErrorScale {
             root.present().map_err(e)?;
         }
         Ok(image)
-    }
-}
-
-/// A short tick label: plain for moderate magnitudes, scientific otherwise.
-#[must_use]
-pub fn format_tick(v: f64) -> String {
-    let a = v.abs();
-    if v == 0.0 {
-        "0".into()
-    } else if (1e-3..1e5).contains(&a) {
-        // Four significant digits, trailing zeros after the decimal point dropped.
-        let decimals = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
-        let s = format!("{v:.decimals$}");
-        if s.contains('.') {
-            s.trim_end_matches('0').trim_end_matches('.').to_string()
-        } else {
-            s
-        }
-    } else {
-        format!("{v:.0e}")
     }
 }
 

@@ -10,19 +10,20 @@
 //! - [`lightmap`]: per-face light-map atlases (linear `.hdr`, tone-mapped PNG, and a JSON placement map).
 //! - [`colormap`]: a perceptually ordered false-colour map for errors, and its legend strip.
 //! - [`plot`]: report plots (error against work, error decomposition bars, patch-size histogram) as SVG and PNG.
+//! - [`text`]: the font of plots and legends, and their tick labels (used by [`colormap`] and [`plot`]).
 //!
 //! Text in PNG plots and legends is drawn with the DejaVu Sans font from Debian's `fonts-dejavu-core` package
-//! (installed by `scripts/deps.sh`), loaded at run time from [`plot::DEFAULT_FONT_PATH`] or the path in the
+//! (installed by `scripts/deps.sh`), loaded at run time from [`text::DEFAULT_FONT_PATH`] or the path in the
 //! `RADIOSITY_FONT` environment variable; a missing font is a clear [`PictureError::Font`].
 
 pub mod camera;
 pub mod colormap;
 pub mod hdr;
 pub mod lightmap;
-
 pub mod plot;
 pub mod render;
 pub mod shading;
+pub mod text;
 pub mod tonemap;
 
 use std::fs::File;

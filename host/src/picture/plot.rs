@@ -2,44 +2,16 @@
 //! histogram of an adaptive mesh.
 //!
 //! Both outputs come from the same drawing code: SVG through plotters' SVG backend (text stays text), PNG through
-//! its in-memory bitmap backend, encoded with the `png` crate. Text layout needs a font: DejaVu Sans from Debian's
-//! `fonts-dejavu-core` ([`DEFAULT_FONT_PATH`], or the file named by the `RADIOSITY_FONT` environment variable),
-//! loaded once per process. Plotters' own font feature (`ttf`) would need fontconfig and freetype development
-//! libraries; `ab_glyph` reads the TrueType file directly.
+//! its in-memory bitmap backend, encoded with the `png` crate. Text is drawn in the font of [`super::text`].
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::colormap::format_tick;
+use super::text::{ensure_font, format_tick, FONT_FAMILY};
 use super::{write_file, write_png, PictureError, RgbImage};
-
-/// Where Debian's `fonts-dejavu-core` installs DejaVu Sans.
-pub const DEFAULT_FONT_PATH: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-
-/// The font family name plots use (registered by [`ensure_font`]).
-pub const FONT_FAMILY: &str = "sans-serif";
-
-/// Loads and registers the plot font once per process.
-///
-/// # Errors
-/// [`PictureError::Font`] if the file cannot be read or is not a font.
-pub fn ensure_font() -> Result<(), PictureError> {
-    static LOADED: OnceLock<Result<(), (PathBuf, String)>> = OnceLock::new();
-    let result = LOADED.get_or_init(|| {
-        let path = std::env::var_os("RADIOSITY_FONT")
-            .map_or_else(|| PathBuf::from(DEFAULT_FONT_PATH), PathBuf::from);
-        let bytes = std::fs::read(&path).map_err(|e| (path.clone(), e.to_string()))?;
-        // Registered fonts live for the whole process (plotters keeps a 'static reference); this runs once.
-        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-        plotters::style::register_font(FONT_FAMILY, FontStyle::Normal, bytes)
-            .map_err(|_| (path.clone(), "not a TrueType/OpenType font".to_string()))
-    });
-    result.clone().map_err(|(path, reason)| PictureError::Font { path, reason })
-}
 
 /// One named curve of an error-against-work plot.
 #[derive(Clone, Debug, PartialEq)]

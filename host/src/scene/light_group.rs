@@ -1,0 +1,105 @@
+//! Light groups: the emitting materials whose intensity changes together. The TOML file's `[[light_group]]`
+//! tables come first, in file order; every emitting material no table lists becomes its own dynamic group,
+//! named after the material, at intensity 1.
+
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+
+use super::config::TomlGroup;
+use super::error::SceneError;
+use super::material::Material;
+
+/// A light group: emitting materials whose intensity changes together.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightGroup {
+    /// Name (from the TOML file, or the material's name for an implicit group).
+    pub name: String,
+    /// Indices of the group's materials in [`Scene::materials`](super::Scene::materials).
+    pub materials: Vec<usize>,
+    /// Whether the group's intensity can change at run time (a static group is folded into the base).
+    pub dynamic: bool,
+    /// Default intensity per RGB channel, multiplying the materials' `Ke`.
+    pub intensity: [f64; 3],
+}
+
+pub(super) fn build_light_groups(
+    file: &Path,
+    groups: &[TomlGroup],
+    materials: &[Material],
+) -> Result<Vec<LightGroup>, SceneError> {
+    let invalid = |problem: String| SceneError::TomlInvalid { file: file.to_path_buf(), problem };
+    let mut out: Vec<LightGroup> = Vec::new();
+    let mut taken: HashMap<usize, String> = HashMap::new();
+    let mut names: HashSet<String> = HashSet::new();
+    for g in groups {
+        if g.name.trim().is_empty() {
+            return Err(invalid("a light group has an empty name".to_owned()));
+        }
+        if !names.insert(g.name.clone()) {
+            return Err(invalid(format!("light group '{}' is defined twice", g.name)));
+        }
+        if g.materials.is_empty() {
+            return Err(invalid(format!("light group '{}' lists no materials", g.name)));
+        }
+        let mut members = Vec::new();
+        for name in &g.materials {
+            let Some(m) = materials.iter().position(|m| &m.name == name) else {
+                return Err(invalid(format!(
+                    "light group '{}' lists material '{name}', which no MTL file defines",
+                    g.name
+                )));
+            };
+            if !materials[m].is_emitter() {
+                return Err(invalid(format!(
+                    "light group '{}' lists material '{name}', which emits nothing (Ke = 0)",
+                    g.name
+                )));
+            }
+            if let Some(other) = taken.insert(m, g.name.clone()) {
+                return Err(invalid(format!(
+                    "material '{name}' is in two light groups ('{other}' and '{}')",
+                    g.name
+                )));
+            }
+            members.push(m);
+        }
+        let number = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+        let intensity = match &g.intensity {
+            None => [1.0; 3],
+            Some(toml::Value::Array(a)) if a.len() == 3 => {
+                match (number(&a[0]), number(&a[1]), number(&a[2])) {
+                    (Some(r), Some(g), Some(b)) => [r, g, b],
+                    _ => [f64::NAN; 3],
+                }
+            }
+            Some(v) => number(v).map_or([f64::NAN; 3], |x| [x; 3]),
+        };
+        if intensity.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+            return Err(invalid(format!(
+                "light group '{}' has intensity {}; it must be one number or an array of 3, each finite and >= 0",
+                g.name,
+                g.intensity.as_ref().map_or_else(String::new, ToString::to_string)
+            )));
+        }
+        out.push(LightGroup { name: g.name.clone(), materials: members, dynamic: g.dynamic, intensity });
+    }
+    for (m, mat) in materials.iter().enumerate() {
+        if mat.is_emitter() && !taken.contains_key(&m) {
+            if names.contains(&mat.name) {
+                return Err(invalid(format!(
+                    "light group '{0}' does not list the emitting material '{0}', whose implicit group would \
+                     have the same name",
+                    mat.name
+                )));
+            }
+            names.insert(mat.name.clone());
+            out.push(LightGroup {
+                name: mat.name.clone(),
+                materials: vec![m],
+                dynamic: true,
+                intensity: [1.0; 3],
+            });
+        }
+    }
+    Ok(out)
+}

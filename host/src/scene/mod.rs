@@ -1,0 +1,139 @@
+//! Scene loading: a Wavefront OBJ + MTL pair (and an optional `NAME.toml` beside the OBJ) turned into validated
+//! faces, materials and light groups.
+//!
+//! # Format
+//! - Geometry: OBJ `v` and `f` statements, read with `tobj` without triangulation, so every face is the polygon
+//!   the file wrote. Faces are numbered 0, 1, 2, ... in OBJ order over all objects: [`Scene::faces`]`[k]` is the
+//!   k-th `f` statement of the file. A face's normal follows its vertex order (counter-clockwise seen from the
+//!   side the normal points to, the right-hand rule); only that side emits and receives light.
+//! - Materials: MTL `Kd` is the reflectance (per channel, in `[0, 1)`, required), `Ke` the emission as radiant
+//!   exitance in W/m^2 (per channel, finite and `>= 0`, default 0).
+//! - `NAME.toml` (optional, beside `NAME.obj`):
+//!   ```toml
+//!   [meshing]
+//!   max_patch_edge = 100.0   # scene units; largest patch edge after uniform subdivision
+//!   patch_budget = 2000      # most patches the mesh may have (uniform plus adaptive)
+//!   refine_passes = 3        # adaptive refinement passes after uniform subdivision (0: uniform only)
+//!   refine_tolerance = 0.05  # refine where radiosity changes by more than this times the mean radiosity
+//!
+//!   [[light_group]]
+//!   name = "light"
+//!   materials = ["light"]    # emitting materials that belong to the group
+//!   dynamic = true           # false: folded into the static base at bake time (default true)
+//!   intensity = [1.0, 1.0, 1.0]  # default intensity, RGB or one number (default 1)
+//!   ```
+//!   Every material with a nonzero `Ke` that no `[[light_group]]` lists becomes its own dynamic light group,
+//!   named after the material, at intensity 1.
+//!
+//! # Validation
+//! [`Scene::load`] returns a [`SceneError`] naming the file, the line and (for faces) the face index, for: a
+//! missing or unreadable file, an OBJ/MTL/TOML syntax error, a face without a defined material, a reflectance
+//! outside `[0, 1)`, a negative or non-finite value, a face with fewer than three vertices, non-finite or
+//! repeated vertices or zero area (degenerate), a non-convex face, a face too far from planar, and coplanar faces
+//! that overlap with positive area (duplicates included). Nothing in this module panics on any input. The
+//! tolerances are relative to each face's size ([`PLANAR_TOLERANCE`], [`NON_PLANAR_LIMIT`],
+//! [`DEGENERATE_TOLERANCE`], [`OVERLAP_TOLERANCE`]; the reasoning behind each is in the submodule that uses it).
+//!
+//! # Where things are
+//! Loading runs the submodules in this order; each uses only those before it.
+//! - `polygon`: [`Polygon`], a planar convex polygon with normal, area and centroid (shared with meshing).
+//! - `error`: [`SceneError`] and [`SceneWarning`].
+//! - `obj`: reading the OBJ and MTL text with `tobj`, and the line numbers `tobj` does not report.
+//! - `material`: [`Material`]s checked (`Kd`, `Ke`).
+//! - `face`: [`Face`]s built and checked (degenerate, convex, planar or split into a fan), with the face
+//!   tolerances.
+//! - `overlap`: the coplanar-overlap check between faces.
+//! - `config`: the `NAME.toml` file and its [`MeshingLimits`].
+//! - `light_group`: [`LightGroup`]s from the TOML file and the emitting materials.
+//!
+//! This module depends on no later stage: meshing ([`crate::mesh`]) reads the scene, never the other way.
+
+mod config;
+mod error;
+mod face;
+mod light_group;
+mod material;
+mod obj;
+mod overlap;
+mod polygon;
+
+use std::path::{Path, PathBuf};
+
+pub use config::{MeshingLimits, MAX_REFINE_PASSES};
+pub use error::{SceneError, SceneWarning};
+pub use face::{Face, DEGENERATE_TOLERANCE, NON_PLANAR_LIMIT, PLANAR_TOLERANCE};
+pub use light_group::LightGroup;
+pub use material::Material;
+pub use overlap::OVERLAP_TOLERANCE;
+pub use polygon::Polygon;
+
+use config::{check_meshing, parse_config, TomlScene};
+use face::build_faces;
+use light_group::build_light_groups;
+use material::check_materials;
+use obj::{load_obj, read_text};
+use overlap::check_overlaps;
+
+/// A loaded, validated scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// The OBJ file the scene came from.
+    pub path: PathBuf,
+    /// Faces in OBJ order.
+    pub faces: Vec<Face>,
+    /// Materials of all MTL files, in the order they were defined.
+    pub materials: Vec<Material>,
+    /// Light groups: first those of the TOML file in its order, then one per emitting material it does not
+    /// list, in material order.
+    pub light_groups: Vec<LightGroup>,
+    /// Meshing limits from the TOML file.
+    pub meshing: MeshingLimits,
+    /// Problems that did not stop loading (e.g. non-planar faces split into triangles). Not printed here.
+    pub warnings: Vec<SceneWarning>,
+}
+
+impl Scene {
+    /// Loads `NAME.obj`, the MTL files it names (relative to its folder) and `NAME.toml` if it exists.
+    ///
+    /// # Errors
+    /// A [`SceneError`] naming the file, line and face of the first problem found.
+    pub fn load(obj_path: impl AsRef<Path>) -> Result<Scene, SceneError> {
+        let obj_path = obj_path.as_ref();
+        let toml_path = obj_path.with_extension("toml");
+        let toml = if toml_path.is_file() { Some(toml_path) } else { None };
+        Scene::load_with_toml(obj_path, toml.as_deref())
+    }
+
+    /// Loads `obj_path` and its MTL files, and takes light groups and meshing limits from `toml_path` if given.
+    ///
+    /// # Errors
+    /// A [`SceneError`] naming the file, line and face of the first problem found.
+    pub fn load_with_toml(obj_path: &Path, toml_path: Option<&Path>) -> Result<Scene, SceneError> {
+        let text = read_text(obj_path)?;
+        let obj = load_obj(obj_path, &text)?;
+        let materials = check_materials(&obj)?;
+        let mut warnings = Vec::new();
+        let faces = build_faces(obj_path, &obj, &materials, &mut warnings)?;
+        check_overlaps(obj_path, &faces)?;
+        let settings = match toml_path {
+            Some(p) => parse_config(p, &read_text(p)?)?,
+            None => TomlScene::default(),
+        };
+        let toml_file = toml_path.map_or_else(|| obj_path.with_extension("toml"), Path::to_path_buf);
+        let meshing = check_meshing(&toml_file, settings.meshing.as_ref())?;
+        let light_groups = build_light_groups(&toml_file, &settings.light_group, &materials)?;
+        Ok(Scene { path: obj_path.to_path_buf(), faces, materials, light_groups, meshing, warnings })
+    }
+
+    /// Total area of all faces.
+    #[must_use]
+    pub fn total_area(&self) -> f64 {
+        self.faces.iter().map(|f| f.area).sum()
+    }
+
+    /// The light group a material belongs to, if any (an index into [`Scene::light_groups`]).
+    #[must_use]
+    pub fn light_group_of(&self, material: usize) -> Option<usize> {
+        self.light_groups.iter().position(|g| g.materials.contains(&material))
+    }
+}
