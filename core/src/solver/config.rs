@@ -9,7 +9,7 @@ use crate::scalar::Scalar;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config<S> {
     /// Converged when every patch's unshot power magnitude (`|r| + |g| + |b|`, power units) is at most this.
-    /// [`Solver::new`] refuses a tolerance below the arithmetic's convergence floor for the table
+    /// [`Solver::new`](super::Solver::new) refuses a tolerance below the arithmetic's convergence floor for the table
     /// ([`SolverError::ToleranceBelowFloor`]; zero for f32). Reflectances raised later with `set_reflectance`
     /// raise the floor without a check.
     pub tolerance: S,
@@ -75,7 +75,7 @@ pub enum NoProgressReason {
     },
     /// The largest unshot power is not finite (f32) or saturated (fixed point): the state has overflowed.
     NotFinite,
-    /// A Jacobi sweep is half done: finish it with [`Solver::step_jacobi`] before shooting or Gauss-Seidel.
+    /// A Jacobi sweep is half done: finish it with [`Solver::step_jacobi`](super::Solver::step_jacobi) before shooting or Gauss-Seidel.
     JacobiInProgress,
     /// The Jacobi scratch buffer is shorter than the state count.
     ScratchTooSmall,
@@ -128,7 +128,7 @@ pub enum SolverError {
     },
 }
 
-/// The smallest tolerance [`Solver::new`] accepts for `table` on arithmetic `S`: [`Scalar::convergence_floor`]
+/// The smallest tolerance [`Solver::new`](super::Solver::new) accepts for `table` on arithmetic `S`: [`Scalar::convergence_floor`]
 /// of `ceil(6 L / (1 - rho_max))`, `L` the longest row and `rho_max` the largest reflectance of any material and
 /// channel (the convergence condition in the `scalar` module docs). Zero for f32. O(patches + materials).
 #[must_use]

@@ -1,5 +1,5 @@
-//! Meshing: a [`Scene`]'s faces turned into [`Patch`]es, plus the adjacency and refinement steps that adaptive
-//! meshing builds on.
+//! Meshing: a [`Scene`](crate::scene::Scene)'s faces turned into [`Patch`](crate::patch::Patch)es, plus the
+//! adjacency and refinement steps that adaptive meshing builds on.
 //!
 //! # Patches and faces
 //! Every patch keeps its parent face (`Patch::face`, the OBJ face index) and material, so results map back to
