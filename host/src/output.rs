@@ -8,18 +8,6 @@ use std::io::{self, Write};
 
 use crate::patch::Patch;
 
-/// Output format of a command.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum Format {
-    /// Human-readable text (the default).
-    #[default]
-    Text,
-    /// Comma-separated values with a header line.
-    Csv,
-    /// JSON.
-    Json,
-}
-
 /// Header of the patch table CSV.
 pub const PATCH_CSV_HEADER: &str =
     "patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b";

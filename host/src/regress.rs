@@ -709,23 +709,18 @@ impl fmt::Display for RegressReport {
     }
 }
 
-/// Command-line options of `radiosity regress`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct RegressArgs {
+/// What `radiosity regress` does (its command-line options are in the binary).
+#[derive(Clone, Debug)]
+pub struct RegressOptions {
     /// Re-measure everything and write the baseline (prints old and new values side by side).
-    #[arg(long)]
     pub update: bool,
     /// The baseline file.
-    #[arg(long, default_value = "tests/baseline/quantization.json")]
     pub baseline: PathBuf,
     /// The folder of shipped scenes (`*.obj`).
-    #[arg(long, default_value = "scenes")]
     pub scenes: PathBuf,
     /// Seeds measured by `--update` (the noise estimate; 2..=11).
-    #[arg(long, default_value_t = DEFAULT_SEEDS)]
     pub seeds: usize,
     /// Only this scene file (check only), e.g. `cornell-box.obj`.
-    #[arg(long)]
     pub scene: Option<String>,
 }
 
@@ -734,7 +729,7 @@ pub struct RegressArgs {
 /// # Errors
 /// [`RegressError`]; a check whose values exceed their limits is not an error here (see
 /// [`RegressReport::passed`]).
-pub fn run(args: &RegressArgs) -> Result<RegressReport, RegressError> {
+pub fn run(args: &RegressOptions) -> Result<RegressReport, RegressError> {
     if args.update {
         let old = if args.baseline.exists() { Some(read_baseline(&args.baseline)?) } else { None };
         let new = update(old.as_ref(), &args.scenes, args.seeds)?;

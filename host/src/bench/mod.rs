@@ -119,33 +119,6 @@ pub fn default_scenes_dir() -> PathBuf {
     }
 }
 
-/// Command-line options of `radiosity bench`.
-#[derive(Clone, Debug, clap::Args)]
-pub struct BenchArgs {
-    /// Small scenes and one repetition: checks that the report is produced (seconds, not minutes).
-    #[arg(long)]
-    pub quick: bool,
-    /// Output folder for REPORT.md, the CSV files and the plots.
-    #[arg(long, default_value = "bench")]
-    pub out: PathBuf,
-    /// Repetitions of every timed run (default: 3, or 1 with --quick).
-    #[arg(long, value_name = "N")]
-    pub reps: Option<usize>,
-}
-
-impl BenchArgs {
-    /// The [`BenchOptions`] these arguments select (progress on stderr).
-    #[must_use]
-    pub fn options(&self) -> BenchOptions {
-        let mut o = BenchOptions::new(self.quick, self.out.clone());
-        if let Some(r) = self.reps {
-            o.reps = r.max(1);
-        }
-        o.verbose = true;
-        o
-    }
-}
-
 /// One point of a curve: work (device methods only), model instructions, wall time, error.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurvePoint {

@@ -4,264 +4,20 @@ use std::io::{self, BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Args, Parser, Subcommand};
+use clap::Parser;
 use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::inspect::inspect_file;
-use radiosity_host::output::{write_patch_csv, Format};
+use radiosity_host::output::write_patch_csv;
+
+mod args;
+use args::{Cli, Command, Format, RenderModeArg};
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
 use radiosity_host::view;
-
-/// Precomputed diffuse lighting for small devices: scenes in, quantized form-factor tables out, every answer
-/// checked against an exact f64 solve.
-#[derive(Parser)]
-#[command(name = "radiosity", version, about, long_about = None)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Print the form factors F_ij of a scene (the fraction of power leaving patch i that reaches patch j).
-    ///
-    /// `--format csv` prints `i,j,f_ij` for every nonzero pair in f64; `text` prints statistics.
-    Formfactors {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// Output format.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
-    },
-    /// Bake a scene into a table for the device: form factors, sparsify, fold static lights, quantize, write.
-    ///
-    /// Prints a summary (sizes, energy dropped, error of sparsify + quantize against the f64 solve) and writes
-    /// TABLE plus, beside it, TABLE.capacities.json (the counts and buffer sizes a firmware build needs; the
-    /// firmware's build script derives the same sizes from the table itself with core's `BufferSizes::of`).
-    Bake {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// Output table file (.rft).
-        #[arg(short, long, value_name = "TABLE")]
-        output: PathBuf,
-        /// Bits per form-factor code: 16 (small float, relative error < 2^-12) or 8 (< 2^-5).
-        #[arg(long, default_value_t = 16)]
-        bits: u32,
-        /// Sparsification threshold: the largest fraction of a row's (and a receiver's) energy that may be
-        /// dropped.
-        #[arg(long, default_value_t = radiosity_host::bake::DEFAULT_THRESHOLD)]
-        threshold: f64,
-        /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
-        /// device can relight as B = B_static + sum_g I_g T_g in one pass; the summary reports its bytes and
-        /// relight error.
-        #[arg(long)]
-        transfer: bool,
-        /// Output format of the summary.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
-    },
-    /// Validate a table with the device's own parser and print its header and statistics.
-    Inspect {
-        /// The table file (.rft).
-        table: PathBuf,
-        /// Output format.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
-    },
-    /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
-    /// render it (view, light-map atlas, device error map, mesh histogram), then bake a table within 400 patches
-    /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
-    /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
-    Demo {
-        /// Folder for the outputs.
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
-    },
-    /// Solve the scene exactly in f64 (dense LU up to 4096 patches, Gauss-Seidel above) and print the patch
-    /// table: `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`.
-    Solve {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// Output format (`text` prints a summary per light group; `csv` the patch table; `json` both).
-        #[arg(long, value_enum, default_value_t = Format::Csv)]
-        format: Format,
-    },
-    /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
-    /// patch to show the mesh). Prints the output path.
-    Render {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// Camera as "px,py,pz;tx,ty,tz;ux,uy,uz;fov_degrees" (position; target; up; vertical field of view).
-        /// Default: the published Cornell camera for scenes named cornell-box*, else a view of the bounding box.
-        #[arg(long, allow_hyphen_values = true)]
-        camera: Option<String>,
-        /// Image width in pixels.
-        #[arg(long, default_value_t = 512)]
-        width: u32,
-        /// Image height in pixels.
-        #[arg(long, default_value_t = 512)]
-        height: u32,
-        /// What the picture shows.
-        #[arg(long, value_enum, default_value_t = RenderModeArg::Shaded)]
-        mode: RenderModeArg,
-        /// Table for `--mode error` (baked from SCENE with the same meshing options; default: bake one).
-        #[arg(long, value_name = "TABLE")]
-        table: Option<PathBuf>,
-        /// Output PNG file.
-        #[arg(short, long)]
-        output: PathBuf,
-    },
-    /// Run relight scripts on a table the way the device runs them and print every frame's error against the
-    /// exact f64 answer for that frame's light intensities.
-    ///
-    /// The device loop (the code the firmware links) runs on the host in f32 and Q32.32 fixed point; with
-    /// `--qemu` the Cortex-M4 firmware is also built with the same table and scripts and run under
-    /// qemu-system-arm (mps2-an386, -icount shift=0), adding the instructions each frame took, flash and RAM use,
-    /// and a bit-for-bit comparison of every frame with the host run.
-    Relight {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// The table baked from SCENE with the same meshing options (default: bake one at default settings).
-        #[arg(long, value_name = "TABLE")]
-        table: Option<PathBuf>,
-        /// Relight scripts (TOML, format in firmware-sim/src/script.rs; default: SCENE's stem + .relight.toml).
-        #[arg(long, value_name = "FILE")]
-        scripts: Option<PathBuf>,
-        /// Only the script of this name.
-        #[arg(long, value_name = "NAME")]
-        script: Option<String>,
-        /// Also build the Cortex-M4 firmware and run it under QEMU (needs `make deps`).
-        #[arg(long)]
-        qemu: bool,
-        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png.
-        #[arg(long, value_name = "DIR")]
-        frames: Option<PathBuf>,
-        /// Size of the frame pictures (pixels, square).
-        #[arg(long, default_value_t = 256)]
-        frame_size: u32,
-        /// Write the per-frame rows as CSV to FILE.
-        #[arg(long, value_name = "FILE")]
-        csv: Option<PathBuf>,
-        /// Plot error against cumulative work units per script to STEM.svg and STEM.png.
-        #[arg(long, value_name = "STEM")]
-        plot: Option<PathBuf>,
-        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
-    },
-    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
-    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths.
-    Lightmap {
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// Output path without extension.
-        #[arg(short, long, value_name = "STEM")]
-        output: PathBuf,
-    },
-    /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
-    /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
-    ///
-    /// `radiosity check TABLE.rft --scene SCENE.obj` checks an existing table instead: it must have been baked
-    /// from SCENE with the same meshing options (else a clear error naming the first difference).
-    Check {
-        /// The scene's OBJ file, or a table (.rft) together with `--scene`.
-        #[command(flatten)]
-        scene: SceneArgs,
-        /// With a table as the first argument: the scene it was baked from.
-        #[arg(long = "scene", id = "table_scene", value_name = "SCENE")]
-        table_scene: Option<PathBuf>,
-        #[command(flatten)]
-        check: radiosity_host::check::CheckArgs,
-        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png.
-        #[arg(long, value_name = "STEM")]
-        plot: Option<PathBuf>,
-        /// Output format (`text` or `json`).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
-    },
-    /// Quantization regression: recompute every shipped scene's error components (16- and 8-bit codecs) and
-    /// compare them with the checked-in baseline (fails when one exceeds baseline + k * noise);
-    /// `--update` re-measures and rewrites the baseline, printing old and new values side by side.
-    Regress {
-        #[command(flatten)]
-        regress: radiosity_host::regress::RegressArgs,
-        /// Output format (`text` or `json`).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
-    },
-    /// Measure speed against error for every relighting method (core shooting with and without overshooting,
-    /// Gauss-Seidel, Jacobi, warm and cold relighting, the precomputed transfer basis, f64 dense LU and
-    /// Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
-    /// CSV files and plots into the output folder. Run it from a release build.
-    Bench(radiosity_host::bench::BenchArgs),
-}
-
-/// `render --mode`.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum RenderModeArg {
-    /// Smoothly shaded radiosity, tone mapped.
-    Shaded,
-    /// One colour per patch (the mesh).
-    Patches,
-    /// The device's converged f32 answer on a table (`--table`, or one baked at default settings), false-coloured
-    /// by its relative error against the exact f64 answer, with a legend.
-    Error,
-}
-
-/// Options shared by the commands that read a scene.
-#[derive(Args)]
-struct SceneArgs {
-    /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
-    scene: PathBuf,
-    /// One patch per OBJ face: patch k is face k, so results can be checked against hand computations.
-    #[arg(long)]
-    no_subdivide: bool,
-    /// Longest patch edge after uniform subdivision, in scene units (default: the scene's TOML, or 1/8 of its
-    /// extent).
-    #[arg(long, value_name = "LENGTH")]
-    max_patch_edge: Option<f64>,
-    /// Most patches the mesh may have (default: the scene's TOML, or 4096).
-    #[arg(long, value_name = "N")]
-    max_patches: Option<usize>,
-    /// Sample points on each patch for the form-factor integral.
-    #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
-    samples: usize,
-    /// Occlusion rays per patch pair.
-    #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().rays_per_pair)]
-    rays: usize,
-    /// Seed of the form-factor sampling; equal seeds give identical results on any thread count.
-    #[arg(long, default_value_t = FormFactorOptions::default().seed)]
-    seed: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long, value_name = "N")]
-    threads: Option<usize>,
-    /// No progress bar or stage summaries on stderr.
-    #[arg(long, short)]
-    quiet: bool,
-}
-
-impl SceneArgs {
-    fn prepare_options(&self) -> PrepareOptions {
-        PrepareOptions {
-            no_subdivide: self.no_subdivide,
-            max_patch_edge: self.max_patch_edge,
-            max_patches: self.max_patches,
-            form_factors: FormFactorOptions {
-                samples_per_patch: self.samples,
-                rays_per_pair: self.rays,
-                seed: self.seed,
-                progress: !self.quiet,
-                threads: self.threads,
-                ..FormFactorOptions::default()
-            },
-            verbose: !self.quiet,
-        }
-    }
-}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -497,7 +253,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
         }
         Command::Regress { regress, format } => {
-            let report = radiosity_host::regress::run(&regress)?;
+            let report = radiosity_host::regress::run(&regress.options())?;
             match format {
                 Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
                 _ => write!(out, "{report}")?,

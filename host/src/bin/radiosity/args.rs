@@ -1,0 +1,402 @@
+//! The command line's option types: every clap derive of the `radiosity` binary lives here or in `main.rs`;
+//! the library takes plain option structs.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+
+use radiosity_host::bake;
+use radiosity_host::bench::BenchOptions;
+use radiosity_host::check::{Arith, CheckOptions};
+use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::pipeline::PrepareOptions;
+use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
+
+/// Output format of a command.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// Human-readable text (the default).
+    #[default]
+    Text,
+    /// Comma-separated values with a header line.
+    Csv,
+    /// JSON.
+    Json,
+}
+
+/// Command-line options of `radiosity check` (after the scene arguments).
+#[derive(Clone, Debug, clap::Args)]
+pub struct CheckArgs {
+    /// Form-factor code width: 16 or 8 (others are rejected by the bake).
+    #[arg(long, default_value_t = 16)]
+    pub bits: u32,
+    /// Sparsification threshold: largest fraction of a row's energy that may be dropped.
+    #[arg(long, default_value_t = bake::DEFAULT_THRESHOLD)]
+    pub threshold: f64,
+    /// Work units per frame.
+    #[arg(long, value_name = "UNITS", default_value_t = CheckOptions::default().budget)]
+    pub budget: u32,
+    /// Frames per light setting (default: run each setting to convergence).
+    #[arg(long, value_name = "N")]
+    pub frames: Option<usize>,
+    /// Arithmetic paths of the device solver.
+    #[arg(long, value_enum, default_value_t = ArithArg::Both)]
+    pub arith: ArithArg,
+    /// Relight after the default setting: all dynamic groups to 0, back to default, then (1, 0.2, 0.2) x default.
+    #[arg(long)]
+    pub relight: bool,
+    /// Solver tolerance as a fraction of the largest per-channel emitted power.
+    #[arg(long, default_value_t = CheckOptions::default().tolerance)]
+    pub tolerance: f64,
+    /// The form-factor component's reference matrix uses this many times the samples and rays (1: skip).
+    #[arg(long, value_name = "K", default_value_t = CheckOptions::default().ff_factor)]
+    pub ff_factor: usize,
+    /// Slack on row sums of the shooting form `A_j F_ji / A_i` above 1 in the f64 solves (estimated form factors
+    /// are not exactly reciprocal).
+    #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
+    pub row_sum_tolerance: f64,
+}
+
+/// `--arith` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ArithArg {
+    /// `f32`.
+    F32,
+    /// Q32.32 fixed point.
+    Fixed,
+    /// Both.
+    Both,
+}
+
+impl CheckArgs {
+    /// The [`CheckOptions`] these arguments select.
+    #[must_use]
+    pub fn options(&self) -> CheckOptions {
+        CheckOptions {
+            bits: self.bits,
+            codec: None,
+            threshold: self.threshold,
+            budget: self.budget,
+            frames: self.frames,
+            arith: match self.arith {
+                ArithArg::F32 => Arith::F32,
+                ArithArg::Fixed => Arith::Fixed,
+                ArithArg::Both => Arith::Both,
+            },
+            relight: self.relight,
+            tolerance: self.tolerance,
+            ff_factor: self.ff_factor,
+            row_sum_tolerance: self.row_sum_tolerance,
+        }
+    }
+}
+
+/// Command-line options of `radiosity regress`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct RegressArgs {
+    /// Re-measure everything and write the baseline (prints old and new values side by side).
+    #[arg(long)]
+    pub update: bool,
+    /// The baseline file.
+    #[arg(long, default_value = "tests/baseline/quantization.json")]
+    pub baseline: PathBuf,
+    /// The folder of shipped scenes (`*.obj`).
+    #[arg(long, default_value = "scenes")]
+    pub scenes: PathBuf,
+    /// Seeds measured by `--update` (the noise estimate; 2..=11).
+    #[arg(long, default_value_t = DEFAULT_SEEDS)]
+    pub seeds: usize,
+    /// Only this scene file (check only), e.g. `cornell-box.obj`.
+    #[arg(long)]
+    pub scene: Option<String>,
+}
+
+impl RegressArgs {
+    /// The library's options.
+    pub fn options(&self) -> RegressOptions {
+        RegressOptions {
+            update: self.update,
+            baseline: self.baseline.clone(),
+            scenes: self.scenes.clone(),
+            seeds: self.seeds,
+            scene: self.scene.clone(),
+        }
+    }
+}
+
+/// Command-line options of `radiosity bench`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Small scenes and one repetition: checks that the report is produced (seconds, not minutes).
+    #[arg(long)]
+    pub quick: bool,
+    /// Output folder for REPORT.md, the CSV files and the plots.
+    #[arg(long, default_value = "bench")]
+    pub out: PathBuf,
+    /// Repetitions of every timed run (default: 3, or 1 with --quick).
+    #[arg(long, value_name = "N")]
+    pub reps: Option<usize>,
+}
+
+impl BenchArgs {
+    /// The [`BenchOptions`] these arguments select (progress on stderr).
+    #[must_use]
+    pub fn options(&self) -> BenchOptions {
+        let mut o = BenchOptions::new(self.quick, self.out.clone());
+        if let Some(r) = self.reps {
+            o.reps = r.max(1);
+        }
+        o.verbose = true;
+        o
+    }
+}
+
+/// Precomputed diffuse lighting for small devices: scenes in, quantized form-factor tables out, every answer
+/// checked against an exact f64 solve.
+#[derive(Parser)]
+#[command(name = "radiosity", version, about, long_about = None)]
+pub struct Cli {
+    /// The subcommand.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Subcommand)]
+pub enum Command {
+    /// Print the form factors F_ij of a scene (the fraction of power leaving patch i that reaches patch j).
+    ///
+    /// `--format csv` prints `i,j,f_ij` for every nonzero pair in f64; `text` prints statistics.
+    Formfactors {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Bake a scene into a table for the device: form factors, sparsify, fold static lights, quantize, write.
+    ///
+    /// Prints a summary (sizes, energy dropped, error of sparsify + quantize against the f64 solve) and writes
+    /// TABLE plus, beside it, TABLE.capacities.json (the counts and buffer sizes a firmware build needs; the
+    /// firmware's build script derives the same sizes from the table itself with core's `BufferSizes::of`).
+    Bake {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output table file (.rft).
+        #[arg(short, long, value_name = "TABLE")]
+        output: PathBuf,
+        /// Bits per form-factor code: 16 (small float, relative error < 2^-12) or 8 (< 2^-5).
+        #[arg(long, default_value_t = 16)]
+        bits: u32,
+        /// Sparsification threshold: the largest fraction of a row's (and a receiver's) energy that may be
+        /// dropped.
+        #[arg(long, default_value_t = radiosity_host::bake::DEFAULT_THRESHOLD)]
+        threshold: f64,
+        /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
+        /// device can relight as B = B_static + sum_g I_g T_g in one pass; the summary reports its bytes and
+        /// relight error.
+        #[arg(long)]
+        transfer: bool,
+        /// Output format of the summary.
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Validate a table with the device's own parser and print its header and statistics.
+    Inspect {
+        /// The table file (.rft).
+        table: PathBuf,
+        /// Output format.
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
+    /// render it (view, light-map atlas, device error map, mesh histogram), then bake a table within 400 patches
+    /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
+    /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
+    Demo {
+        /// Folder for the outputs.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
+    /// Solve the scene exactly in f64 (dense LU up to 4096 patches, Gauss-Seidel above) and print the patch
+    /// table: `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`.
+    Solve {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output format (`text` prints a summary per light group; `csv` the patch table; `json` both).
+        #[arg(long, value_enum, default_value_t = Format::Csv)]
+        format: Format,
+    },
+    /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
+    /// patch to show the mesh). Prints the output path.
+    Render {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Camera as "px,py,pz;tx,ty,tz;ux,uy,uz;fov_degrees" (position; target; up; vertical field of view).
+        /// Default: the published Cornell camera for scenes named cornell-box*, else a view of the bounding box.
+        #[arg(long, allow_hyphen_values = true)]
+        camera: Option<String>,
+        /// Image width in pixels.
+        #[arg(long, default_value_t = 512)]
+        width: u32,
+        /// Image height in pixels.
+        #[arg(long, default_value_t = 512)]
+        height: u32,
+        /// What the picture shows.
+        #[arg(long, value_enum, default_value_t = RenderModeArg::Shaded)]
+        mode: RenderModeArg,
+        /// Table for `--mode error` (baked from SCENE with the same meshing options; default: bake one).
+        #[arg(long, value_name = "TABLE")]
+        table: Option<PathBuf>,
+        /// Output PNG file.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
+    /// Run relight scripts on a table the way the device runs them and print every frame's error against the
+    /// exact f64 answer for that frame's light intensities.
+    ///
+    /// The device loop (the code the firmware links) runs on the host in f32 and Q32.32 fixed point; with
+    /// `--qemu` the Cortex-M4 firmware is also built with the same table and scripts and run under
+    /// qemu-system-arm (mps2-an386, -icount shift=0), adding the instructions each frame took, flash and RAM use,
+    /// and a bit-for-bit comparison of every frame with the host run.
+    Relight {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// The table baked from SCENE with the same meshing options (default: bake one at default settings).
+        #[arg(long, value_name = "TABLE")]
+        table: Option<PathBuf>,
+        /// Relight scripts (TOML, format in firmware-sim/src/script.rs; default: SCENE's stem + .relight.toml).
+        #[arg(long, value_name = "FILE")]
+        scripts: Option<PathBuf>,
+        /// Only the script of this name.
+        #[arg(long, value_name = "NAME")]
+        script: Option<String>,
+        /// Also build the Cortex-M4 firmware and run it under QEMU (needs `make deps`).
+        #[arg(long)]
+        qemu: bool,
+        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png.
+        #[arg(long, value_name = "DIR")]
+        frames: Option<PathBuf>,
+        /// Size of the frame pictures (pixels, square).
+        #[arg(long, default_value_t = 256)]
+        frame_size: u32,
+        /// Write the per-frame rows as CSV to FILE.
+        #[arg(long, value_name = "FILE")]
+        csv: Option<PathBuf>,
+        /// Plot error against cumulative work units per script to STEM.svg and STEM.png.
+        #[arg(long, value_name = "STEM")]
+        plot: Option<PathBuf>,
+        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
+    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths.
+    Lightmap {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output path without extension.
+        #[arg(short, long, value_name = "STEM")]
+        output: PathBuf,
+    },
+    /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
+    /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
+    ///
+    /// `radiosity check TABLE.rft --scene SCENE.obj` checks an existing table instead: it must have been baked
+    /// from SCENE with the same meshing options (else a clear error naming the first difference).
+    Check {
+        /// The scene's OBJ file, or a table (.rft) together with `--scene`.
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// With a table as the first argument: the scene it was baked from.
+        #[arg(long = "scene", id = "table_scene", value_name = "SCENE")]
+        table_scene: Option<PathBuf>,
+        #[command(flatten)]
+        check: CheckArgs,
+        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png.
+        #[arg(long, value_name = "STEM")]
+        plot: Option<PathBuf>,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Quantization regression: recompute every shipped scene's error components (16- and 8-bit codecs) and
+    /// compare them with the checked-in baseline (fails when one exceeds baseline + k * noise);
+    /// `--update` re-measures and rewrites the baseline, printing old and new values side by side.
+    Regress {
+        #[command(flatten)]
+        regress: RegressArgs,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = Format::Text)]
+        format: Format,
+    },
+    /// Measure speed against error for every relighting method (core shooting with and without overshooting,
+    /// Gauss-Seidel, Jacobi, warm and cold relighting, the precomputed transfer basis, f64 dense LU and
+    /// Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
+    /// CSV files and plots into the output folder. Run it from a release build.
+    Bench(BenchArgs),
+}
+
+/// `render --mode`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum RenderModeArg {
+    /// Smoothly shaded radiosity, tone mapped.
+    Shaded,
+    /// One colour per patch (the mesh).
+    Patches,
+    /// The device's converged f32 answer on a table (`--table`, or one baked at default settings), false-coloured
+    /// by its relative error against the exact f64 answer, with a legend.
+    Error,
+}
+
+/// Options shared by the commands that read a scene.
+#[derive(Args)]
+pub struct SceneArgs {
+    /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
+    pub scene: PathBuf,
+    /// One patch per OBJ face: patch k is face k, so results can be checked against hand computations.
+    #[arg(long)]
+    pub no_subdivide: bool,
+    /// Longest patch edge after uniform subdivision, in scene units (default: the scene's TOML, or 1/8 of its
+    /// extent).
+    #[arg(long, value_name = "LENGTH")]
+    pub max_patch_edge: Option<f64>,
+    /// Most patches the mesh may have (default: the scene's TOML, or 4096).
+    #[arg(long, value_name = "N")]
+    pub max_patches: Option<usize>,
+    /// Sample points on each patch for the form-factor integral.
+    #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
+    pub samples: usize,
+    /// Occlusion rays per patch pair.
+    #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().rays_per_pair)]
+    pub rays: usize,
+    /// Seed of the form-factor sampling; equal seeds give identical results on any thread count.
+    #[arg(long, default_value_t = FormFactorOptions::default().seed)]
+    pub seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// No progress bar or stage summaries on stderr.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl SceneArgs {
+    /// The pipeline options these arguments select.
+    pub fn prepare_options(&self) -> PrepareOptions {
+        PrepareOptions {
+            no_subdivide: self.no_subdivide,
+            max_patch_edge: self.max_patch_edge,
+            max_patches: self.max_patches,
+            form_factors: FormFactorOptions {
+                samples_per_patch: self.samples,
+                rays_per_pair: self.rays,
+                seed: self.seed,
+                progress: !self.quiet,
+                threads: self.threads,
+                ..FormFactorOptions::default()
+            },
+            verbose: !self.quiet,
+        }
+    }
+}
