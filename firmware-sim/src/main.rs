@@ -122,7 +122,7 @@ fn print_summary(arith: Arith, summaries: &[ScriptSummary]) {
         println!(
             "{},{},{},{},{},{},{},{:.3}",
             s.name,
-            if arith == Arith::F32 { "f32" } else { "fixed" },
+            arith,
             s.frames,
             s.converged_frames,
             s.boot_units,

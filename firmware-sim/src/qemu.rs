@@ -56,10 +56,7 @@ pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<Pa
     let absolute =
         |p: &Path| std::fs::canonicalize(p).map_err(|e| format!("cannot find {}: {e}", p.display()));
     let (table, scripts) = (absolute(table)?, absolute(scripts)?);
-    let target_dir = dir.join("target").join(match target.arith {
-        Arith::F32 => "f32",
-        Arith::Fixed => "fixed",
-    });
+    let target_dir = dir.join("target").join(target.arith.name());
     let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     cmd.current_dir(&dir)
         .args(["build", "--release", "--target", target.triple])

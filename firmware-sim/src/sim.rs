@@ -12,8 +12,10 @@ use radiosity_core::{Fixed, OwnedBuffers, Solver, Table};
 use crate::device::{self, write_trace, Bits, Frame, FrameRecord, NoMeter, RunError, Script};
 use crate::script::{OwnedScript, ScriptFile};
 
-/// The arithmetic a run uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The arithmetic a device run uses: the one name for it in the workspace (host's check, bench, relight and the
+/// QEMU targets all use this type; text forms are `f32` and `fixed`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Arith {
     /// `f32` (Cortex-M4F with FPU).
     F32,
@@ -22,14 +24,36 @@ pub enum Arith {
 }
 
 impl Arith {
+    /// Both, in report order (f32 first).
+    pub const ALL: [Arith; 2] = [Arith::F32, Arith::Fixed];
+
+    /// The text form: `f32` or `fixed`.
+    #[must_use]
+    pub const fn name(self) -> &'static str {
+        match self {
+            Arith::F32 => "f32",
+            Arith::Fixed => "fixed",
+        }
+    }
+
     /// Parses `f32` or `fixed`.
     #[must_use]
     pub fn from_name(s: &str) -> Option<Arith> {
-        match s {
-            "f32" => Some(Arith::F32),
-            "fixed" => Some(Arith::Fixed),
-            _ => None,
-        }
+        Arith::ALL.into_iter().find(|a| a.name() == s)
+    }
+}
+
+impl core::fmt::Display for Arith {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl core::str::FromStr for Arith {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Arith, String> {
+        Arith::from_name(s).ok_or_else(|| format!("unknown arithmetic {s:?} (expected f32 or fixed)"))
     }
 }
 

@@ -95,7 +95,7 @@ impl Default for RelightOptions {
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FrameRow {
     /// `f32` or `fixed`.
-    pub arith: &'static str,
+    pub arith: Arith,
     /// Script name.
     pub script: String,
     /// Frame index in the script.
@@ -244,7 +244,7 @@ pub fn relight(
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let mut rows = Vec::new();
     let mut first_script_frames = Vec::new();
-    for arith in [Arith::F32, Arith::Fixed] {
+    for arith in Arith::ALL {
         for (k, script) in selected.iter().enumerate() {
             let frames = match arith {
                 Arith::F32 => device_frames::<f32>(&table, script)?,
@@ -254,10 +254,10 @@ pub fn relight(
                 let intensity: Vec<[f64; 3]> = spec.intensity.iter().map(|v| v.map(f64::from)).collect();
                 let exact = tv.relight(&intensity)?;
                 let error = metrics::compare(&f.b, &exact, &area).map_err(|e| {
-                    script_error(format!("script {:?} frame {} ({arith:?}): {e}", script.name, f.frame))
+                    script_error(format!("script {:?} frame {} ({arith}): {e}", script.name, f.frame))
                 })?;
                 rows.push(FrameRow {
-                    arith: if arith == Arith::F32 { "f32" } else { "fixed" },
+                    arith,
                     script: script.name.clone(),
                     frame: f.frame,
                     budget: f.budget,
@@ -278,7 +278,7 @@ pub fn relight(
     if options.qemu {
         for (target, name) in [(qemu::M4_F32, "m4-f32"), (qemu::M4_FIXED, "m4-fixed")] {
             let (run, log) = run_firmware(target, name, &table, &file, table_path, scripts_path, options)?;
-            let arith = if target.arith == Arith::F32 { "f32" } else { "fixed" };
+            let arith = target.arith;
             // Frames in the log are in script order, frame order; pair them with the rows by script and index.
             let mut index = std::collections::HashMap::<&str, u32>::new();
             for q in &log.frames {
@@ -438,10 +438,12 @@ impl fmt::Display for RelightReport {
             "err fixed",
             if has_qemu { "   instr f32 instr fixed" } else { "" }
         )?;
-        let f32_rows = self.frames.iter().filter(|r| r.arith == "f32");
+        let f32_rows = self.frames.iter().filter(|r| r.arith == Arith::F32);
         for r in f32_rows {
-            let fixed =
-                self.frames.iter().find(|x| x.arith == "fixed" && x.script == r.script && x.frame == r.frame);
+            let fixed = self
+                .frames
+                .iter()
+                .find(|x| x.arith == Arith::Fixed && x.script == r.script && x.frame == r.frame);
             write!(
                 f,
                 "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10.3e} {:>10}",

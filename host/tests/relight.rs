@@ -95,8 +95,11 @@ fn converged_frames_match_f64_within_the_bake_error_and_starved_frames_do_not() 
     // Starved: with one patch per face a shot costs about one unit per receiving patch (~18 here), so 40 units
     // buy two shots a frame; eight shots cannot carry the interreflections of a box with walls of reflectance
     // up to 0.8, so the error after 4 frames stays far above the converged bound and the test sees it.
-    let starved: Vec<_> =
-        report.frames.iter().filter(|r| r.script == "starved" && r.arith == "f32").collect();
+    let starved: Vec<_> = report
+        .frames
+        .iter()
+        .filter(|r| r.script == "starved" && r.arith == firmware_sim::sim::Arith::F32)
+        .collect();
     assert_eq!(starved.len(), 4);
     assert!(starved.iter().all(|r| !r.converged && r.used <= 40));
     let last = starved.last().unwrap();
