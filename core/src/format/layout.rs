@@ -1,4 +1,4 @@
-//! The byte layout: the postcard header, the payload sections' byte ranges, and the little-endian readers
+//! The byte layout: the postcard header, the size of every section ([`SectionSizes`]), and the little-endian readers
 //! that parse and the read views share (format module docs, and `docs/format.md`).
 
 use serde::{Deserialize, Serialize};
@@ -32,34 +32,54 @@ pub(super) struct Prefix {
 /// Largest postcard header, in bytes (4 magic + varints: 3 for u16, 5 per u32, 10 per u64, 1 per u8/bool).
 pub(crate) const MAX_HEADER_LEN: usize = 4 + 3 + 6 * 5 + 4 + 10 + 1;
 
-/// Byte ranges of the payload sections, in payload order.
+/// Bytes of each part of a table blob, in blob order (format module docs, "Payload sections").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct Layout {
-    pub area: usize,
-    pub material: usize,
+pub struct SectionSizes {
+    /// The postcard header.
+    pub header: usize,
+    /// Patch areas (`f32` per patch).
+    pub patch_area: usize,
+    /// Patch materials (`u16` per patch).
+    pub patch_material: usize,
+    /// Static emission codes (3 x `u16` per patch).
     pub base_emission: usize,
+    /// Static irradiance codes (3 x `u16` per patch).
     pub base_irradiance: usize,
+    /// Material reflectance codes (3 x `u16` per material).
     pub reflectance: usize,
+    /// Light-group ids (`u32` per group).
     pub group_id: usize,
+    /// Light-group default intensities (3 x `f32` per group).
     pub group_intensity: usize,
+    /// Light-group member starts (`u32` per group, plus one).
     pub group_start: usize,
+    /// Member patches (an index per member).
     pub member_patch: usize,
+    /// Member unit emission codes (3 x `u16` per member).
     pub member_emission: usize,
+    /// The state map's patch per slot (0 when every patch has state).
     pub state_patch: usize,
+    /// The state map's material per slot (0 when every patch has state).
     pub state_material: usize,
+    /// Row starts (`u32` per slot, plus one).
     pub row_start: usize,
+    /// Row exponents (`u8` per slot).
     pub row_exponent: usize,
+    /// Entry receivers (an index per entry).
     pub entry_receiver: usize,
+    /// Entry form-factor codes.
     pub entry_code: usize,
+    /// Transfer scale exponents (3 x `i8` per group; 0 without the transfer basis).
     pub transfer_exponent: usize,
+    /// Transfer response codes (3 x `u16` per patch and group; 0 without the transfer basis).
     pub transfer_code: usize,
-    /// End of the payload (start of the CRC).
-    pub end: usize,
+    /// The CRC-32.
+    pub crc: usize,
 }
 
-impl Layout {
-    /// Section offsets relative to the payload start, or `None` on arithmetic overflow.
-    pub(crate) fn new(h: &Header) -> Option<Layout> {
+impl SectionSizes {
+    /// The sizes a header implies, or `None` on arithmetic overflow (of a section or of the whole blob).
+    pub(crate) fn of_header(h: &Header, header_len: usize) -> Option<SectionSizes> {
         let n = h.patch_count as usize;
         let s = h.state_count as usize;
         // The state map is present only when some patch has no state (identity otherwise).
@@ -72,34 +92,68 @@ impl Layout {
         let cb = usize::from(h.ff_bits / 8);
         // The optional transfer basis: per group 3 exponents, per (patch, group) 3 codes of 2 bytes.
         let (tg, tn) = if h.transfer { (g, n) } else { (0, 0) };
-        let mut at = 0usize;
-        let mut next = |len: Option<usize>| -> Option<usize> {
-            let start = at;
-            at = at.checked_add(len?)?;
-            Some(start)
+        let sizes = SectionSizes {
+            header: header_len,
+            patch_area: n.checked_mul(4)?,
+            patch_material: n.checked_mul(2)?,
+            base_emission: n.checked_mul(6)?,
+            base_irradiance: n.checked_mul(6)?,
+            reflectance: m.checked_mul(6)?,
+            group_id: g.checked_mul(4)?,
+            group_intensity: g.checked_mul(12)?,
+            group_start: g.checked_add(1)?.checked_mul(4)?,
+            member_patch: mc.checked_mul(ib)?,
+            member_emission: mc.checked_mul(6)?,
+            state_patch: sm.checked_mul(ib)?,
+            state_material: sm.checked_mul(2)?,
+            row_start: s.checked_add(1)?.checked_mul(4)?,
+            row_exponent: s,
+            entry_receiver: nnz.checked_mul(ib)?,
+            entry_code: nnz.checked_mul(cb)?,
+            transfer_exponent: tg.checked_mul(3)?,
+            transfer_code: tn.checked_mul(tg)?.checked_mul(6)?,
+            crc: 4,
         };
-        let l = Layout {
-            area: next(n.checked_mul(4))?,
-            material: next(n.checked_mul(2))?,
-            base_emission: next(n.checked_mul(6))?,
-            base_irradiance: next(n.checked_mul(6))?,
-            reflectance: next(m.checked_mul(6))?,
-            group_id: next(g.checked_mul(4))?,
-            group_intensity: next(g.checked_mul(12))?,
-            group_start: next(g.checked_add(1)?.checked_mul(4))?,
-            member_patch: next(mc.checked_mul(ib))?,
-            member_emission: next(mc.checked_mul(6))?,
-            state_patch: next(sm.checked_mul(ib))?,
-            state_material: next(sm.checked_mul(2))?,
-            row_start: next(s.checked_add(1)?.checked_mul(4))?,
-            row_exponent: next(Some(s))?,
-            entry_receiver: next(nnz.checked_mul(ib))?,
-            entry_code: next(nnz.checked_mul(cb))?,
-            transfer_exponent: next(tg.checked_mul(3))?,
-            transfer_code: next(tn.checked_mul(tg)?.checked_mul(6))?,
-            end: 0,
-        };
-        Some(Layout { end: at, ..l })
+        sizes.parts().into_iter().try_fold(0usize, usize::checked_add)?;
+        Some(sizes)
+    }
+
+    /// Every part's size in blob order: the header, the payload sections, the CRC.
+    fn parts(&self) -> [usize; 20] {
+        [
+            self.header,
+            self.patch_area,
+            self.patch_material,
+            self.base_emission,
+            self.base_irradiance,
+            self.reflectance,
+            self.group_id,
+            self.group_intensity,
+            self.group_start,
+            self.member_patch,
+            self.member_emission,
+            self.state_patch,
+            self.state_material,
+            self.row_start,
+            self.row_exponent,
+            self.entry_receiver,
+            self.entry_code,
+            self.transfer_exponent,
+            self.transfer_code,
+            self.crc,
+        ]
+    }
+
+    /// Everything between header and CRC.
+    #[must_use]
+    pub fn payload(&self) -> usize {
+        self.parts().into_iter().skip(1).take(18).fold(0, usize::saturating_add)
+    }
+
+    /// The whole blob.
+    #[must_use]
+    pub fn total(&self) -> usize {
+        self.parts().into_iter().fold(0, usize::saturating_add)
     }
 }
 

@@ -2,7 +2,7 @@
 //! and the writer. The specification of the bytes is `docs/format.md`, included below; the golden tests in
 //! `core/tests/format.rs` pin it.
 //!
-//! Files: `layout` (header, section byte ranges, little-endian readers), `error` ([`TableError`]), `parse`
+//! Files: `layout` (header, [`SectionSizes`], little-endian readers), `error` ([`TableError`]), `parse`
 //! ([`Table::parse`] and its validation), `view` (accessors and [`Row`]), [`write`](mod@write) (the writer the
 //! host calls). Each uses only the codecs ([`crate::codec`]) and the CRC ([`crate::crc`]) below it.
 //!
@@ -15,8 +15,9 @@ mod view;
 pub mod write;
 
 pub use error::{IndexArray, OffsetArray, QuantParam, TableError};
+pub use layout::SectionSizes;
 pub use parse::Table;
-pub use view::{Entries, Member, Row, SectionSizes};
+pub use view::{Entries, Member, Row};
 pub use write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };

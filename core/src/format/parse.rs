@@ -2,7 +2,7 @@
 //! can panic and the read views ([`super::view`]) rely on what it proved.
 
 use super::error::{IndexArray, OffsetArray, QuantParam, TableError};
-use super::layout::{le_f32, le_u16, le_u32, Header, Layout, Prefix};
+use super::layout::{le_f32, le_u16, le_u32, Header, Prefix, SectionSizes};
 use super::{FORMAT_VERSION, MAGIC};
 use crate::codec::transfer::{TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPONENT};
 use crate::codec::{CodecParamError, FfCodec, EXACT_SHIFT, MAX_ROW_EXPONENT};
@@ -95,11 +95,8 @@ impl<'a> Table<'a> {
         if header.material_count > 0x1_0000 {
             return Err(TableError::CountsTooLarge);
         }
-        let layout = Layout::new(&header).ok_or(TableError::CountsTooLarge)?;
-        let expected = header_len
-            .checked_add(layout.end)
-            .and_then(|x| x.checked_add(4))
-            .ok_or(TableError::CountsTooLarge)?;
+        let sizes = SectionSizes::of_header(&header, header_len).ok_or(TableError::CountsTooLarge)?;
+        let expected = sizes.total();
         if bytes.len() < expected {
             return Err(TableError::Truncated { expected, actual: bytes.len() });
         }
@@ -113,33 +110,40 @@ impl<'a> Table<'a> {
         if stored != computed {
             return Err(TableError::CrcMismatch { stored, computed });
         }
-        let payload = body.get(header_len..).unwrap_or(&[]);
-        let sec = |a: usize, b: usize| payload.get(a..b).unwrap_or(&[]);
-        let material = sec(layout.material, layout.base_emission);
+        // The sections, in blob order: each takes its size off the front of what is left of the payload.
+        let mut rest = body.get(header_len..).unwrap_or(&[]);
+        let mut take = |len: usize| {
+            let (section, tail) = rest.split_at(len.min(rest.len()));
+            rest = tail;
+            section
+        };
+        let area = take(sizes.patch_area);
+        let material = take(sizes.patch_material);
         let identity = header.state_count == header.patch_count;
         let table = Table {
             header,
             header_len,
             codec,
             crc: computed,
-            area: sec(layout.area, layout.material),
+            area,
             material,
-            base_emission: sec(layout.base_emission, layout.base_irradiance),
-            base_irradiance: sec(layout.base_irradiance, layout.reflectance),
-            reflectance: sec(layout.reflectance, layout.group_id),
-            group_id: sec(layout.group_id, layout.group_intensity),
-            group_intensity: sec(layout.group_intensity, layout.group_start),
-            group_start: sec(layout.group_start, layout.member_patch),
-            member_patch: sec(layout.member_patch, layout.member_emission),
-            member_emission: sec(layout.member_emission, layout.state_patch),
-            state_patch: sec(layout.state_patch, layout.state_material),
-            state_material: if identity { material } else { sec(layout.state_material, layout.row_start) },
-            row_start: sec(layout.row_start, layout.row_exponent),
-            row_exponent: sec(layout.row_exponent, layout.entry_receiver),
-            entry_receiver: sec(layout.entry_receiver, layout.entry_code),
-            entry_code: sec(layout.entry_code, layout.transfer_exponent),
-            transfer_exponent: sec(layout.transfer_exponent, layout.transfer_code),
-            transfer_code: sec(layout.transfer_code, layout.end),
+            base_emission: take(sizes.base_emission),
+            base_irradiance: take(sizes.base_irradiance),
+            reflectance: take(sizes.reflectance),
+            group_id: take(sizes.group_id),
+            group_intensity: take(sizes.group_intensity),
+            group_start: take(sizes.group_start),
+            member_patch: take(sizes.member_patch),
+            member_emission: take(sizes.member_emission),
+            state_patch: take(sizes.state_patch),
+            // With every patch in state the slot materials are the patch material section itself.
+            state_material: if identity { material } else { take(sizes.state_material) },
+            row_start: take(sizes.row_start),
+            row_exponent: take(sizes.row_exponent),
+            entry_receiver: take(sizes.entry_receiver),
+            entry_code: take(sizes.entry_code),
+            transfer_exponent: take(sizes.transfer_exponent),
+            transfer_code: take(sizes.transfer_code),
         };
         table.validate()?;
         Ok(table)
@@ -155,14 +159,7 @@ impl<'a> Table<'a> {
                 return Err(TableError::BadArea { patch: p });
             }
             let mat = u32::from(le_u16(self.material, p as usize));
-            if mat >= self.header.material_count {
-                return Err(TableError::IndexOutOfRange {
-                    array: IndexArray::PatchMaterial,
-                    position: p,
-                    index: mat,
-                    bound: self.header.material_count,
-                });
-            }
+            in_range(IndexArray::PatchMaterial, p, mat, self.header.material_count)?;
         }
         if slots < n {
             if !self.header.base_solved {
@@ -171,14 +168,7 @@ impl<'a> Table<'a> {
             let mut prev: Option<u32> = None;
             for slot in 0..slots {
                 let p = self.index(self.state_patch, slot);
-                if p >= n {
-                    return Err(TableError::IndexOutOfRange {
-                        array: IndexArray::StatePatch,
-                        position: slot,
-                        index: p,
-                        bound: n,
-                    });
-                }
+                in_range(IndexArray::StatePatch, slot, p, n)?;
                 if prev.is_some_and(|q| q >= p) {
                     return Err(TableError::UnsortedStateMap { slot });
                 }
@@ -196,14 +186,7 @@ impl<'a> Table<'a> {
         )?;
         for k in 0..self.header.member_count {
             let p = self.index(self.member_patch, k);
-            if p >= n {
-                return Err(TableError::IndexOutOfRange {
-                    array: IndexArray::MemberPatch,
-                    position: k,
-                    index: p,
-                    bound: n,
-                });
-            }
+            in_range(IndexArray::MemberPatch, k, p, n)?;
             if self.slot_of(p).is_none() {
                 return Err(TableError::MemberWithoutState { position: k, patch: p });
             }
@@ -227,14 +210,7 @@ impl<'a> Table<'a> {
             let mut prev: Option<u32> = None;
             for k in start..end {
                 let r = self.index(self.entry_receiver, k);
-                if r >= slots {
-                    return Err(TableError::IndexOutOfRange {
-                        array: IndexArray::EntryReceiver,
-                        position: k,
-                        index: r,
-                        bound: slots,
-                    });
-                }
+                in_range(IndexArray::EntryReceiver, k, r, slots)?;
                 if prev.is_some_and(|p| p >= r) {
                     return Err(TableError::UnsortedRow { row });
                 }
@@ -269,6 +245,15 @@ fn header_error(e: postcard::Error) -> TableError {
     match e {
         postcard::Error::DeserializeUnexpectedEnd => TableError::TruncatedHeader,
         _ => TableError::BadHeader,
+    }
+}
+
+/// `index` (read at `position` of `array`) is below `bound`, or the error that says where it is not.
+fn in_range(array: IndexArray, position: u32, index: u32, bound: u32) -> Result<(), TableError> {
+    if index < bound {
+        Ok(())
+    } else {
+        Err(TableError::IndexOutOfRange { array, position, index, bound })
     }
 }
 

@@ -2,7 +2,7 @@
 //! entries. Accessors that take an index from the caller return `Option`; a [`Row`] is proven in bounds by
 //! [`Table::parse`], so iterating its entries checks nothing per entry.
 
-use super::layout::{le_f32, le_u16, le_u32, rgb16};
+use super::layout::{le_f32, le_u16, le_u32, rgb16, SectionSizes};
 use super::parse::Table;
 use crate::codec::transfer::decode_transfer;
 use crate::codec::{FfCodec, Frac};
@@ -379,82 +379,6 @@ impl Iterator for Entries<'_> {
     }
 }
 
-/// Bytes of each part of a table blob, in blob order (format module docs, "Payload sections").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SectionSizes {
-    /// The postcard header.
-    pub header: usize,
-    /// Patch areas (`f32` per patch).
-    pub patch_area: usize,
-    /// Patch materials (`u16` per patch).
-    pub patch_material: usize,
-    /// Static emission codes (3 x `u16` per patch).
-    pub base_emission: usize,
-    /// Static irradiance codes (3 x `u16` per patch).
-    pub base_irradiance: usize,
-    /// Material reflectance codes (3 x `u16` per material).
-    pub reflectance: usize,
-    /// Light-group ids (`u32` per group).
-    pub group_id: usize,
-    /// Light-group default intensities (3 x `f32` per group).
-    pub group_intensity: usize,
-    /// Light-group member starts (`u32` per group, plus one).
-    pub group_start: usize,
-    /// Member patches (an index per member).
-    pub member_patch: usize,
-    /// Member unit emission codes (3 x `u16` per member).
-    pub member_emission: usize,
-    /// The state map's patch per slot (0 when every patch has state).
-    pub state_patch: usize,
-    /// The state map's material per slot (0 when every patch has state).
-    pub state_material: usize,
-    /// Row starts (`u32` per slot, plus one).
-    pub row_start: usize,
-    /// Row exponents (`u8` per slot).
-    pub row_exponent: usize,
-    /// Entry receivers (an index per entry).
-    pub entry_receiver: usize,
-    /// Entry form-factor codes.
-    pub entry_code: usize,
-    /// Transfer scale exponents (3 x `i8` per group; 0 without the transfer basis).
-    pub transfer_exponent: usize,
-    /// Transfer response codes (3 x `u16` per patch and group; 0 without the transfer basis).
-    pub transfer_code: usize,
-    /// The CRC-32.
-    pub crc: usize,
-}
-
-impl SectionSizes {
-    /// Everything between header and CRC.
-    #[must_use]
-    pub fn payload(&self) -> usize {
-        self.patch_area
-            + self.patch_material
-            + self.base_emission
-            + self.base_irradiance
-            + self.reflectance
-            + self.group_id
-            + self.group_intensity
-            + self.group_start
-            + self.member_patch
-            + self.member_emission
-            + self.state_patch
-            + self.state_material
-            + self.row_start
-            + self.row_exponent
-            + self.entry_receiver
-            + self.entry_code
-            + self.transfer_exponent
-            + self.transfer_code
-    }
-
-    /// The whole blob.
-    #[must_use]
-    pub fn total(&self) -> usize {
-        self.header + self.payload() + self.crc
-    }
-}
-
 impl<'a> Table<'a> {
     /// The row of shooter `slot` as a view whose entries need no further checks, or `None` if
     /// `slot >= state_count`.
@@ -478,29 +402,7 @@ impl<'a> Table<'a> {
     /// Bytes of each section of the blob (what `radiosity inspect` reports).
     #[must_use]
     pub fn section_sizes(&self) -> SectionSizes {
-        let identity = self.every_patch_has_state();
-        SectionSizes {
-            header: self.header_len,
-            patch_area: self.area.len(),
-            patch_material: self.material.len(),
-            base_emission: self.base_emission.len(),
-            base_irradiance: self.base_irradiance.len(),
-            reflectance: self.reflectance.len(),
-            group_id: self.group_id.len(),
-            group_intensity: self.group_intensity.len(),
-            group_start: self.group_start.len(),
-            member_patch: self.member_patch.len(),
-            member_emission: self.member_emission.len(),
-            state_patch: self.state_patch.len(),
-            // With every patch in state the slot materials are the patch material section itself.
-            state_material: if identity { 0 } else { self.state_material.len() },
-            row_start: self.row_start.len(),
-            row_exponent: self.row_exponent.len(),
-            entry_receiver: self.entry_receiver.len(),
-            entry_code: self.entry_code.len(),
-            transfer_exponent: self.transfer_exponent.len(),
-            transfer_code: self.transfer_code.len(),
-            crc: 4,
-        }
+        // `parse` accepted this header, so its sizes are known not to overflow.
+        SectionSizes::of_header(&self.header, self.header_len).unwrap_or_default()
     }
 }

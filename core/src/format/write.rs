@@ -6,7 +6,7 @@
 
 use core::fmt;
 
-use super::layout::{Header, Layout, MAX_HEADER_LEN};
+use super::layout::{Header, SectionSizes, MAX_HEADER_LEN};
 use super::{FORMAT_VERSION, MAGIC};
 use crate::codec::transfer::{encode_transfer, transfer_exponent_for, TRANSFER_MAX};
 use crate::codec::{self, f32_to_exact, FfCodec, EXACT_SHIFT};
@@ -256,8 +256,7 @@ pub fn required_len(spec: &TableSpec<'_>) -> Result<usize, WriteError> {
     let h = header_of(spec)?;
     let mut hb = [0u8; MAX_HEADER_LEN];
     let hl = header_bytes(&h, &mut hb)?;
-    let layout = Layout::new(&h).ok_or(WriteError::TooMany { what: "bytes" })?;
-    hl.checked_add(layout.end).and_then(|x| x.checked_add(4)).ok_or(WriteError::TooMany { what: "bytes" })
+    SectionSizes::of_header(&h, hl).map(|s| s.total()).ok_or(WriteError::TooMany { what: "bytes" })
 }
 
 fn check_value(what: &'static str, position: usize, v: f32, ok: bool) -> Result<(), WriteError> {
