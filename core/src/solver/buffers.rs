@@ -140,14 +140,8 @@ impl<S: Scalar, const SLOTS: usize, const SELECTION: usize, const GROUPS: usize,
 
     /// The buffers, borrowed for one solver.
     pub fn buffers(&mut self) -> Buffers<'_, S> {
-        Buffers {
-            power: &mut self.power,
-            unshot: &mut self.unshot,
-            incident: &mut self.incident,
-            selection: &mut self.selection,
-            intensity: &mut self.intensity,
-            reflectance: &mut self.reflectance,
-        }
+        let StaticBuffers { power, unshot, incident, selection, intensity, reflectance } = self;
+        Buffers { power, unshot, incident, selection, intensity, reflectance }
     }
 }
 
@@ -195,13 +189,7 @@ impl<S: Scalar> OwnedBuffers<S> {
 
     /// The buffers, borrowed for one solver.
     pub fn buffers(&mut self) -> Buffers<'_, S> {
-        Buffers {
-            power: &mut self.power,
-            unshot: &mut self.unshot,
-            incident: &mut self.incident,
-            selection: &mut self.selection,
-            intensity: &mut self.intensity,
-            reflectance: &mut self.reflectance,
-        }
+        let OwnedBuffers { power, unshot, incident, selection, intensity, reflectance } = self;
+        Buffers { power, unshot, incident, selection, intensity, reflectance }
     }
 }

@@ -10,19 +10,9 @@ fn furnace_bake_converges_on_device_to_closed_form() {
     assert_eq!(baked.report.nonzeros_after, n * (n - 1));
     let table = Table::parse(&baked.table).expect("parse");
     let tau = 1e-5f32;
-    let mut owned = owned_for(&table);
+    let mut owned = OwnedBuffers::<f32>::for_table(&table);
     let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: tau, overshoot: 0 }).unwrap();
-    let mut converged = false;
-    for _ in 0..100_000 {
-        match solver.step(1024) {
-            Outcome::Converged { .. } => {
-                converged = true;
-                break;
-            }
-            Outcome::BudgetSpent { .. } => {}
-            other => panic!("solver made no progress: {other:?}"),
-        }
-    }
+    let converged = converge(&mut solver, 1024, 100_000);
     assert!(converged, "furnace did not converge");
     let exact = e / (1.0 - rho);
     // Bound (module docs): form factors rho 2^-12 / (1 - rho); reflectance 2^-17 / (1 - rho); emission 2^-11;
@@ -62,7 +52,7 @@ fn static_light_is_folded_into_the_base() {
     assert!(baked.report.base_solved);
     let table = Table::parse(&baked.table).unwrap();
     assert!(table.base_solved());
-    let mut owned = owned_for(&table);
+    let mut owned = OwnedBuffers::<f32>::for_table(&table);
     let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: 1e-6, overshoot: 0 }).unwrap();
     let n = table.state_count();
     // The only work left is building the selection (n slots scanned) and one selection scan; nothing is shot.
@@ -110,50 +100,26 @@ fn capacities_size_the_solver_exactly() {
     let table = Table::parse(&baked.table).unwrap();
     assert_eq!((cap.patches, cap.groups, cap.members, cap.entries), (25, 2, 3, baked.report.nonzeros_after));
     assert_eq!(cap.table_bytes, baked.table.len());
-    let exact = || Owned {
-        power: vec![[0.0; 3]; cap.buffers.slots],
-        unshot: vec![[0.0; 3]; cap.buffers.slots],
-        incident: vec![[0.0; 3]; cap.buffers.slots],
-        selection: vec![0; cap.buffers.selection],
-        intensity: vec![[0.0; 3]; cap.buffers.groups],
-        reflectance: vec![[0; 3]; cap.buffers.materials],
-    };
+    let exact = || OwnedBuffers::<f32>::new(cap.buffers);
     let config = Config { tolerance: 1e-4, overshoot: 0 };
     let mut owned = exact();
     let mut solver = Solver::new(&table, owned.buffers(), config).expect("exact capacities must suffice");
-    let mut converged = false;
-    for _ in 0..10_000 {
-        if let Outcome::Converged { .. } = solver.step(256) {
-            converged = true;
-            break;
-        }
-    }
+    let converged = converge(&mut solver, 256, 10_000);
     assert!(converged);
     // One element less in any buffer fails with core's error naming that buffer.
     let shrink: [(&str, Shrink); 6] = [
-        ("power", |o| {
-            o.power.pop();
-        }),
-        ("unshot", |o| {
-            o.unshot.pop();
-        }),
-        ("incident", |o| {
-            o.incident.pop();
-        }),
-        ("selection", |o| {
-            o.selection.pop();
-        }),
-        ("intensity", |o| {
-            o.intensity.pop();
-        }),
-        ("reflectance", |o| {
-            o.reflectance.pop();
-        }),
+        ("power", |b| one_short(&mut b.power)),
+        ("unshot", |b| one_short(&mut b.unshot)),
+        ("incident", |b| one_short(&mut b.incident)),
+        ("selection", |b| one_short(&mut b.selection)),
+        ("intensity", |b| one_short(&mut b.intensity)),
+        ("reflectance", |b| one_short(&mut b.reflectance)),
     ];
     for (name, f) in shrink {
         let mut o = exact();
-        f(&mut o);
-        match Solver::new(&table, o.buffers(), config) {
+        let mut b = o.buffers();
+        f(&mut b);
+        match Solver::new(&table, b, config) {
             Err(SolverError::BufferTooSmall { buffer, .. }) => assert_eq!(buffer, name),
             other => panic!("{name} one short: expected BufferTooSmall, got {:?}", other.map(|_| ())),
         }
@@ -196,7 +162,7 @@ fn reachability_stops_at_black_patches_and_disconnected_parts() {
     assert_eq!([0, 1].map(|s| table.slot_patch(s)), [Some(0), Some(3)]);
     assert_eq!((baked.capacities.patches, baked.capacities.state, baked.capacities.buffers.slots), (5, 2, 2));
     assert_eq!(table.entry_count(), 2);
-    let mut owned = owned_for(&table);
+    let mut owned = OwnedBuffers::<f32>::for_table(&table);
     let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: 1e-9, overshoot: 0 }).unwrap();
     while let Outcome::BudgetSpent { .. } = solver.step(100) {}
     // Only the lamp and patch 3 light up: the others show their (dark) static base.
@@ -348,19 +314,9 @@ fn shipped_furnace_scene_bakes_and_relights_to_closed_form() {
     );
     let table = Table::parse(&baked.table).unwrap();
     let tau = 1e-6f32;
-    let mut owned = owned_for(&table);
+    let mut owned = OwnedBuffers::<f32>::for_table(&table);
     let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: tau, overshoot: 0 }).unwrap();
-    let mut converged = false;
-    for _ in 0..10_000 {
-        match solver.step(64) {
-            Outcome::Converged { .. } => {
-                converged = true;
-                break;
-            }
-            Outcome::BudgetSpent { .. } => {}
-            other => panic!("no progress: {other:?}"),
-        }
-    }
+    let converged = converge(&mut solver, 64, 10_000);
     assert!(converged);
     let (rho, exact) = (0.9, 10.0);
     // As in the synthetic furnace test, plus 2^-11 for a static base's irradiance code (if the scene's group is
@@ -402,4 +358,27 @@ fn gauss_seidel_and_dense_bakes_agree() {
         assert!((a - b).abs() <= 1e-9, "dense {a:.6e} vs Gauss-Seidel {b:.6e}");
     }
     assert!(gs.reference_residual <= 1e-12 && dense.reference_residual <= 1e-12);
+}
+
+/// Shortens one solver buffer by one element.
+type Shrink = fn(&mut Buffers<'_, f32>);
+
+/// `s` without its last element.
+fn one_short<T>(s: &mut &mut [T]) {
+    let all = std::mem::take(s);
+    let n = all.len().saturating_sub(1);
+    *s = &mut all[..n];
+}
+
+/// Steps `solver` with `budget` units until it converges (true) or `steps` steps have passed (false); panics on
+/// an outcome that is neither convergence nor a spent budget.
+fn converge(solver: &mut Solver<'_, f32>, budget: u32, steps: usize) -> bool {
+    for _ in 0..steps {
+        match solver.step(budget) {
+            Outcome::Converged { .. } => return true,
+            Outcome::BudgetSpent { .. } => {}
+            other => panic!("solver made no progress: {other:?}"),
+        }
+    }
+    false
 }

@@ -13,7 +13,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use glam::DVec3;
-use radiosity_core::{Buffers, Config, FfCodec, Outcome, Solver, SolverError, Table};
+use radiosity_core::{Buffers, Config, FfCodec, Outcome, OwnedBuffers, Solver, SolverError, Table};
 use radiosity_host::bake::{
     bake, codec_for_bits, group_id, reachable_patches, sparsify, BakeError, BakeInput, BakeOptions, Baked,
 };
@@ -131,46 +131,6 @@ fn lit_scene(seed: u64, n: usize, density: f64, lamp_intensity: [f64; 3]) -> Tes
 }
 
 /// Removes one element from one buffer.
-type Shrink = fn(&mut Owned);
-
-/// Buffers sized from vectors, for a solver in f32.
-struct Owned {
-    power: Vec<[f32; 3]>,
-    unshot: Vec<[f32; 3]>,
-    incident: Vec<[f32; 3]>,
-    selection: Vec<u32>,
-    intensity: Vec<[f32; 3]>,
-    reflectance: Vec<[u16; 3]>,
-}
-
-impl Owned {
-    fn new(patches: usize, groups: usize, materials: usize) -> Owned {
-        Owned {
-            power: vec![[0.0; 3]; patches],
-            unshot: vec![[0.0; 3]; patches],
-            incident: vec![[0.0; 3]; patches],
-            selection: vec![0; radiosity_core::selection_len(patches as u32) as usize],
-            intensity: vec![[0.0; 3]; groups],
-            reflectance: vec![[0; 3]; materials],
-        }
-    }
-
-    fn buffers(&mut self) -> Buffers<'_, f32> {
-        Buffers {
-            power: &mut self.power,
-            unshot: &mut self.unshot,
-            incident: &mut self.incident,
-            selection: &mut self.selection,
-            intensity: &mut self.intensity,
-            reflectance: &mut self.reflectance,
-        }
-    }
-}
-
-fn owned_for(table: &Table<'_>) -> Owned {
-    Owned::new(table.state_count() as usize, table.group_count() as usize, table.material_count() as usize)
-}
-
 mod device;
 mod inspect;
 mod sparsify;
