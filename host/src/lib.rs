@@ -9,6 +9,7 @@ pub mod bench;
 pub mod check;
 pub mod embree;
 pub mod formfactor;
+pub mod input;
 pub mod inspect;
 pub mod lighting;
 pub mod mesh;

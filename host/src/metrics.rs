@@ -23,6 +23,8 @@ use std::fmt;
 use serde::Serialize;
 use thiserror::Error;
 
+use crate::input::{check_finite, check_len, InputError};
+
 /// The dark-patch floor as a fraction of the area-weighted mean radiosity (or luminance).
 pub const FLOOR_FRACTION: f64 = 1e-3;
 
@@ -33,28 +35,9 @@ pub const REC709_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 #[derive(Clone, Debug, PartialEq, Error)]
 #[non_exhaustive]
 pub enum MetricsError {
-    /// An input slice has the wrong length.
-    #[error("{what} has {found} entries, expected {expected}")]
-    LengthMismatch {
-        /// Which input.
-        what: &'static str,
-        /// Required length (the reference's).
-        expected: usize,
-        /// Actual length.
-        found: usize,
-    },
-    /// A radiosity is NaN or infinite.
-    #[error("{what} of patch {patch}, channel {channel} is not finite ({value})")]
-    NonFinite {
-        /// Which input.
-        what: &'static str,
-        /// Patch index.
-        patch: usize,
-        /// Channel (0 = R, 1 = G, 2 = B).
-        channel: usize,
-        /// The offending value.
-        value: f64,
-    },
+    /// An input slice has the wrong length or a radiosity is NaN or infinite.
+    #[error(transparent)]
+    Input(#[from] InputError),
     /// An area is not a positive finite number.
     #[error("area of patch {patch} is {value}, not a positive finite number")]
     BadArea {
@@ -116,7 +99,7 @@ pub fn luminance(rgb: [f64; 3]) -> f64 {
 }
 
 /// `num / den` with `0 / 0 = 0` and `x / 0 = inf` for `x > 0`.
-fn relative(num: f64, den: f64) -> f64 {
+pub(crate) fn relative(num: f64, den: f64) -> f64 {
     if den > 0.0 {
         num / den
     } else if num == 0.0 {
@@ -124,18 +107,6 @@ fn relative(num: f64, den: f64) -> f64 {
     } else {
         f64::INFINITY
     }
-}
-
-/// Checks that every value of `values` is finite.
-fn check_finite(what: &'static str, values: &[[f64; 3]]) -> Result<(), MetricsError> {
-    for (patch, v) in values.iter().enumerate() {
-        for (channel, &value) in v.iter().enumerate() {
-            if !value.is_finite() {
-                return Err(MetricsError::NonFinite { what, patch, channel, value });
-            }
-        }
-    }
-    Ok(())
 }
 
 /// Area-weighted relative L2 and floored max relative error of per-patch magnitudes.
@@ -169,11 +140,8 @@ fn scalar_errors(diff: &[f64], reference: &[f64], area: &[f64]) -> (f64, f64, us
 /// positive finite number.
 pub fn compare(b: &[[f64; 3]], reference: &[[f64; 3]], area: &[f64]) -> Result<ErrorReport, MetricsError> {
     let n = reference.len();
-    for (what, found) in [("device answer", b.len()), ("area", area.len())] {
-        if found != n {
-            return Err(MetricsError::LengthMismatch { what, expected: n, found });
-        }
-    }
+    check_len("device answer", b, n)?;
+    check_len("area", area, n)?;
     check_finite("device answer", b)?;
     check_finite("reference", reference)?;
     if let Some((patch, &value)) = area.iter().enumerate().find(|(_, a)| !(a.is_finite() && **a > 0.0)) {

@@ -3,32 +3,16 @@
 
 use thiserror::Error;
 
+use crate::input::InputError;
+pub(crate) use crate::input::{check_finite, check_len};
+
 /// Everything that can go wrong building or solving a reference system.
 #[derive(Clone, Debug, PartialEq, Error)]
 #[non_exhaustive]
 pub enum ReferenceError {
-    /// An input slice has the wrong length.
-    #[error("{what} has {found} entries, expected {expected}")]
-    LengthMismatch {
-        /// Which input.
-        what: &'static str,
-        /// Required length.
-        expected: usize,
-        /// Actual length.
-        found: usize,
-    },
-    /// A value is NaN or infinite.
-    #[error("{what} of patch {patch}, channel {channel} is not finite ({value})")]
-    NonFinite {
-        /// Which input.
-        what: &'static str,
-        /// Patch index.
-        patch: usize,
-        /// Channel (0 = R, 1 = G, 2 = B).
-        channel: usize,
-        /// The offending value.
-        value: f64,
-    },
+    /// An input slice has the wrong length or a value is NaN or infinite.
+    #[error(transparent)]
+    Input(#[from] InputError),
     /// A reflectance is outside `[0, 1)`.
     #[error("reflectance of patch {patch}, channel {channel} is {value}, outside [0, 1)")]
     ReflectanceOutOfRange {
@@ -128,25 +112,4 @@ pub enum ReferenceError {
         /// Patch index.
         patch: usize,
     },
-}
-
-/// Checks that every value of `values` is finite.
-pub(super) fn check_finite(what: &'static str, values: &[[f64; 3]]) -> Result<(), ReferenceError> {
-    for (patch, v) in values.iter().enumerate() {
-        for (channel, &value) in v.iter().enumerate() {
-            if !value.is_finite() {
-                return Err(ReferenceError::NonFinite { what, patch, channel, value });
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Checks that `values` has one entry per patch.
-pub(super) fn check_len<T>(what: &'static str, values: &[T], n: usize) -> Result<(), ReferenceError> {
-    if values.len() == n {
-        Ok(())
-    } else {
-        Err(ReferenceError::LengthMismatch { what, expected: n, found: values.len() })
-    }
 }

@@ -2,7 +2,8 @@
 //! tolerance, with a sweep cap derived from the contraction bound.
 
 use super::error::{check_finite, check_len, ReferenceError};
-use super::system::{relative, RadiositySystem, Solution};
+use super::system::{RadiositySystem, Solution};
+use crate::metrics::relative;
 
 /// Default relative residual Gauss-Seidel iterates to.
 pub const DEFAULT_TOLERANCE: f64 = 1e-12;

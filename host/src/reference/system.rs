@@ -3,6 +3,7 @@
 //! posed).
 
 use super::error::{check_finite, check_len, ReferenceError};
+use crate::metrics::relative;
 use crate::patch::FormFactorMatrix;
 
 /// Default slack on form-factor row sums above 1.
@@ -153,17 +154,6 @@ impl<'a> RadiositySystem<'a> {
             }
         }
         Ok([0, 1, 2].map(|c| relative(res[c], scale[c])))
-    }
-}
-
-/// `num / den` with `0 / 0 = 0` and `x / 0 = inf` for `x > 0`.
-pub(super) fn relative(num: f64, den: f64) -> f64 {
-    if den > 0.0 {
-        num / den
-    } else if num == 0.0 {
-        0.0
-    } else {
-        f64::INFINITY
     }
 }
 

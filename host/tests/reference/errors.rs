@@ -1,5 +1,6 @@
 //! Bad inputs are refused with clear errors, never a panic or a silent result.
 
+use radiosity_host::input::InputError;
 use radiosity_host::reference::{
     gauss_seidel, transfer_vectors, DenseLu, GaussSeidelOptions, LightGroupEmission, Method, RadiositySystem,
     ReferenceError,
@@ -16,7 +17,7 @@ fn bad_inputs_are_refused_with_clear_errors() {
     let short = [[0.5; 3]; 1];
     assert_eq!(
         RadiositySystem::new(&short, &ff).unwrap_err(),
-        ReferenceError::LengthMismatch { what: "reflectance", expected: 2, found: 1 }
+        ReferenceError::Input(InputError::LengthMismatch { what: "reflectance", expected: 2, found: 1 })
     );
     let err = RadiositySystem::new(&[[0.5; 3], [0.5, 1.0, 0.5]], &ff).unwrap_err();
     assert_eq!(err, ReferenceError::ReflectanceOutOfRange { patch: 1, channel: 1, value: 1.0 });
@@ -27,7 +28,7 @@ fn bad_inputs_are_refused_with_clear_errors() {
     ));
     assert!(matches!(
         RadiositySystem::new(&[[0.5; 3], [0.5, 0.5, f64::NAN]], &ff).unwrap_err(),
-        ReferenceError::NonFinite { what: "reflectance", patch: 1, channel: 2, .. }
+        ReferenceError::Input(InputError::NonFinite { what: "reflectance", patch: 1, channel: 2, .. })
     ));
 
     // Form factors: negative, row sum above 1 (NaN and a malformed structure cannot get past
@@ -55,16 +56,16 @@ fn bad_inputs_are_refused_with_clear_errors() {
     let lu = DenseLu::factor(system).unwrap();
     assert!(matches!(
         lu.solve(&[[1.0; 3]]).unwrap_err(),
-        ReferenceError::LengthMismatch { what: "emission", .. }
+        ReferenceError::Input(InputError::LengthMismatch { what: "emission", .. })
     ));
     let nan_e = [[1.0; 3], [0.0, f64::NAN, 0.0]];
     assert!(matches!(
         lu.solve(&nan_e).unwrap_err(),
-        ReferenceError::NonFinite { what: "emission", patch: 1, channel: 1, .. }
+        ReferenceError::Input(InputError::NonFinite { what: "emission", patch: 1, channel: 1, .. })
     ));
     assert!(matches!(
         gauss_seidel(&system, &nan_e, &GaussSeidelOptions::default()).unwrap_err(),
-        ReferenceError::NonFinite { .. }
+        ReferenceError::Input(InputError::NonFinite { .. })
     ));
 
     // Dense size limit: 2 patches with a limit of 1 would need 2^2 * 8 = 32 bytes per channel.
@@ -118,7 +119,10 @@ fn bad_inputs_are_refused_with_clear_errors() {
         group_count: 1,
     };
     let tv = transfer_vectors(system, &lights, &Method::default()).unwrap();
-    assert!(matches!(tv.relight(&[]).unwrap_err(), ReferenceError::LengthMismatch { what: "intensity", .. }));
+    assert!(matches!(
+        tv.relight(&[]).unwrap_err(),
+        ReferenceError::Input(InputError::LengthMismatch { what: "intensity", .. })
+    ));
     assert!(matches!(
         tv.relight(&[[0.0, f64::INFINITY, 0.0]]).unwrap_err(),
         ReferenceError::NonFiniteIntensity { group: 0, channel: 1, .. }

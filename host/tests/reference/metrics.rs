@@ -1,5 +1,6 @@
 //! The error metrics: zero for identical answers, hand-computed values, the dark-patch floor, bad input.
 
+use radiosity_host::input::InputError;
 use radiosity_host::metrics::{compare, luminance, MetricsError, FLOOR_FRACTION};
 
 use super::EPS;
@@ -90,15 +91,15 @@ fn metrics_refuse_bad_input_and_serialize() {
     let r = [[1.0; 3], [2.0; 3]];
     assert_eq!(
         compare(&r[..1], &r, &[1.0, 1.0]).unwrap_err(),
-        MetricsError::LengthMismatch { what: "device answer", expected: 2, found: 1 }
+        MetricsError::Input(InputError::LengthMismatch { what: "device answer", expected: 2, found: 1 })
     );
     assert_eq!(
         compare(&r, &r, &[1.0]).unwrap_err(),
-        MetricsError::LengthMismatch { what: "area", expected: 2, found: 1 }
+        MetricsError::Input(InputError::LengthMismatch { what: "area", expected: 2, found: 1 })
     );
     assert!(matches!(
         compare(&[[1.0; 3], [f64::NAN, 0.0, 0.0]], &r, &[1.0, 1.0]).unwrap_err(),
-        MetricsError::NonFinite { what: "device answer", patch: 1, channel: 0, .. }
+        MetricsError::Input(InputError::NonFinite { what: "device answer", patch: 1, channel: 0, .. })
     ));
     assert_eq!(compare(&r, &r, &[1.0, 0.0]).unwrap_err(), MetricsError::BadArea { patch: 1, value: 0.0 });
     let report = compare(&[[1.0; 3], [2.5, 2.0, 2.0]], &r, &[1.0, 1.0]).unwrap();
