@@ -1,13 +1,14 @@
 //! Measures the form-factor codecs on a closed cube: per-row error, table size, and the error each codec
 //! causes in a solve (against a solve with the unquantized f32 form factors).
 //!
-//! Run: `cargo run --release -p radiosity-core --example codec_error`
+//! Run: `cargo run --release -p radiosity-core --example codec_error` (prints the table and writes it to
+//! `core/examples/codec_error.md`).
 //!
-//! Scene: the inside of a unit cube, `K x K` square patches per face. Form factors by the point-to-point
-//! approximation `F_ij = cos_i cos_j A_j / (pi r^2)` between patch centres (no occlusion in a convex box),
-//! each row then scaled to sum to 1 (the box is closed). The approximation is crude next to the edges, but
-//! gives rows with the spread of magnitudes real rows have (1e-5 .. 1e-1), which is what the codecs see.
+//! Scene: the closed cube of `common` (`K x K` patches per face, point-to-point form factors).
 
+mod common;
+
+use common::{rel_l2, Cube, Report};
 use radiosity_core::{
     write_table, Config, FfCodec, Outcome, OwnedBuffers, PatchSpec, RowsSpec, Solver, Table, TableSpec,
 };
@@ -30,56 +31,13 @@ impl Kahan {
 }
 const RHO: f32 = 0.7;
 
-fn cube() -> (Vec<[f32; 3]>, Vec<[f32; 3]>, f32) {
-    let mut centre = Vec::new();
-    let mut normal = Vec::new();
-    let h = 1.0 / K as f32;
-    for axis in 0..3 {
-        for side in [0.0f32, 1.0] {
-            for a in 0..K {
-                for b in 0..K {
-                    let mut c = [0.0; 3];
-                    c[axis] = side;
-                    c[(axis + 1) % 3] = (a as f32 + 0.5) * h;
-                    c[(axis + 2) % 3] = (b as f32 + 0.5) * h;
-                    let mut nrm = [0.0; 3];
-                    nrm[axis] = if side == 0.0 { 1.0 } else { -1.0 };
-                    centre.push(c);
-                    normal.push(nrm);
-                }
-            }
-        }
-    }
-    (centre, normal, h * h)
-}
-
 fn main() {
-    let (centre, normal, area) = cube();
-    let n = centre.len();
-    let mut row_start = vec![0u32];
-    let mut receiver = Vec::new();
-    let mut value = Vec::new();
-    for i in 0..n {
-        let mut row = Vec::new();
-        for j in 0..n {
-            let d = [0, 1, 2].map(|k| centre[j][k] - centre[i][k]);
-            let r2: f32 = d.iter().map(|x| x * x).sum();
-            let ci: f32 = (0..3).map(|k| normal[i][k] * d[k]).sum::<f32>() / r2.sqrt();
-            let cj: f32 = -(0..3).map(|k| normal[j][k] * d[k]).sum::<f32>() / r2.sqrt();
-            if i != j && ci > 0.0 && cj > 0.0 {
-                row.push((j as u32, ci * cj * area / (std::f32::consts::PI * r2)));
-            }
-        }
-        let s: f32 = row.iter().map(|x| x.1).sum();
-        for (j, f) in row {
-            receiver.push(j);
-            value.push(f / s * (1.0 - 1e-6));
-        }
-        row_start.push(receiver.len() as u32);
-    }
+    let cube = Cube::new(K);
+    let Cube { n, area, ref row_start, ref receiver, ref value } = cube;
+    let (row_start, receiver, value) = (row_start.as_slice(), receiver.as_slice(), value.as_slice());
     // Reference: Gauss-Seidel on the f32 rows (gathering through reciprocity: equal areas, F_ij = F_ji
     // is not exact after row scaling, so gather in power form: Phi_i = E_i A + rho sum_j F_ji Phi_j).
-    let light = n - K * K / 2 - K / 2; // a patch near the middle of the last face
+    let light = cube.light(K);
     let mut reference = vec![0.0f32; n];
     let mut unshot = vec![0.0f32; n];
     unshot[light] = area;
@@ -108,11 +66,19 @@ fn main() {
             base_irradiance: [0.0; 3],
         })
         .collect();
-    println!("cube {K}x{K} per face: {n} patches, {} entries, rho {RHO}", receiver.len());
-    println!(
-        "| codec | bytes | mean row L1 rel. error | max row L1 rel. error | max entry rel. error (>= row max / 2^7) | max row-sum deficit | solve rel. L2 error |"
+    let mut report = Report::new(
+        "codec_error",
+        &format!(
+            "The form-factor codecs on a closed cube of {K} x {K} patches per face ({n} patches, {} entries, rho \
+             {RHO}, one light): row errors are L1 over a row divided by its sum; the solve error is the relative \
+             L2 error of `Phi` against a solve with the unquantized f32 form factors.",
+            receiver.len()
+        ),
     );
-    println!("|---|---|---|---|---|---|---|");
+    report.line(
+        "| codec | bytes | mean row L1 | max row L1 | max entry rel. (>= max/2^7) | max row-sum deficit | solve rel. L2 |",
+    );
+    report.line("|---|---|---|---|---|---|---|");
     for (name, codec) in [
         ("FLOAT16 (E4 M12)", FfCodec::FLOAT16),
         ("LINEAR16", FfCodec::LINEAR16),
@@ -125,7 +91,7 @@ fn main() {
             patches: &patches,
             materials: &[[RHO; 3]],
             groups: &[],
-            rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &value },
+            rows: RowsSpec { row_start, receiver, form_factor: value },
             codec,
             base_solved: false,
             fingerprint: 0,
@@ -161,20 +127,16 @@ fn main() {
         let buffers = store.buffers();
         let mut solver = Solver::new(&t, buffers, Config { tolerance: 1e-9 * area, overshoot: 0 }).unwrap();
         while !matches!(solver.step(100_000), Outcome::Converged { .. }) {}
-        let (mut num, mut den) = (0.0f32, 0.0f32);
-        for (i, r) in reference.iter().enumerate() {
-            let p = solver.power(i as u32).unwrap()[0];
-            num += (p - r) * (p - r);
-            den += r * r;
-        }
-        println!(
+        let power: Vec<f32> = (0..n as u32).map(|i| solver.power(i).unwrap()[0]).collect();
+        report.line(&format!(
             "| {name} | {} | {:.2e} | {:.2e} | {:.2e} | {:.2e} | {:.2e} |",
             bytes.len(),
             sum_l1 / n as f32,
             max_l1,
             max_entry,
             max_deficit,
-            (num / den).sqrt()
-        );
+            rel_l2(&power, &reference)
+        ));
     }
+    report.write();
 }

@@ -129,51 +129,25 @@
 //!   units, resolution `2.3e-10`, products rounded to nearest), chosen by the solver's type parameter. See
 //!   [`scalar`] for the fixed-point convergence condition on the tolerance.
 //!
-//! Solver cost and arithmetic error, measured on a closed cube of 6 x 6 x 6 patches, 38880 entries, rho 0.8,
-//! one light, FLOAT16, tolerance `1e-6` of the emitted power, raised for fixed point to its convergence floor
-//! (`cargo run --release -p radiosity-core --example methods`; error: relative L2 of `B` against a solve to
-//! `1e-9`):
+//! Solver cost and arithmetic error by method (shooting, with and without overshoot, Gauss-Seidel, Jacobi;
+//! `f32` and fixed point; warm starts after relighting) are measured by the `methods` example on a closed cube,
+//! and the form-factor codecs' row and solve errors by the `codec_error` example; each writes its tables to a
+//! generated file, `core/examples/methods.md` and `core/examples/codec_error.md`
+//! (`cargo run --release -p radiosity-core --example methods`, likewise `codec_error`).
 //!
-//! | method | path | tolerance / emitted | work units | rows shot | rel. L2 error |
-//! |---|---|---|---|---|---|
-//! | shooting | f32 | 1.0e-6 | 1058181 | 5021 | 5.68e-6 |
-//! | shooting | fixed | 4.5e-5 | 658482 | 3124 | 3.92e-4 |
-//! | shooting, overshoot 1.25 | f32 | 1.0e-6 | 546951 | 2555 | 5.21e-6 |
-//! | shooting, overshoot 1.25 | fixed | 4.5e-5 | 358169 | 1665 | 2.31e-4 |
-//! | Gauss-Seidel | f32 | 1.0e-6 | 982800 | 5400 | 3.45e-6 |
-//! | Gauss-Seidel | fixed | 4.5e-5 | 628992 | 3456 | 3.18e-4 |
-//! | Jacobi | f32 | 1.0e-6 | 1739232 | 9504 | 1.60e-5 |
-//! | Jacobi | fixed | 4.5e-5 | 1067256 | 5832 | 6.25e-4 |
-//!
-//! Shooting costs about one unit per entry plus `2 sqrt(n)` per shot, so in this dense closed scene with a
-//! single light plain shooting and Gauss-Seidel sweeps cost about the same, and shooting with overshooting
-//! about half (with the earlier tournament tree, about 3 units per entry, shooting cost 2760817 units here).
+//! Shooting costs about one unit per entry plus `2 sqrt(n)` per shot, so in a dense closed scene with a single
+//! light plain shooting and Gauss-Seidel sweeps cost about the same, and shooting with overshooting less.
 //! Shooting's further advantage is its order: the largest unshot power goes first, so after a light change the
-//! first budgets carry the changed light's direct contribution. The fixed-point error here is the Q32.32
-//! resolution against the small powers of a unit cube (patch areas 1/36), with the tolerance at its floor.
+//! first budgets carry the changed light's direct contribution. Fixed point's error on the cube is the Q32.32
+//! resolution against the small powers of a unit cube, with the tolerance at its floor.
 //!
-//! Warm starts (same example, the light as a light group, shooting, f32): cold solve 1058181 units; relit to
-//! 0.9: 819230; to 0: 1046993; to (1, 0.2, 0.2): 979617, against 979801 for a cold solve of that setting.
-//! With an absolute tolerance the work to re-converge grows with `log(change / tolerance)`, so a warm start
-//! saves most when the change is small against the scene's light; its value on the device is that every
-//! frame in between shows the old solution plus the largest corrections, never a blank start.
+//! With an absolute tolerance the work to re-converge after a relight grows with `log(change / tolerance)`, so a
+//! warm start saves most when the change is small against the scene's light; its value on the device is that
+//! every frame in between shows the old solution plus the largest corrections, never a blank start.
 //!
-//! Measured on a closed cube of 6 x 8 x 8 patches, 122880 entries (`cargo run --release -p radiosity-core
-//! --example codec_error`; row errors are L1 over a row divided by its sum; the solve error is the relative L2
-//! error of `Phi` against a solve with the unquantized f32 form factors, rho 0.7, one light):
-//!
-//! | codec | bytes | mean row L1 | max row L1 | max entry rel. (>= max/2^7) | max row-sum deficit | solve rel. L2 |
-//! |---|---|---|---|---|---|---|
-//! | FLOAT16 (E4 M12) | 500387 | 5.52e-5 | 9.49e-5 | 2.31e-4 | 3.04e-6 | 3.58e-6 |
-//! | LINEAR16 | 500387 | 3.07e-4 | 6.46e-4 | 2.35e-3 | 6.97e-6 | 4.36e-6 |
-//! | FLOAT8 (E3 M5) | 377507 | 9.61e-3 | 1.64e-2 | 3.90e-2 | 1.21e-4 | 3.59e-4 |
-//! | E4 M4 (8-bit) | 377507 | 1.24e-2 | 2.61e-2 | 6.11e-2 | 1.49e-3 | 7.40e-4 |
-//! | E2 M6 (8-bit) | 377507 | 4.14e-2 | 8.71e-2 | 2.82e-1 | 9.76e-4 | 5.18e-4 |
-//! | LINEAR8 | 377507 | 8.14e-2 | 1.70e-1 | 3.41e-1 | 1.95e-3 | 1.19e-3 |
-//!
-//! The small floats win on per-entry and per-row error at both widths (the block-linear codes lose small
-//! entries next to a large one); at 8 bits E3 M5 has the smallest solve error, so FLOAT16 and FLOAT8 are the
-//! defaults. The 16-bit solve errors are at the level of the f32 solver itself.
+//! The small-float codecs beat the block-linear ones on per-entry and per-row error at both widths (the
+//! block-linear codes lose small entries next to a large one); at 8 bits E3 M5 has the smallest solve error, so
+//! FLOAT16 and FLOAT8 are the defaults.
 //!
 //! # How the host calls the writer
 //! ```
