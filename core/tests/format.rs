@@ -320,46 +320,11 @@ fn writer_rejects_bad_specs() {
     assert_eq!(try_write(&s), Err(WriteError::BadCodec));
     let s = tiny();
     let mut small = [0u8; 20];
-    assert!(matches!(write_into(&s, &mut small), Err(WriteError::BufferTooSmall { needed: TOTAL, got: 20 })));
-}
-
-fn write_into(s: &Scene, out: &mut [u8]) -> Result<usize, WriteError> {
-    let mut row_start = vec![0u32];
-    let mut receiver = Vec::new();
-    let mut form_factor = Vec::new();
-    for r in &s.rows {
-        for &(i, f) in r {
-            receiver.push(i);
-            form_factor.push(f);
-        }
-        row_start.push(receiver.len() as u32);
-    }
-    let groups: Vec<_> = s
-        .groups
-        .iter()
-        .map(|(id, d, m)| radiosity_core::GroupSpec { id: *id, default_intensity: *d, members: m })
-        .collect();
-    let spec = radiosity_core::TableSpec {
-        patches: &s.patches,
-        materials: &s.materials,
-        groups: &groups,
-        rows: radiosity_core::RowsSpec {
-            row_start: &row_start,
-            receiver: &receiver,
-            form_factor: &form_factor,
-        },
-        codec: s.codec,
-        base_solved: s.base_solved,
-        fingerprint: s.fingerprint,
-        transfer: s.transfer.as_deref(),
-        state: s.state.as_deref(),
-    };
-    radiosity_core::write_table(&spec, out)
+    assert!(matches!(s.write_into(&mut small), Err(WriteError::BufferTooSmall { needed: TOTAL, got: 20 })));
 }
 
 fn try_write(s: &Scene) -> Result<usize, WriteError> {
-    let mut out = vec![0u8; 4096];
-    write_into(s, &mut out)
+    s.write_into(&mut vec![0u8; 4096])
 }
 
 /// A medium table with 8-bit codes and several groups, for the mutation test.

@@ -242,37 +242,7 @@ fn writer_rejects_bad_transfer_bases() {
 
 /// Writes `s` through core's writer, returning its error (`Scene::write` panics on one).
 fn write(s: &Scene) -> Result<usize, WriteError> {
-    let mut row_start = vec![0u32];
-    let (mut receiver, mut form_factor) = (Vec::new(), Vec::new());
-    for r in &s.rows {
-        for &(i, f) in r {
-            receiver.push(i);
-            form_factor.push(f);
-        }
-        row_start.push(receiver.len() as u32);
-    }
-    let groups: Vec<_> = s
-        .groups
-        .iter()
-        .map(|(id, d, m)| radiosity_core::GroupSpec { id: *id, default_intensity: *d, members: m })
-        .collect();
-    let spec = radiosity_core::TableSpec {
-        patches: &s.patches,
-        materials: &s.materials,
-        groups: &groups,
-        rows: radiosity_core::RowsSpec {
-            row_start: &row_start,
-            receiver: &receiver,
-            form_factor: &form_factor,
-        },
-        codec: s.codec,
-        base_solved: s.base_solved,
-        fingerprint: s.fingerprint,
-        transfer: s.transfer.as_deref(),
-        state: s.state.as_deref(),
-    };
-    let mut out = vec![0u8; 4096];
-    radiosity_core::write_table(&spec, &mut out)
+    s.write_into(&mut vec![0u8; 4096])
 }
 
 fn fix_crc(b: &mut [u8]) {

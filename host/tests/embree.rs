@@ -41,6 +41,14 @@ fn facing_quads(extra: &[[Vec3; 4]], options: SceneOptions) -> TriangleScene {
     Device::new().unwrap().triangle_scene(&vertices, &triangles, options).unwrap()
 }
 
+/// A plate at z = 0.5 covering x in [0.25, 0.75] (all of y), between the facing quads.
+const PLATE: [Vec3; 4] = [
+    Vec3::new(0.25, 0.0, 0.5),
+    Vec3::new(0.75, 0.0, 0.5),
+    Vec3::new(0.75, 1.0, 0.5),
+    Vec3::new(0.25, 1.0, 0.5),
+];
+
 fn point_on_square(rng: &mut SplitMix64, z: f32) -> Vec3 {
     Vec3::new(rng.unit() as f32, rng.unit() as f32, z)
 }
@@ -59,12 +67,7 @@ fn segment_between_facing_quads_is_unoccluded() {
 fn occluder_between_quads_blocks_segment() {
     // A plate at z = 0.5 covering x in [0.25, 0.75]: segments through its middle are blocked, segments at
     // x = 0.1 pass beside it.
-    let plate = [
-        Vec3::new(0.25, 0.0, 0.5),
-        Vec3::new(0.75, 0.0, 0.5),
-        Vec3::new(0.75, 1.0, 0.5),
-        Vec3::new(0.25, 1.0, 0.5),
-    ];
+    let plate = PLATE;
     let scene = facing_quads(&[plate], SceneOptions::default());
     let blocked = Ray::segment(Vec3::new(0.5, 0.5, 0.0), Vec3::new(0.5, 0.5, 1.0), scene.offset());
     assert!(scene.occluded(&blocked));
@@ -152,12 +155,7 @@ fn segment_ending_exactly_on_target_is_not_occluded() {
 
 #[test]
 fn packets_agree_with_single_rays() {
-    let plate = [
-        Vec3::new(0.25, 0.0, 0.5),
-        Vec3::new(0.75, 0.0, 0.5),
-        Vec3::new(0.75, 1.0, 0.5),
-        Vec3::new(0.25, 1.0, 0.5),
-    ];
+    let plate = PLATE;
     let scene = facing_quads(&[plate], SceneOptions::default());
     let mut rng = SplitMix64::new(11);
     let rays: Vec<Ray> = (0..37)
@@ -195,12 +193,7 @@ fn scene_is_shared_across_threads() {
     fn assert_send_sync<T: Send + Sync>() {}
     assert_send_sync::<TriangleScene>();
     assert_send_sync::<Device>();
-    let plate = [
-        Vec3::new(0.25, 0.0, 0.5),
-        Vec3::new(0.75, 0.0, 0.5),
-        Vec3::new(0.75, 1.0, 0.5),
-        Vec3::new(0.25, 1.0, 0.5),
-    ];
+    let plate = PLATE;
     let scene = facing_quads(&[plate], SceneOptions::default());
     let counts: Vec<usize> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..4)

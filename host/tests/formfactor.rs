@@ -350,20 +350,7 @@ fn closure_error_of_an_occluded_closed_scene_is_visibility_noise() {
     // occluded, so rows sum to 1 only up to the visibility estimate. That error must shrink as rays grow (16 -> 256
     // is 16x the rays, 1/sqrt(R) predicts 4x; we require 2x), while reciprocity, which shares one visibility
     // estimate per pair, stays at the quadrature level of the unoccluded factors whatever the rays.
-    let mut patches = furnace_cube(4);
-    let (lo, e) = (0.3, 0.3);
-    let corner = DVec3::splat(lo);
-    let box_faces = [
-        (corner + DVec3::Z * e, DVec3::X * e, DVec3::Y * e),
-        (corner, DVec3::Y * e, DVec3::X * e),
-        (corner, DVec3::Z * e, DVec3::Y * e),
-        (corner + DVec3::X * e, DVec3::Y * e, DVec3::Z * e),
-        (corner, DVec3::X * e, DVec3::Z * e),
-        (corner + DVec3::Y * e, DVec3::Z * e, DVec3::X * e),
-    ];
-    for (f, (o, a, b)) in box_faces.into_iter().enumerate() {
-        patches.push(quad(6 + f, o, a, b));
-    }
+    let patches = cube_with_box();
     let closure =
         |stats: &FormFactorStats| (stats.row_sum_min - 1.0).abs().max((stats.row_sum_max - 1.0).abs());
     // The raw estimate: closure off.

@@ -1,40 +1,27 @@
 //! Rendering the real Cornell box (real form factors, f64 solve) and checking from the pixels what a person would
 //! see; the light-map atlas of the same solve.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use glam::DVec3;
-use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::picture::camera::Camera;
 use radiosity_host::picture::tonemap::{luminance, srgb_decode};
 use radiosity_host::picture::write_png;
-use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
+use radiosity_host::pipeline::Prepared;
 use radiosity_host::view::{
     render_view, solve_default, write_light_map, PatchTracer, RenderMode, RenderOptions, LEGEND_HEIGHT,
 };
 
 const SIZE: u32 = 64;
 
-/// The Cornell box meshed coarsely (patch edge <= 140 mm, at most 400 patches) with few form-factor samples, so the
-/// whole file runs in seconds; the checks below are about what is visible, which such a mesh already shows.
+/// The coarse Cornell box of `common` and its f64 solution, prepared once for the whole file.
 fn cornell() -> &'static (Prepared, Vec<[f64; 3]>) {
     static CELL: OnceLock<(Prepared, Vec<[f64; 3]>)> = OnceLock::new();
     CELL.get_or_init(|| {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
-        let options = PrepareOptions {
-            no_subdivide: false,
-            max_patch_edge: Some(140.0),
-            max_patches: Some(400),
-            form_factors: FormFactorOptions {
-                samples_per_patch: 4,
-                rays_per_pair: 4,
-                progress: false,
-                ..FormFactorOptions::default()
-            },
-            verbose: false,
-        };
-        let p = prepare(&path, &options).unwrap();
+        let p = common::coarse_cornell();
         let b = solve_default(&p).unwrap();
         (p, b)
     })

@@ -5,35 +5,21 @@
 // Patches, groups and RGB channels read clearer with index loops (`tv.t[g][i][c]`).
 #![allow(clippy::needless_range_loop)]
 
-use std::path::Path;
+mod common;
 
 use radiosity_core::codec::decode_emission_f32;
 use radiosity_core::codec::transfer::TRANSFER_CODEC;
 use radiosity_core::{relight_transfer, transfer_cost, Fixed, Scalar, Table};
 use radiosity_host::bake::{bake, shooting_form, BakeInput, BakeOptions, Baked};
-use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::inspect::inspect;
-use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
+use radiosity_host::pipeline::Prepared;
 use radiosity_host::reference::{
     transfer_vectors, LightGroupEmission, Method, RadiositySystem, TransferVectors,
 };
 
 /// A coarse Cornell box (the bound under test is about quantization, not form-factor accuracy).
 fn cornell() -> Prepared {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
-    let options = PrepareOptions {
-        no_subdivide: false,
-        max_patch_edge: Some(140.0),
-        max_patches: Some(400),
-        form_factors: FormFactorOptions {
-            samples_per_patch: 4,
-            rays_per_pair: 4,
-            progress: false,
-            ..FormFactorOptions::default()
-        },
-        verbose: false,
-    };
-    prepare(&path, &options).unwrap()
+    common::coarse_cornell()
 }
 
 fn bake_with_transfer(p: &Prepared) -> Baked {

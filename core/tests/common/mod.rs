@@ -4,7 +4,7 @@
 
 use radiosity_core::{
     write_table, Config, FfCodec, Fixed, GroupSpec, MemberSpec, OwnedBuffers, PatchSpec, RowsSpec, Scalar,
-    Solver, Table, TableSpec,
+    Solver, Table, TableSpec, WriteError,
 };
 
 /// An owned scene description (what the host would hold before writing a table).
@@ -48,7 +48,8 @@ impl Scene {
         }
     }
 
-    pub fn write(&self) -> Vec<u8> {
+    /// Writes the table through core's writer into `out`, returning the writer's answer (its error included).
+    pub fn write_into(&self, out: &mut [u8]) -> Result<usize, WriteError> {
         let mut row_start = vec![0u32];
         let mut receiver = Vec::new();
         let mut form_factor = Vec::new();
@@ -75,11 +76,24 @@ impl Scene {
             transfer: self.transfer.as_deref(),
             state: self.state.as_deref(),
         };
-        let len = radiosity_core::required_len(&spec).expect("required_len");
-        let mut out = vec![0u8; len];
-        let written = write_table(&spec, &mut out).expect("write_table");
-        assert_eq!(written, len);
+        write_table(&spec, out)
+    }
+
+    /// The table's bytes; panics (test failure) if the writer refuses the scene.
+    pub fn write(&self) -> Vec<u8> {
+        let mut out = vec![0u8; self.required_len()];
+        let written = self.write_into(&mut out).expect("write_table");
+        assert_eq!(written, out.len());
         out
+    }
+
+    /// The bytes the writer needs for this scene; panics (test failure) if it refuses it.
+    fn required_len(&self) -> usize {
+        // An empty buffer makes the writer report the length it needs.
+        match self.write_into(&mut []) {
+            Err(WriteError::BufferTooSmall { needed, .. }) => needed,
+            other => panic!("required_len: {other:?}"),
+        }
     }
 }
 

@@ -36,14 +36,7 @@ fn smooth_shading_reproduces_a_linear_field_on_a_subdivided_plane() {
             }
         }
     }
-    let radiosity: Vec<[f64; 3]> = patches.iter().map(|p| linear_field(p.centroid)).collect();
-    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
-    for (k, p) in patches.iter().enumerate() {
-        for point in sample_points(p) {
-            let got = shader.shade(&radiosity, k, point).unwrap();
-            assert_close(got, linear_field(point), LINEAR_TOL, &format!("patch {k} at {point}"));
-        }
-    }
+    let radiosity = assert_reproduces_linear_field(&patches);
     // The plain area-weighted mean would not do this at the border: the corner patch's own value is not f(corner).
     assert!((radiosity[0][0] - linear_field(patches[0].vertices[0])[0]).abs() > 0.1);
 }
@@ -74,14 +67,21 @@ fn smooth_shading_reproduces_a_linear_field_on_a_pentagon_fan() {
             *p = polygon(p.face, p.material, v);
         }
     }
+    assert_reproduces_linear_field(&patches);
+}
+
+/// Smooth shading of `patches` given the linear field at their centroids reproduces the field at every sample
+/// point; returns the centroid values.
+fn assert_reproduces_linear_field(patches: &[Patch]) -> Vec<[f64; 3]> {
     let radiosity: Vec<[f64; 3]> = patches.iter().map(|p| linear_field(p.centroid)).collect();
-    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let shader = SmoothShader::new(patches, &ShadingOptions::default()).unwrap();
     for (k, p) in patches.iter().enumerate() {
         for point in sample_points(p) {
             let got = shader.shade(&radiosity, k, point).unwrap();
             assert_close(got, linear_field(point), LINEAR_TOL, &format!("patch {k} at {point}"));
         }
     }
+    radiosity
 }
 
 /// Two unit-height quads side by side in the z = 0 plane, left one 1 wide, right one 3 wide (areas 1 and 3).
