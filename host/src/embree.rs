@@ -307,51 +307,24 @@ fn fill_and_attach(
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
 ) -> Result<(), EmbreeError> {
-    // SAFETY: `geometry` is a live triangle geometry. We ask Embree to allocate a vertex buffer of
-    // `vertices.len()` FLOAT3 items with a 12-byte stride; Embree pads such buffers so vector loads past the last
-    // item stay in bounds.
-    let vertex_buffer = unsafe {
-        sys::rtcSetNewGeometryBuffer(
-            geometry,
-            sys::RTCBufferType::VERTEX,
-            0,
-            sys::RTCFormat::FLOAT3,
-            3 * size_of::<f32>(),
-            vertices.len(),
-        )
-    };
-    device.check("rtcSetNewGeometryBuffer(VERTEX)")?;
-    if vertex_buffer.is_null() {
-        return Err(null_buffer("rtcSetNewGeometryBuffer(VERTEX)"));
-    }
-    // SAFETY: Embree returned a non-null buffer of `vertices.len() * 3` f32s, aligned for f32 (Embree aligns
-    // buffers to at least 16 bytes), exclusively ours until the commit.
-    let vertex_out =
-        unsafe { std::slice::from_raw_parts_mut(vertex_buffer.cast::<f32>(), vertices.len() * 3) };
-    for (out, v) in vertex_out.chunks_exact_mut(3).zip(vertices) {
-        out.copy_from_slice(&v.to_array());
-    }
-    // SAFETY: as above, an index buffer of `triangles.len()` UINT3 items with a 12-byte stride.
-    let index_buffer = unsafe {
-        sys::rtcSetNewGeometryBuffer(
-            geometry,
-            sys::RTCBufferType::INDEX,
-            0,
-            sys::RTCFormat::UINT3,
-            3 * size_of::<u32>(),
-            triangles.len(),
-        )
-    };
-    device.check("rtcSetNewGeometryBuffer(INDEX)")?;
-    if index_buffer.is_null() {
-        return Err(null_buffer("rtcSetNewGeometryBuffer(INDEX)"));
-    }
-    // SAFETY: a non-null buffer of `triangles.len() * 3` u32s, aligned and exclusively ours until the commit.
-    let index_out =
-        unsafe { std::slice::from_raw_parts_mut(index_buffer.cast::<u32>(), triangles.len() * 3) };
-    for (out, t) in index_out.chunks_exact_mut(3).zip(triangles) {
-        out.copy_from_slice(t);
-    }
+    let vertices = vertices.iter().map(|v| v.to_array());
+    fill_buffer(
+        device,
+        geometry,
+        sys::RTCBufferType::VERTEX,
+        sys::RTCFormat::FLOAT3,
+        "rtcSetNewGeometryBuffer(VERTEX)",
+        vertices,
+    )?;
+    let indices = triangles.iter().copied();
+    fill_buffer(
+        device,
+        geometry,
+        sys::RTCBufferType::INDEX,
+        sys::RTCFormat::UINT3,
+        "rtcSetNewGeometryBuffer(INDEX)",
+        indices,
+    )?;
     // SAFETY: `geometry` is live with both buffers filled; `scene` is live and not yet committed or shared.
     unsafe {
         sys::rtcCommitGeometry(geometry);
@@ -360,12 +333,41 @@ fn fill_and_attach(
     device.check("rtcAttachGeometry")
 }
 
-fn null_buffer(operation: &'static str) -> EmbreeError {
-    EmbreeError::Device {
-        code: ErrorCode::Unknown,
-        operation,
-        message: "Embree returned no buffer".to_owned(),
+/// A 4-byte scalar Embree buffers hold (`f32` vertex coordinates, `u32` vertex indices).
+trait BufferScalar: Copy {}
+impl BufferScalar for f32 {}
+impl BufferScalar for u32 {}
+
+/// Asks Embree for a new buffer of `geometry` (`kind`; errors name `operation`) holding `items.len()` items of
+/// `format`, three `T` each with a tight stride, and fills it with `items`.
+fn fill_buffer<T: BufferScalar>(
+    device: &DeviceInner,
+    geometry: sys::RTCGeometry,
+    kind: sys::RTCBufferType,
+    format: sys::RTCFormat,
+    operation: &'static str,
+    items: impl ExactSizeIterator<Item = [T; 3]>,
+) -> Result<(), EmbreeError> {
+    let count = items.len();
+    // SAFETY: `geometry` is a live triangle geometry. We ask Embree to allocate a buffer of `count` items with
+    // a stride of three `T`; Embree pads such buffers so vector loads past the last item stay in bounds.
+    let buffer =
+        unsafe { sys::rtcSetNewGeometryBuffer(geometry, kind, 0, format, 3 * size_of::<T>(), count) };
+    device.check(operation)?;
+    if buffer.is_null() {
+        return Err(EmbreeError::Device {
+            code: ErrorCode::Unknown,
+            operation,
+            message: "Embree returned no buffer".to_owned(),
+        });
     }
+    // SAFETY: Embree returned a non-null buffer of `count * 3` 4-byte scalars, aligned for them (Embree aligns
+    // buffers to at least 16 bytes), exclusively ours until the commit; `T` is `f32` or `u32` (`BufferScalar`).
+    let out = unsafe { std::slice::from_raw_parts_mut(buffer.cast::<T>(), count * 3) };
+    for (o, item) in out.chunks_exact_mut(3).zip(items) {
+        o.copy_from_slice(&item);
+    }
+    Ok(())
 }
 
 /// Options for building a scene.
