@@ -9,9 +9,7 @@
 mod common;
 
 use common::{rel_l2, Cube, Report};
-use radiosity_core::{
-    write_table, Config, FfCodec, Outcome, OwnedBuffers, PatchSpec, RowsSpec, Solver, Table, TableSpec,
-};
+use radiosity_core::{Config, FfCodec, Outcome, OwnedBuffers, PatchSpec, Solver, Table};
 
 const K: usize = 8;
 
@@ -87,19 +85,7 @@ fn main() {
         ("E2 M6 (8-bit)", FfCodec { bits: 8, exponent_bits: 2 }),
         ("LINEAR8", FfCodec::LINEAR8),
     ] {
-        let spec = TableSpec {
-            patches: &patches,
-            materials: &[[RHO; 3]],
-            groups: &[],
-            rows: RowsSpec { row_start, receiver, form_factor: value },
-            codec,
-            base_solved: false,
-            fingerprint: 0,
-            transfer: None,
-            state: None,
-        };
-        let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
-        write_table(&spec, &mut bytes).unwrap();
+        let bytes = cube.table(&patches, RHO, &[], codec);
         let t = Table::parse(&bytes).unwrap();
         let (mut sum_l1, mut max_l1, mut max_entry, mut max_deficit) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
         for j in 0..n as u32 {

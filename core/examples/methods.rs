@@ -12,8 +12,8 @@ mod common;
 
 use common::{rel_l2, Cube, Report};
 use radiosity_core::{
-    write_table, BufferSizes, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, OwnedBuffers,
-    PatchSpec, RowsSpec, Scalar, Solver, Table, TableSpec,
+    BufferSizes, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, OwnedBuffers, PatchSpec, Scalar,
+    Solver, Table,
 };
 
 const K: usize = 6;
@@ -33,19 +33,7 @@ fn table_bytes(as_group: bool) -> (Vec<u8>, usize) {
         .collect();
     let members = [MemberSpec { patch: light as u32, emission: [1.0; 3] }];
     let groups = [GroupSpec { id: 1, default_intensity: [1.0; 3], members: &members }];
-    let spec = TableSpec {
-        patches: &patches,
-        materials: &[[RHO; 3]],
-        groups: if as_group { &groups } else { &[] },
-        rows: RowsSpec { row_start: &cube.row_start, receiver: &cube.receiver, form_factor: &cube.value },
-        codec: FfCodec::FLOAT16,
-        base_solved: false,
-        fingerprint: 0,
-        transfer: None,
-        state: None,
-    };
-    let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
-    write_table(&spec, &mut bytes).unwrap();
+    let bytes = cube.table(&patches, RHO, if as_group { &groups } else { &[] }, FfCodec::FLOAT16);
     (bytes, n)
 }
 

@@ -9,6 +9,8 @@
 
 use std::path::PathBuf;
 
+use radiosity_core::{write_table, FfCodec, GroupSpec, PatchSpec, RowsSpec, TableSpec};
+
 /// The cube's patches and shooter rows (CSR: row `j` lists receivers `i` with `F_ji`).
 pub struct Cube {
     /// Patches.
@@ -67,6 +69,31 @@ impl Cube {
             row_start.push(receiver.len() as u32);
         }
         Cube { n, area, row_start, receiver, value }
+    }
+
+    /// The table of the cube's rows with `patches`, one material of reflectance `rho`, `groups` and `codec`
+    /// (no solved base, no transfer basis).
+    pub fn table(
+        &self,
+        patches: &[PatchSpec],
+        rho: f32,
+        groups: &[GroupSpec<'_>],
+        codec: FfCodec,
+    ) -> Vec<u8> {
+        let spec = TableSpec {
+            patches,
+            materials: &[[rho; 3]],
+            groups,
+            rows: RowsSpec { row_start: &self.row_start, receiver: &self.receiver, form_factor: &self.value },
+            codec,
+            base_solved: false,
+            fingerprint: 0,
+            transfer: None,
+            state: None,
+        };
+        let mut bytes = vec![0u8; radiosity_core::required_len(&spec).unwrap()];
+        write_table(&spec, &mut bytes).unwrap();
+        bytes
     }
 
     /// A patch near the middle of the last face (the light of both examples).
