@@ -33,6 +33,32 @@ fn material<'a>(s: &'a Scene, name: &str) -> &'a radiosity_host::scene::Material
     s.materials.iter().find(|m| m.name == name).unwrap_or_else(|| panic!("no material {name}"))
 }
 
+/// The published Cornell box quads as `(surface, material, vertices)`, read from the table of the shared
+/// reference data (`../shared/data/cornell-box.md`, beside the repository); a row listing several quads
+/// (`; `-separated, the block sides) gives one entry per quad.
+fn published_quads() -> Vec<(String, String, Vec<DVec3>)> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/cornell-box.md");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut quads = Vec::new();
+    for line in text.lines().filter(|l| l.starts_with("| ") && l.contains('(')) {
+        let cells: Vec<&str> = line.trim_matches('|').split('|').map(str::trim).collect();
+        let [surface, material, vertices] = cells[..] else { panic!("{}: bad row {line:?}", path.display()) };
+        let surface = surface.split(" (").next().unwrap_or(surface);
+        for quad in vertices.split(';') {
+            let points = quad
+                .split(')')
+                .filter_map(|v| v.trim().strip_prefix('('))
+                .map(|v| {
+                    let c: Vec<f64> = v.split(',').map(|x| x.trim().parse().unwrap()).collect();
+                    p(c[0], c[1], c[2])
+                })
+                .collect();
+            quads.push((surface.to_owned(), material.to_owned(), points));
+        }
+    }
+    quads
+}
+
 fn p(x: f64, y: f64, z: f64) -> DVec3 {
     DVec3::new(x, y, z)
 }
@@ -42,32 +68,18 @@ fn cornell_box_loads_as_published() {
     let s = load("cornell-box");
     // 16 published quads, minus the ceiling, plus the ceiling in 4 pieces around the light: 19 faces.
     assert_eq!(s.faces.len(), 19);
-    let published: [(usize, &str, [DVec3; 4]); 15] = [
-        (0, "white", [p(552.8, 0., 0.), p(0., 0., 0.), p(0., 0., 559.2), p(549.6, 0., 559.2)]),
-        (
-            1,
-            "light",
-            [p(343., 548.8, 227.), p(343., 548.8, 332.), p(213., 548.8, 332.), p(213., 548.8, 227.)],
-        ),
-        (6, "white", [p(549.6, 0., 559.2), p(0., 0., 559.2), p(0., 548.8, 559.2), p(556., 548.8, 559.2)]),
-        (7, "green", [p(0., 0., 559.2), p(0., 0., 0.), p(0., 548.8, 0.), p(0., 548.8, 559.2)]),
-        (8, "white", [p(130., 165., 65.), p(82., 165., 225.), p(240., 165., 272.), p(290., 165., 114.)]),
-        (9, "white", [p(290., 0., 114.), p(290., 165., 114.), p(240., 165., 272.), p(240., 0., 272.)]),
-        (10, "white", [p(130., 0., 65.), p(130., 165., 65.), p(290., 165., 114.), p(290., 0., 114.)]),
-        (11, "white", [p(82., 0., 225.), p(82., 165., 225.), p(130., 165., 65.), p(130., 0., 65.)]),
-        (12, "white", [p(240., 0., 272.), p(240., 165., 272.), p(82., 165., 225.), p(82., 0., 225.)]),
-        (13, "white", [p(423., 330., 247.), p(265., 330., 296.), p(314., 330., 456.), p(472., 330., 406.)]),
-        (14, "white", [p(423., 0., 247.), p(423., 330., 247.), p(472., 330., 406.), p(472., 0., 406.)]),
-        (15, "white", [p(472., 0., 406.), p(472., 330., 406.), p(314., 330., 456.), p(314., 0., 456.)]),
-        (16, "white", [p(314., 0., 456.), p(314., 330., 456.), p(265., 330., 296.), p(265., 0., 296.)]),
-        (17, "white", [p(265., 0., 296.), p(265., 330., 296.), p(423., 330., 247.), p(423., 0., 247.)]),
-        (18, "red", [p(552.8, 0., 0.), p(549.6, 0., 559.2), p(556., 548.8, 559.2), p(556., 548.8, 0.)]),
-    ];
+    // Every published quad but the ceiling, in the data file's order, is the OBJ face listed here.
+    let faces = [0, 1, 6, 7, 18, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17];
+    let quads: Vec<_> = published_quads().into_iter().filter(|(surface, ..)| surface != "ceiling").collect();
+    assert_eq!(quads.len(), faces.len(), "quads in the published data");
+    let published: Vec<_> = faces.iter().zip(quads).map(|(&k, (_, mat, verts))| (k, mat, verts)).collect();
     for (k, mat, verts) in &published {
         let f = &s.faces[*k];
         assert_eq!(f.index, *k);
-        assert_eq!(f.vertices, verts.to_vec(), "face {k}: vertices differ from the published data");
-        assert_eq!(s.materials[f.material].name, *mat, "face {k}");
+        assert_eq!(&f.vertices, verts, "face {k}: vertices differ from the published data");
+        // The data file calls the light's material "emitter"; the OBJ's material is "light".
+        let mat = if mat == "emitter" { "light" } else { mat.as_str() };
+        assert_eq!(s.materials[f.material].name, mat, "face {k}");
     }
     // The ceiling: four white pieces in the plane y = 548.8 that, with the light, tile the published ceiling
     // (556 x 559.2) exactly; the loader already rejected any overlap between them.
