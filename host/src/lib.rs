@@ -8,6 +8,7 @@ pub mod bake;
 pub mod bench;
 pub mod check;
 pub mod embree;
+pub mod evaluate;
 pub mod formfactor;
 pub mod input;
 pub mod inspect;

@@ -49,12 +49,15 @@ use radiosity_core::FfCodec;
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use crate::check::{check, Arith, CheckError, CheckOptions, QUANTIZATION, SPARSIFICATION};
+use firmware_sim::sim::Arith;
+
+use crate::check::{check, CheckError, CheckOptions};
+use crate::evaluate::{QUANTIZATION, SPARSIFICATION};
 use crate::formfactor::FormFactorOptions;
 use crate::pipeline::{prepare, PrepareOptions};
 use crate::rng::SplitMix64;
 
-/// Components the regression tracks, by name ([`crate::check::Component::name`]).
+/// Components the regression tracks, by name ([`crate::evaluate::Component::name`]).
 pub const TRACKED: [&str; 4] = [SPARSIFICATION, QUANTIZATION, "arithmetic (f32)", "arithmetic (fixed)"];
 
 /// Relative size of the form-factor jitter that measures the noise of deterministic components (module docs,
@@ -322,7 +325,7 @@ pub fn measure(
         bits,
         codec,
         ff_factor: 1,
-        arith: Arith::Both,
+        arith: Arith::ALL.to_vec(),
         row_sum_tolerance: crate::bake::DEFAULT_ROW_SUM_TOLERANCE + step,
         ..CheckOptions::default()
     };
