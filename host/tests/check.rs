@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use radiosity_core::{FfCodec, Table};
 use radiosity_host::bake::{bake, BakeInput, BakeOptions};
 use radiosity_host::check::{
-    check, check_table, form_factor_distance, CheckError, CheckOptions, CheckReport, QUANTIZATION,
-    RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE, WRONG_SCENE_FRACTION,
+    check, check_table, form_factor_distance, CheckError, CheckOptions, CheckReport, WRONG_SCENE_FRACTION,
 };
+use radiosity_host::evaluate::{QUANTIZATION, RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE};
 use radiosity_host::mesh::{mesh, MeshOptions};
 use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
 use radiosity_host::regress::{self, CheckSelection};
