@@ -169,9 +169,8 @@ fn device_answer_is_converged_and_close_to_f64() {
     let e = radiosity_host::metrics::compare(&device, &exact, &area).unwrap();
     // As above, with the tolerance of device_answer.
     let n = p.patches.len() as f64;
-    let bound = sparsify_quantize(&input, &baked)
-        + 1e-5
-        + n * f64::from(relight::CONVERGED_TOLERANCE) / (1.0 - 0.8);
+    let bound =
+        sparsify_quantize(&input, &baked) + 1e-5 + n * f64::from(relight::CONVERGED_TOLERANCE) / (1.0 - 0.8);
     assert!(e.rel_l2 <= bound, "device error {:e} above {bound:e}", e.rel_l2);
     assert!(relight::device_answer(&baked.table[..baked.table.len() - 1], &intensity).is_err());
 }

@@ -75,8 +75,8 @@ pub use codec::{codec_for_bits, decoded_row_sum_tolerance};
 pub use decode::{decode_table, Decoded};
 pub use ids::{group_id, group_ids, scene_fingerprint};
 pub use report::{BakeReport, GroupReport};
-pub use solve::{default_method, gather, shooting_form, DENSE_BAKE_LIMIT};
 pub(crate) use solve::solve_one;
+pub use solve::{default_method, gather, shooting_form, DENSE_BAKE_LIMIT};
 pub use sparsify::{sparsify, EnergyDropped, Sparsified};
 pub use state::{reachable_patches, RuntimeState};
 

@@ -195,7 +195,10 @@ fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
 /// How a check solves its f64 answers: dense LU up to [`crate::reference::MAX_DENSE_PATCHES`] patches
 /// ([`Method::for_size`]), at the check's row-sum slack.
 fn evaluation_options(p: &Prepared, options: &CheckOptions) -> EvaluateOptions {
-    EvaluateOptions { method: Method::for_size(p.patches.len()), row_sum_tolerance: options.row_sum_tolerance }
+    EvaluateOptions {
+        method: Method::for_size(p.patches.len()),
+        row_sum_tolerance: options.row_sum_tolerance,
+    }
 }
 
 /// The exact transfer vectors of the scene's matrix, which every frame is compared with (relit at the frame's

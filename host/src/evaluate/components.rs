@@ -3,7 +3,8 @@
 
 use serde::Serialize;
 
-use super::{solve, EvaluateError, EvaluateOptions};
+use super::{failed, EvaluateError, EvaluateOptions};
+use crate::bake::solve_one;
 use crate::formfactor::compute_form_factors;
 use crate::metrics::{self, ErrorReport};
 use crate::pipeline::{PrepareOptions, Prepared};
@@ -57,7 +58,8 @@ pub fn form_factor_estimation(
     hi.enforce_reciprocity(&area);
     hi.clamp_rows_to_one();
     let e = p.lighting.default_emission();
-    let (b_hi, _) = solve("finer form-factor estimate", &p.lighting.rho, &hi, &e, options.row_sum_tolerance, options)?;
+    let (b_hi, _) = solve_one(&p.lighting.rho, &hi, &e, options.row_sum_tolerance, &options.method)
+        .map_err(failed("finer form-factor estimate"))?;
     Ok(Component {
         name: FORM_FACTOR_ESTIMATION.into(),
         compares: format!(
@@ -73,12 +75,17 @@ pub fn form_factor_estimation(
 ///
 /// # Errors
 /// The metrics' errors.
-pub fn table_vs_scene(device: &Radiosity, reference: &Radiosity, area: &[f64]) -> Result<Component, EvaluateError> {
+pub fn table_vs_scene(
+    device: &Radiosity,
+    reference: &Radiosity,
+    area: &[f64],
+) -> Result<Component, EvaluateError> {
     Ok(Component {
         name: TABLE_VS_SCENE.into(),
-        compares: "f64, decoded table vs the scene's f64 matrix (sparsification + quantization + reciprocity \
+        compares:
+            "f64, decoded table vs the scene's f64 matrix (sparsification + quantization + reciprocity \
                    + estimate differences)"
-            .into(),
+                .into(),
         error: metrics::compare(device, reference, area)?,
     })
 }

@@ -43,8 +43,8 @@ pub use summary::BakeSummary;
 pub use transfer::TransferReport;
 
 use crate::bake::{
-    decode_table, decoded_row_sum_tolerance, default_method, shooting_form, solve_one, BakeInput, BakeOptions,
-    Baked, Decoded,
+    decode_table, decoded_row_sum_tolerance, default_method, shooting_form, solve_one, BakeInput,
+    BakeOptions, Baked, Decoded,
 };
 use crate::lighting::PatchLighting;
 use crate::metrics::{self, ErrorReport, MetricsError};
@@ -144,7 +144,9 @@ pub fn exact(
     ff: &FormFactorMatrix,
     options: &EvaluateOptions,
 ) -> Result<(Radiosity, f64), EvaluateError> {
-    solve("original matrix", &lighting.rho, ff, &lighting.default_emission(), options.row_sum_tolerance, options)
+    let e = lighting.default_emission();
+    solve_one(&lighting.rho, ff, &e, options.row_sum_tolerance, &options.method)
+        .map_err(failed("original matrix"))
 }
 
 /// The decoded table and what the device converges to on it ([`Decoded::solution`] of its f64 solve), with
@@ -159,7 +161,8 @@ pub fn device_answer(
     let dec = decode_table(table);
     let tolerance = decoded_row_sum_tolerance(table.codec(), options.row_sum_tolerance);
     let shoot = shooting_form(&dec.rows, &dec.area);
-    let (b, residual) = solve("decoded table", &dec.rho, &shoot, &dec.rhs, tolerance, options)?;
+    let (b, residual) =
+        solve_one(&dec.rho, &shoot, &dec.rhs, tolerance, &options.method).map_err(failed("decoded table"))?;
     let b = dec.solution(b);
     Ok((dec, b, residual))
 }
@@ -176,12 +179,13 @@ pub fn evaluate(
     let l = input.lighting;
     let area: Vec<f64> = input.patches.iter().map(|p| p.area).collect();
     let e = l.default_emission();
-    let tol = options.row_sum_tolerance;
+    let (tol, method) = (options.row_sum_tolerance, &options.method);
     let (reference, r0) = exact(l, input.form_factors, options)?;
     let full_shoot = shooting_form(input.form_factors, &area);
-    let (reciprocal, r1) = solve("original, shooting form", &l.rho, &full_shoot, &e, tol, options)?;
+    let (reciprocal, r1) =
+        solve_one(&l.rho, &full_shoot, &e, tol, method).map_err(failed("original, shooting form"))?;
     let sparse_shoot = shooting_form(&baked.sparse.matrix, &area);
-    let (sparsified, r2) = solve("sparsified", &l.rho, &sparse_shoot, &e, tol, options)?;
+    let (sparsified, r2) = solve_one(&l.rho, &sparse_shoot, &e, tol, method).map_err(failed("sparsified"))?;
     let table = Table::parse(&baked.table).map_err(EvaluateError::Parse)?;
     let (decoded, device, r3) = device_answer(&table, options)?;
     let errors = BakeErrors {
@@ -227,15 +231,7 @@ pub fn evaluate(
     })
 }
 
-/// One f64 solve named `what`, rows allowed to sum to `1 + row_sum_tolerance`.
-fn solve(
-    what: &'static str,
-    rho: &[[f64; 3]],
-    ff: &FormFactorMatrix,
-    e: &[[f64; 3]],
-    row_sum_tolerance: f64,
-    options: &EvaluateOptions,
-) -> Result<(Radiosity, f64), EvaluateError> {
-    solve_one(rho, ff, e, row_sum_tolerance, &options.method)
-        .map_err(|source| EvaluateError::Reference { what, source })
+/// The error of the f64 solve named `what`.
+fn failed(what: &'static str) -> impl Fn(ReferenceError) -> EvaluateError {
+    move |source| EvaluateError::Reference { what, source }
 }

@@ -5,7 +5,10 @@ use std::path::Path;
 
 use radiosity_core::FfCodec;
 
-use super::{measure, noise_multiplier, scene_files, Baseline, Entry, RegressError, RegressReport, Row, CODECS, TRACKED};
+use super::{
+    measure, noise_multiplier, scene_files, Baseline, Entry, RegressError, RegressReport, Row, CODECS,
+    TRACKED,
+};
 
 /// What [`check_baseline`] runs.
 #[derive(Clone, Debug, Default, PartialEq)]

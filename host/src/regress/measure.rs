@@ -8,8 +8,8 @@ use firmware_sim::sim::Arith;
 use radiosity_core::FfCodec;
 
 use super::{
-    noise_multiplier, scene_files, Baseline, ComponentStats, Entry, RegressError, SceneSettings, Stat, CODECS,
-    JITTER, TRACKED,
+    noise_multiplier, scene_files, Baseline, ComponentStats, Entry, RegressError, SceneSettings, Stat,
+    CODECS, JITTER, TRACKED,
 };
 use crate::check::{check, CheckError, CheckOptions};
 use crate::pipeline::prepare;
@@ -160,8 +160,8 @@ pub fn update(old: Option<&Baseline>, scenes: &Path, seeds: usize) -> Result<Bas
 #[cfg(test)]
 mod tests {
     use super::jitter_form_factors;
-    use crate::regress::{Stat, JITTER};
     use crate::patch::FormFactorMatrix;
+    use crate::regress::{Stat, JITTER};
 
     /// A reciprocal 3-patch matrix (areas 1, 2, 4).
     fn matrix() -> FormFactorMatrix {

@@ -50,7 +50,9 @@ use std::path::PathBuf;
 
 use thiserror::Error;
 
-pub use baseline::{read_baseline, scene_files, write_baseline, Baseline, ComponentStats, Entry, SceneSettings, Stat};
+pub use baseline::{
+    read_baseline, scene_files, write_baseline, Baseline, ComponentStats, Entry, SceneSettings, Stat,
+};
 pub use compare::{check_baseline, compare_baselines, CheckSelection};
 pub use measure::{jitter_form_factors, measure, update, Measured};
 pub use report::{RegressReport, Row};

@@ -64,51 +64,44 @@ fn opt(v: Option<f64>) -> String {
 
 impl fmt::Display for RegressReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.mode == "update" {
-            writeln!(f, "baseline update (old and new: mean and noise over the seeds), k = {:.3}", self.k)?;
+        let update = self.mode == "update";
+        // Both modes print the same row: four key columns, four values and, when checking, a status.
+        let line = |f: &mut fmt::Formatter<'_>, key: [&str; 4], values: [&str; 4], status: &str| {
+            let [scene, codec, component, metric] = key;
+            let [a, b, c, d] = values;
             writeln!(
                 f,
-                "{:<28} {:<9} {:<20} {:<8} {:>10} {:>10} {:>10} {:>10}",
-                "scene", "codec", "component", "metric", "old mean", "old noise", "new mean", "new noise"
-            )?;
-            for r in &self.rows {
-                writeln!(
-                    f,
-                    "{:<28} {:<9} {:<20} {:<8} {:>10} {:>10} {:>10} {:>10}",
-                    r.scene,
-                    r.codec,
-                    r.component,
-                    r.metric,
-                    opt(r.baseline),
-                    opt(r.noise),
-                    opt(r.value),
-                    opt(r.new_noise)
-                )?;
-            }
+                "{scene:<28} {codec:<9} {component:<20} {metric:<8} {a:>10} {b:>10} {c:>10} {d:>10}{status}"
+            )
+        };
+        if update {
+            writeln!(f, "baseline update (old and new: mean and noise over the seeds), k = {:.3}", self.k)?;
         } else {
             writeln!(f, "regression check: limit = mean + k noise + 8 n eps, k = {:.3}", self.k)?;
-            writeln!(
-                f,
-                "{:<28} {:<9} {:<20} {:<8} {:>10} {:>10} {:>10} {:>10}  status",
-                "scene", "codec", "component", "metric", "baseline", "noise", "limit", "now"
-            )?;
-            for r in &self.rows {
-                writeln!(
-                    f,
-                    "{:<28} {:<9} {:<20} {:<8} {:>10} {:>10} {:>10} {:>10}  {}",
-                    r.scene,
-                    r.codec,
-                    r.component,
-                    r.metric,
-                    opt(r.baseline),
-                    opt(r.noise),
-                    opt(r.limit),
-                    opt(r.value),
-                    if r.ok { "ok" } else { "FAIL" }
-                )?;
+        }
+        let (labels, status) = if update {
+            (["old mean", "old noise", "new mean", "new noise"], "")
+        } else {
+            (["baseline", "noise", "limit", "now"], "  status")
+        };
+        line(f, ["scene", "codec", "component", "metric"], labels, status)?;
+        for r in &self.rows {
+            let values = if update {
+                [r.baseline, r.noise, r.value, r.new_noise]
+            } else {
+                [r.baseline, r.noise, r.limit, r.value]
             }
-            let failed = self.failures().len();
-            writeln!(f, "{} values, {} over their limit", self.rows.len(), failed)?;
+            .map(opt);
+            let status = match (update, r.ok) {
+                (true, _) => "",
+                (false, true) => "  ok",
+                (false, false) => "  FAIL",
+            };
+            let key = [r.scene.as_str(), r.codec.as_str(), r.component.as_str(), r.metric];
+            line(f, key, [&values[0], &values[1], &values[2], &values[3]], status)?;
+        }
+        if !update {
+            writeln!(f, "{} values, {} over their limit", self.rows.len(), self.failures().len())?;
         }
         for p in &self.problems {
             writeln!(f, "problem: {p}")?;

@@ -14,7 +14,8 @@ fn threshold_zero_drops_nothing() {
     assert_eq!(baked.report.nonzeros_before, baked.report.nonzeros_after);
     assert_eq!(baked.report.energy_dropped.total, 0.0);
     assert_eq!(
-        scene.errors(&baked).sparsify.rel_l2, 0.0,
+        scene.errors(&baked).sparsify.rel_l2,
+        0.0,
         "an unsparsified reciprocal matrix must give the same B"
     );
 }

@@ -5,9 +5,9 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
+use firmware_sim::sim::Arith;
 use radiosity_host::bake;
 use radiosity_host::bench::BenchOptions;
-use firmware_sim::sim::Arith;
 use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::pipeline::PrepareOptions;
