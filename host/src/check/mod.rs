@@ -6,7 +6,7 @@
 //! intensity changed are set ([`radiosity_core::Solver::set_light`], warm start), then one step of shooting
 //! with a fixed budget of work units. Every frame's radiosity is compared with the exact f64 answer for that frame's light intensities:
 //! the transfer vectors of the scene's own (unsparsified, unquantized) form-factor matrix, relit
-//! (`B = B_static + sum_g I_g T_g`). Metrics are [`metrics::compare`] (area-weighted relative L2, max per-patch
+//! (`B = B_static + sum_g I_g T_g`). Metrics are [`crate::metrics::compare`] (area-weighted relative L2, max per-patch
 //! relative error with its dark-patch floor, luminance).
 //!
 //! # Error decomposition

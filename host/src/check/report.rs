@@ -41,7 +41,7 @@ pub struct Setting {
     pub setting: usize,
     /// Intensity of every dynamic group in this setting.
     pub intensity: Vec<[f64; 3]>,
-    /// Work units [`Solver::set_light`] reported for the change (0 for the cold start).
+    /// Work units [`radiosity_core::Solver::set_light`] reported for the change (0 for the cold start).
     pub relight_work: u64,
     /// Frames run.
     pub frames: usize,

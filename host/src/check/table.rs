@@ -44,8 +44,8 @@ pub fn check_table_file(
 /// | component | answer | against |
 /// |---|---|---|
 /// | table vs scene matrix | f64 solve of the decoded table | f64 solve of the scene's matrix (this run's estimate) |
-/// | iteration truncation | as [`check`] | |
-/// | arithmetic (f32, fixed) | as [`check`] | |
+/// | iteration truncation | as [`super::check`] | |
+/// | arithmetic (f32, fixed) | as [`super::check`] | |
 ///
 /// The first one holds sparsification, quantization, reciprocity and the difference between the bake's
 /// form-factor estimate and this run's (equal when the sample counts and seed match the bake's); separating
@@ -55,7 +55,7 @@ pub fn check_table_file(
 ///
 /// # Errors
 /// [`CheckError::BadTable`] for bytes that do not parse, [`CheckError::WrongScene`] for a table of another
-/// scene, and the errors of [`check`].
+/// scene, and the errors of [`super::check`].
 pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result<CheckReport, CheckError> {
     check_options(options)?;
     let table =
