@@ -3,11 +3,27 @@
 //! Scene loading, meshing into patches, form factors with occlusion rays (`raycast`: Embree in production, a
 //! pure-Rust BVH for tests and cross-checks), the f64 reference solve, table writing, checks and reports. The
 //! physics conventions are those of `radiosity-core`; `rng` is the one random number generator.
+//!
+//! # Map
+//! The pipeline, in order, and where a change of each kind goes:
+//!
+//! | stage | module | a change of |
+//! |---|---|---|
+//! | load | [`scene`] | OBJ/MTL/TOML input |
+//! | mesh | [`mesh`], [`patch`] | patches, adaptive refinement, the form-factor matrix type |
+//! | form factors | [`formfactor`], [`raycast`], [`embree`] | the estimator, occlusion rays |
+//! | prepare | [`pipeline`] | the stages above run together for a command |
+//! | reference | [`reference`](mod@reference), [`lighting`] | the f64 solves, per-patch lighting |
+//! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
+//! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
+//! | check, regress | [`check`], [`regress`] | the device run against f64, the quantization baseline |
+//! | reports | [`inspect`], [`metrics`], [`relight`], [`view`], [`picture`], [`bench`](mod@bench), [`output`] | what is printed or drawn |
 
 pub mod bake;
 pub mod bench;
 pub mod check;
 pub mod embree;
+pub mod evaluate;
 pub mod formfactor;
 pub mod input;
 pub mod inspect;

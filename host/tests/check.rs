@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use radiosity_core::{FfCodec, Table};
 use radiosity_host::bake::{bake, BakeInput, BakeOptions};
 use radiosity_host::check::{
-    check, check_table, form_factor_distance, CheckError, CheckOptions, CheckReport, QUANTIZATION,
-    RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE, WRONG_SCENE_FRACTION,
+    check, check_table, form_factor_distance, CheckError, CheckOptions, CheckReport, WRONG_SCENE_FRACTION,
 };
+use radiosity_host::evaluate::{QUANTIZATION, RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE};
 use radiosity_host::mesh::{mesh, MeshOptions};
 use radiosity_host::pipeline::{prepare, PrepareOptions, Prepared};
 use radiosity_host::regress::{self, CheckSelection};
@@ -25,6 +25,13 @@ fn options(seed: u64) -> PrepareOptions {
     options
 }
 
+/// The Cornell box prepared at `options(1)`, with those options.
+fn cornell() -> (PrepareOptions, Prepared) {
+    let po = options(1);
+    let p = prepare(&scene("cornell-box.obj"), &po).expect("prepare");
+    (po, p)
+}
+
 fn component(r: &CheckReport, name: &str) -> f64 {
     r.components.iter().find(|c| c.name == name).unwrap_or_else(|| panic!("no component {name}")).error.rel_l2
 }
@@ -38,8 +45,7 @@ fn bake_bytes(p: &Prepared, codec: FfCodec) -> Vec<u8> {
 /// quantization within the codec's bound, and the device error within the sum of its components.
 #[test]
 fn cornell_decomposition_is_consistent() {
-    let po = options(1);
-    let p = prepare(&scene("cornell-box.obj"), &po).expect("prepare");
+    let (po, p) = cornell();
     let opts = CheckOptions { ff_factor: 2, ..CheckOptions::default() };
     let r16 = check(&p, &po, &opts).expect("check 16");
     let r8 =
@@ -97,8 +103,7 @@ fn cornell_decomposition_is_consistent() {
 /// bake path, and its table-vs-scene component is within the sum of the components it merges.
 #[test]
 fn table_input_matches_bake_path() {
-    let po = options(1);
-    let p = prepare(&scene("cornell-box.obj"), &po).expect("prepare");
+    let (po, p) = cornell();
     let opts = CheckOptions { ff_factor: 1, ..CheckOptions::default() };
     let from_scene = check(&p, &po, &opts).expect("check scene");
     let bytes = bake_bytes(&p, FfCodec::FLOAT16);

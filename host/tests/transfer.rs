@@ -11,6 +11,7 @@ use radiosity_core::codec::decode_emission_f32;
 use radiosity_core::codec::transfer::TRANSFER_CODEC;
 use radiosity_core::{relight_transfer, transfer_cost, Fixed, Scalar, Table};
 use radiosity_host::bake::{bake, shooting_form, BakeInput, BakeOptions, Baked};
+use radiosity_host::evaluate::{evaluate, EvaluateOptions, TransferReport};
 use radiosity_host::inspect::inspect;
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::reference::{
@@ -25,6 +26,12 @@ fn cornell() -> Prepared {
 fn bake_with_transfer(p: &Prepared) -> Baked {
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
     bake(&input, &BakeOptions { transfer: true, ..BakeOptions::default() }).unwrap()
+}
+
+/// The evaluation's report of the transfer relight of `baked` (baked from `p` with `options`).
+fn transfer_report(p: &Prepared, baked: &Baked, options: &BakeOptions) -> Option<TransferReport> {
+    let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
+    evaluate(&input, baked, &EvaluateOptions::for_bake(p.patches.len(), options)).unwrap().transfer
 }
 
 /// The f64 basis of the table's own matrix: the shooting form of the sparsified rows, as the bake solves it.
@@ -111,7 +118,8 @@ fn cornell_transfer_relight_matches_f64_within_the_quantization_bound() {
     // The report: the quantization alone is within the code's relative half step in area-weighted L2 (the
     // per-patch bound, checked exactly above, is absolute `2^(K - 27)` for patches more than 2^14 below the
     // group's brightest, so their relative error, and the report's max, may exceed 2^-13).
-    let t = baked.report.transfer.as_ref().expect("transfer report");
+    let options = BakeOptions { transfer: true, ..BakeOptions::default() };
+    let t = transfer_report(&p, &baked, &options).expect("transfer report");
     assert!(t.quantization.rel_l2 <= 2f64.powi(-13), "{:?}", t.quantization);
     assert_eq!(t.bytes, groups * 3 + table.patch_count() as usize * groups * 6);
     assert_eq!(baked.table.len(), baked.report.table_bytes.total);
@@ -138,7 +146,7 @@ fn bake_without_transfer_has_no_section() {
     let baked = bake(&input, &BakeOptions::default()).unwrap();
     let table = Table::parse(&baked.table).unwrap();
     assert!(!table.has_transfer());
-    assert!(baked.report.transfer.is_none());
+    assert!(transfer_report(&p, &baked, &BakeOptions::default()).is_none());
     assert_eq!(baked.report.table_bytes.transfer, 0);
     assert_eq!((baked.capacities.transfer_out, baked.capacities.transfer_cost), (0, 0));
     assert!(inspect(&baked.table).unwrap().transfer.is_none());
@@ -151,12 +159,13 @@ fn eight_bit_bake_with_transfer_succeeds() {
     let p = cornell();
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
     let codec = radiosity_core::FfCodec::FLOAT8;
-    let baked = bake(&input, &BakeOptions { transfer: true, codec, ..BakeOptions::default() }).unwrap();
+    let options = BakeOptions { transfer: true, codec, ..BakeOptions::default() };
+    let baked = bake(&input, &options).unwrap();
     let table = Table::parse(&baked.table).unwrap();
     assert_eq!(table.codec(), codec);
     // The transfer basis does not depend on the form-factor codec: same quantization bound, per patch and in
     // area-weighted L2.
-    let t = baked.report.transfer.as_ref().unwrap();
+    let t = transfer_report(&p, &baked, &options).unwrap();
     assert!(t.quantization.rel_l2 <= 2f64.powi(-13), "{:?}", t.quantization);
     let tv = f64_basis(&p, &baked);
     let intensity = vec![[1.0f32, 1.0, 1.0]; table.group_count() as usize];

@@ -39,7 +39,7 @@ fn furnace_bake_converges_on_device_to_closed_form() {
         }
     }
     // The bake's own f64 error report agrees with the same bound (no f32 solve involved).
-    let q = &baked.report.error.sparsify_quantize;
+    let q = &scene.errors(&baked).sparsify_quantize;
     assert!(q.max_rel <= bound, "decoded f64 solve max rel {:.3e} > {bound:.3e}", q.max_rel);
 }
 
@@ -65,15 +65,11 @@ fn static_light_is_folded_into_the_base() {
     // The device radiosity is (E_s + rho G_s) from codes: per patch error <= 2^-11 E_s + (2^-11 rho + 2^-17) G_s
     // plus a few f32 roundings (products, area division: 8 eps_32 of B).
     let area: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
-    let shoot = radiosity_host::bake::shooting_form(&baked.sparse.matrix, &area);
+    let shoot = shooting_form(&baked.sparse.matrix, &area);
+    let irradiance = gather(&shoot, &baked.static_radiosity);
     for i in 0..n as usize {
         let b = solver.radiosity(i as u32).unwrap();
-        let mut g = [0.0; 3];
-        for (j, f) in shoot.row(i) {
-            for c in 0..3 {
-                g[c] += f * baked.static_radiosity[j][c];
-            }
-        }
+        let g = irradiance[i];
         for c in 0..3 {
             let exact = baked.static_radiosity[i][c];
             let es = scene.lighting.static_emission[i][c];
@@ -98,7 +94,11 @@ fn capacities_size_the_solver_exactly() {
     let baked = scene.bake(0.01, FfCodec::FLOAT16);
     let cap = &baked.capacities;
     let table = Table::parse(&baked.table).unwrap();
-    assert_eq!((cap.patches, cap.groups, cap.members, cap.entries), (25, 2, 3, baked.report.nonzeros_after));
+    let counts = &cap.counts;
+    assert_eq!(
+        (counts.patches, counts.groups, counts.members, counts.entries),
+        (25, 2, 3, baked.report.nonzeros_after)
+    );
     assert_eq!(cap.table_bytes, baked.table.len());
     let exact = || OwnedBuffers::<f32>::new(cap.buffers);
     let config = Config { tolerance: 1e-4, overshoot: 0 };
@@ -128,7 +128,7 @@ fn capacities_size_the_solver_exactly() {
     let b = cap.buffers;
     assert_eq!(cap.buffer_bytes_f32, 3 * 12 * b.slots + 4 * b.selection + 12 * b.groups + 6 * b.materials);
     let json = serde_json::to_value(cap).unwrap();
-    assert_eq!(json["entries"], cap.entries);
+    assert_eq!(json["entries"], cap.counts.entries);
     assert_eq!(json["buffers"]["selection"], cap.buffers.selection);
 }
 
@@ -160,7 +160,8 @@ fn reachability_stops_at_black_patches_and_disconnected_parts() {
     let table = Table::parse(&baked.table).unwrap();
     assert_eq!((table.patch_count(), table.state_count()), (5, 2));
     assert_eq!([0, 1].map(|s| table.slot_patch(s)), [Some(0), Some(3)]);
-    assert_eq!((baked.capacities.patches, baked.capacities.state, baked.capacities.buffers.slots), (5, 2, 2));
+    let cap = &baked.capacities;
+    assert_eq!((cap.counts.patches, cap.counts.state, cap.buffers.slots), (5, 2, 2));
     assert_eq!(table.entry_count(), 2);
     let mut owned = OwnedBuffers::<f32>::for_table(&table);
     let mut solver = Solver::new(&table, owned.buffers(), Config { tolerance: 1e-9, overshoot: 0 }).unwrap();
@@ -183,24 +184,13 @@ fn static_base_is_a_fixed_point_of_shooting_without_reciprocity() {
     let mut rng = SplitMix64::new(99);
     scene.ff.map_values(|_, _, f| f * (0.95 + 0.1 * rng.unit()));
     let baked = scene.bake(0.05, FfCodec::FLOAT16);
-    assert!(baked.report.error.reciprocity.rel_l2 > 1e-3, "the input must not be reciprocal");
+    assert!(scene.errors(&baked).reciprocity.rel_l2 > 1e-3, "the input must not be reciprocal");
     assert!(baked.report.energy_dropped.max_row_fraction > 0.01, "sparsify must drop entries");
     let table = Table::parse(&baked.table).unwrap();
     let n = table.patch_count() as usize;
     let area: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
-    let shoot = radiosity_host::bake::shooting_form(&baked.sparse.matrix, &area);
     let b = &baked.static_radiosity;
-    let g: Vec<[f64; 3]> = (0..n)
-        .map(|i| {
-            let mut g = [0.0; 3];
-            for (j, f) in shoot.row(i) {
-                for c in 0..3 {
-                    g[c] += f * b[j][c];
-                }
-            }
-            g
-        })
-        .collect();
+    let g = gather(&shooting_form(&baked.sparse.matrix, &area), b);
     let dec = |codes: [u16; 3]| codes.map(|c| f64::from(decode_emission_f32(c)));
     let rho_of = |i: usize| {
         let r = table.reflectance(table.material(i as u32).unwrap()).unwrap();
@@ -346,18 +336,21 @@ fn gauss_seidel_and_dense_bakes_agree() {
     let scene = lit_scene(10, 60, 0.3, [1.0; 3]);
     let run = |method| {
         let options = BakeOptions { threshold: 1e-2, method: Some(method), ..BakeOptions::default() };
-        bake(&scene.input(), &options).unwrap().report
+        let baked = bake(&scene.input(), &options).unwrap();
+        let evaluation = scene.evaluate_with(&baked, &options);
+        let residual = BakeSummary::new(&baked, &evaluation).reference_residual;
+        (evaluation.errors, residual)
     };
     let dense = run(Method::Dense { limit: 100 });
     let gs = run(Method::GaussSeidel(GaussSeidelOptions::default()));
     for (a, b) in [
-        (dense.error.sparsify.rel_l2, gs.error.sparsify.rel_l2),
-        (dense.error.sparsify_quantize.rel_l2, gs.error.sparsify_quantize.rel_l2),
-        (dense.error.sparsify_quantize.max_rel, gs.error.sparsify_quantize.max_rel),
+        (dense.0.sparsify.rel_l2, gs.0.sparsify.rel_l2),
+        (dense.0.sparsify_quantize.rel_l2, gs.0.sparsify_quantize.rel_l2),
+        (dense.0.sparsify_quantize.max_rel, gs.0.sparsify_quantize.max_rel),
     ] {
         assert!((a - b).abs() <= 1e-9, "dense {a:.6e} vs Gauss-Seidel {b:.6e}");
     }
-    assert!(gs.reference_residual <= 1e-12 && dense.reference_residual <= 1e-12);
+    assert!(gs.1 <= 1e-12 && dense.1 <= 1e-12);
 }
 
 /// Shortens one solver buffer by one element.

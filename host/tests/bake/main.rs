@@ -15,8 +15,10 @@
 use glam::DVec3;
 use radiosity_core::{Buffers, Config, FfCodec, Outcome, OwnedBuffers, Solver, SolverError, Table};
 use radiosity_host::bake::{
-    bake, codec_for_bits, group_id, reachable_patches, sparsify, BakeError, BakeInput, BakeOptions, Baked,
+    bake, codec_for_bits, gather, group_id, reachable_patches, shooting_form, sparsify, BakeError, BakeInput,
+    BakeOptions, Baked,
 };
+use radiosity_host::evaluate::{evaluate, BakeErrors, BakeSummary, EvaluateOptions, Evaluation};
 use radiosity_host::inspect::{inspect, inspect_file, InspectError};
 use radiosity_host::lighting::PatchLighting;
 use radiosity_host::patch::{FormFactorMatrix, Patch};
@@ -59,6 +61,17 @@ impl TestScene {
     fn bake(&self, threshold: f64, codec: FfCodec) -> Baked {
         let options = BakeOptions { threshold, codec, ..BakeOptions::default() };
         bake(&self.input(), &options).expect("bake")
+    }
+
+    /// The evaluation of `baked`, baked from this scene with `options`.
+    fn evaluate_with(&self, baked: &Baked, options: &BakeOptions) -> Evaluation {
+        let options = EvaluateOptions::for_bake(self.patches.len(), options);
+        evaluate(&self.input(), baked, &options).expect("evaluate")
+    }
+
+    /// The error of `baked`, baked from this scene at default options but for threshold and codec.
+    fn errors(&self, baked: &Baked) -> BakeErrors {
+        self.evaluate_with(baked, &BakeOptions::default()).errors
     }
 }
 

@@ -14,7 +14,8 @@ fn threshold_zero_drops_nothing() {
     assert_eq!(baked.report.nonzeros_before, baked.report.nonzeros_after);
     assert_eq!(baked.report.energy_dropped.total, 0.0);
     assert_eq!(
-        baked.report.error.sparsify.rel_l2, 0.0,
+        scene.errors(&baked).sparsify.rel_l2,
+        0.0,
         "an unsparsified reciprocal matrix must give the same B"
     );
 }
@@ -86,7 +87,7 @@ fn energy_dropped_is_the_sum_of_dropped_form_factors() {
     assert!((e.total - total).abs() <= tol, "report total {} vs {total}", e.total);
     assert!(e.max_row_fraction <= t && e.max_receiver_fraction <= t, "{e:?}");
     assert_eq!(baked.report.nonzeros_after, s.matrix.nonzeros());
-    assert!(baked.report.error.sparsify.rel_l2 > 0.0);
+    assert!(scene.errors(&baked).sparsify.rel_l2 > 0.0);
 }
 
 #[test]
@@ -94,7 +95,7 @@ fn eight_bit_error_exceeds_sixteen_bit() {
     let scene = lit_scene(3, 50, 0.3, [1.0; 3]);
     let b16 = scene.bake(0.0, codec_for_bits(16).unwrap());
     let b8 = scene.bake(0.0, codec_for_bits(8).unwrap());
-    let (e16, e8) = (&b16.report.error.sparsify_quantize, &b8.report.error.sparsify_quantize);
+    let (e16, e8) = (&scene.errors(&b16).sparsify_quantize, &scene.errors(&b8).sparsify_quantize);
     assert!(e8.rel_l2 > e16.rel_l2, "8-bit rel L2 {:.3e} <= 16-bit {:.3e}", e8.rel_l2, e16.rel_l2);
     assert!(e8.max_rel > e16.max_rel, "8-bit max rel {:.3e} <= 16-bit {:.3e}", e8.max_rel, e16.max_rel);
     assert!(b8.table.len() < b16.table.len());
@@ -126,9 +127,10 @@ fn error_grows_with_threshold_and_fewer_bits() {
     let scene = lit_scene(2, 60, 0.4, [1.0; 3]);
     let mut previous: Option<(f64, f64)> = None;
     for t in [0.0, 1e-3, 1e-2, 5e-2] {
-        let b16 = scene.bake(t, FfCodec::FLOAT16).report;
-        let b8 = scene.bake(t, FfCodec::FLOAT8).report;
-        for r in [&b16, &b8] {
+        let (b16, b8) = (scene.bake(t, FfCodec::FLOAT16), scene.bake(t, FfCodec::FLOAT8));
+        let (err16, err8) = (scene.errors(&b16), scene.errors(&b8));
+        let (b16, b8) = (b16.report, b8.report);
+        for (r, error) in [(&b16, &err16), (&b8, &err8)] {
             eprintln!(
                 "t={t:<6} {:<7} nnz {} -> {}  bytes {} ({:.2}/entry)  dropped total {:.3e} area-weighted {:.3e}  \
                  sparsify rel L2 {:.3e} max {:.3e}  +quantize rel L2 {:.3e} max {:.3e}",
@@ -139,21 +141,21 @@ fn error_grows_with_threshold_and_fewer_bits() {
                 r.bytes_per_entry,
                 r.energy_dropped.total,
                 r.energy_dropped.area_weighted,
-                r.error.sparsify.rel_l2,
-                r.error.sparsify.max_rel,
-                r.error.sparsify_quantize.rel_l2,
-                r.error.sparsify_quantize.max_rel
+                error.sparsify.rel_l2,
+                error.sparsify.max_rel,
+                error.sparsify_quantize.rel_l2,
+                error.sparsify_quantize.max_rel
             );
         }
-        let (e16, e8) = (b16.error.sparsify_quantize.rel_l2, b8.error.sparsify_quantize.rel_l2);
+        let (e16, e8) = (err16.sparsify_quantize.rel_l2, err8.sparsify_quantize.rel_l2);
         assert!(e8 > e16, "t = {t}: 8-bit {e8:.3e} <= 16-bit {e16:.3e}");
         assert!(b8.table_bytes.total < b16.table_bytes.total);
         if let Some((p_err, p_bytes)) = previous {
-            let s = b16.error.sparsify.rel_l2;
+            let s = err16.sparsify.rel_l2;
             assert!(s > p_err, "t = {t}: sparsify error {s:.3e} did not grow from {p_err:.3e}");
             assert!((b16.table_bytes.total as f64) < p_bytes, "t = {t}: table did not shrink");
         }
-        previous = Some((b16.error.sparsify.rel_l2, b16.table_bytes.total as f64));
+        previous = Some((err16.sparsify.rel_l2, b16.table_bytes.total as f64));
     }
 }
 

@@ -5,9 +5,10 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 
+use firmware_sim::sim::Arith;
 use radiosity_host::bake;
 use radiosity_host::bench::BenchOptions;
-use radiosity_host::check::{Arith, CheckOptions};
+use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
@@ -57,7 +58,7 @@ pub struct CheckArgs {
     pub row_sum_tolerance: f64,
 }
 
-/// `--arith` values.
+/// `--arith` values: one arithmetic path, or both.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum ArithArg {
     /// `f32`.
@@ -66,6 +67,18 @@ pub enum ArithArg {
     Fixed,
     /// Both.
     Both,
+}
+
+impl ArithArg {
+    /// The arithmetic paths this value selects, in report order.
+    #[must_use]
+    pub fn paths(self) -> &'static [Arith] {
+        match self {
+            ArithArg::F32 => &[Arith::F32],
+            ArithArg::Fixed => &[Arith::Fixed],
+            ArithArg::Both => &Arith::ALL,
+        }
+    }
 }
 
 impl CheckArgs {
@@ -78,11 +91,7 @@ impl CheckArgs {
             threshold: self.threshold,
             budget: self.budget,
             frames: self.frames,
-            arith: match self.arith {
-                ArithArg::F32 => Arith::F32,
-                ArithArg::Fixed => Arith::Fixed,
-                ArithArg::Both => Arith::Both,
-            },
+            arith: self.arith.paths().to_vec(),
             relight: self.relight,
             tolerance: self.tolerance,
             ff_factor: self.ff_factor,

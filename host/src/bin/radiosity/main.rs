@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use clap::Parser;
 use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
+use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::write_patch_csv;
@@ -286,6 +287,8 @@ fn bake_to_files(
     let options = BakeOptions { threshold, codec: codec_for_bits(bits)?, transfer, ..BakeOptions::default() };
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
     let baked = bake(&input, &options)?;
+    let evaluation = evaluate(&input, &baked, &EvaluateOptions::for_bake(p.patches.len(), &options))?;
+    let summary = BakeSummary::new(&baked, &evaluation);
     if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
     }
@@ -300,11 +303,11 @@ fn bake_to_files(
     )?;
     match format {
         Format::Json => {
-            serde_json::to_writer_pretty(&mut *out, &baked.report)?;
+            serde_json::to_writer_pretty(&mut *out, &summary)?;
             writeln!(out)?;
         }
         Format::Text | Format::Csv => {
-            writeln!(out, "{}", baked.report)?;
+            writeln!(out, "{summary}")?;
             writeln!(out, "wrote {}, {}", table.display(), json.display())?;
         }
     }

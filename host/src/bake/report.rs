@@ -1,0 +1,103 @@
+//! A bake's own stage report: what each step did (counts, what sparsification dropped, sizes). How good the
+//! table is, is [`crate::evaluate`]'s to say.
+
+use std::fmt;
+
+use serde::Serialize;
+
+use super::{EnergyDropped, RuntimeState};
+use crate::inspect::SectionBytes;
+
+/// A dynamic light group as written to the table.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct GroupReport {
+    /// Group name.
+    pub name: String,
+    /// Table id ([`super::group_id`]).
+    pub id: u32,
+    /// Member patches.
+    pub members: usize,
+    /// Default intensity (RGB).
+    pub default_intensity: [f64; 3],
+}
+
+/// What the steps of a bake did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BakeReport {
+    /// Patches.
+    pub patches: usize,
+    /// Materials.
+    pub materials: usize,
+    /// Dynamic light groups (step 3).
+    pub groups: Vec<GroupReport>,
+    /// Light-group members in total.
+    pub members: usize,
+    /// Sparsification threshold (step 1).
+    pub threshold: f64,
+    /// Nonzero form factors before sparsification.
+    pub nonzeros_before: usize,
+    /// Nonzero form factors after sparsification.
+    pub nonzeros_after: usize,
+    /// Entries stored in the table: the sparsified rows of the patches with run-time state, without their
+    /// entries to receivers without state (equal to `nonzeros_after` when every patch has state).
+    pub table_entries: usize,
+    /// Energy dropped by sparsification.
+    pub energy_dropped: EnergyDropped,
+    /// Codec name (core's `Display` of `FfCodec`; step 6).
+    pub codec: String,
+    /// Bits per form-factor code.
+    pub ff_bits: u8,
+    /// Table bytes per section.
+    pub table_bytes: SectionBytes,
+    /// Total table bytes per stored entry.
+    pub bytes_per_entry: f64,
+    /// Whether the static base is solved (always true for a bake; step 2).
+    pub base_solved: bool,
+    /// Patches with static emission.
+    pub static_emitters: usize,
+    /// Patches needing run-time state (step 5).
+    pub runtime_state: RuntimeState,
+    /// The scene fingerprint stored in the table ([`super::scene_fingerprint`]).
+    pub fingerprint: u64,
+}
+
+impl fmt::Display for BakeReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = &self.energy_dropped;
+        writeln!(f, "patches            {} ({} materials)", self.patches, self.materials)?;
+        writeln!(f, "scene fingerprint  {:#018x}", self.fingerprint)?;
+        writeln!(f, "light groups       {} dynamic, {} members", self.groups.len(), self.members)?;
+        for g in &self.groups {
+            writeln!(
+                f,
+                "  {:<16} id {:#010x}  {} members  default {:?}",
+                g.name, g.id, g.members, g.default_intensity
+            )?;
+        }
+        writeln!(f, "static emitters    {} patches (folded into the solved base)", self.static_emitters)?;
+        writeln!(
+            f,
+            "form factors       {} -> {} nonzeros (threshold {}), {} stored (rows of patches with state)",
+            self.nonzeros_before, self.nonzeros_after, self.threshold, self.table_entries
+        )?;
+        writeln!(
+            f,
+            "energy dropped     per row max {:.3e} mean {:.3e}; max fraction of a row {:.3e}, of a receiver {:.3e}; \
+             total {:.3e}, area-weighted {:.3e}",
+            e.max_row, e.mean_row, e.max_row_fraction, e.max_receiver_fraction, e.total, e.area_weighted
+        )?;
+        writeln!(f, "codec              {} ({} bits)", self.codec, self.ff_bits)?;
+        writeln!(
+            f,
+            "table bytes        {} ({:.2} bytes per entry)",
+            self.table_bytes.total, self.bytes_per_entry
+        )?;
+        writeln!(f, "{}", self.table_bytes)?;
+        write!(
+            f,
+            "runtime state      {} of {} patches (reachable by a dynamic light; the others show the static \
+             base; {} entries to black stateless receivers dropped)",
+            self.runtime_state.reachable, self.runtime_state.patches, self.runtime_state.entries_to_stateless
+        )
+    }
+}

@@ -1,0 +1,245 @@
+//! The device part of a check: the solver run on the table exactly as the firmware runs it, frame by frame.
+
+use firmware_sim::device::{self, RunError};
+use firmware_sim::sim::Arith;
+use radiosity_core::{Config, Fixed, Outcome, OwnedBuffers, Scalar, Solver, Table};
+
+use super::{CheckError, CheckOptions, CheckReport, Frame, Setting, MAX_FRAMES};
+use crate::bake::Decoded;
+use crate::evaluate::{Component, EvaluateError, ITERATION_TRUNCATION};
+use crate::metrics;
+use crate::reference::{Radiosity, TransferVectors};
+
+/// The answers the device is compared with.
+pub(super) struct Answers<'a> {
+    /// The scene's exact transfer vectors (every frame is compared with them, relit).
+    pub(super) exact: &'a TransferVectors,
+    /// The scene's default intensities (the first light setting).
+    pub(super) default_intensity: &'a [[f64; 3]],
+    /// The decoded table.
+    pub(super) decoded: &'a Decoded,
+    /// Its f64 answer (what the device converges to).
+    pub(super) device: &'a Radiosity,
+    /// Patch areas.
+    pub(super) area: &'a [f64],
+}
+
+/// Runs the device paths on `table` and finishes the report (iteration truncation and arithmetic components
+/// after `components`): every light setting on every path, each frame compared with the exact answer relit,
+/// the converged answer of each path compared with the decoded table's f64 answer.
+pub(super) fn device_part(
+    table: &Table<'_>,
+    table_bytes: usize,
+    answers: &Answers<'_>,
+    options: &CheckOptions,
+    mut components: Vec<Component>,
+) -> Result<CheckReport, CheckError> {
+    let (dec, area) = (answers.decoded, answers.area);
+    let max_power = (0..3)
+        .map(|c| dec.emission.iter().zip(&dec.area).map(|(e, a)| e[c] * a).sum::<f64>())
+        .fold(0.0, f64::max);
+    let tolerance = options.tolerance * max_power;
+    let default = answers.default_intensity.to_vec();
+    let groups = default.len();
+    let mut schedule = vec![default.clone()];
+    if options.relight {
+        schedule.push(vec![[0.0; 3]; groups]);
+        schedule.push(default.clone());
+        schedule.push(default.iter().map(|&d| scale(d, [1.0, 0.2, 0.2])).collect());
+    }
+    let exact: Vec<Vec<[f64; 3]>> = schedule
+        .iter()
+        .map(|s| answers.exact.relight(s))
+        .collect::<Result<_, _>>()
+        .map_err(|source| EvaluateError::Reference { what: "exact transfer relight", source })?;
+    let run = Run { table, area, schedule: &schedule, exact: &exact, options };
+    let mut settings = Vec::new();
+    let mut frames = Vec::new();
+    if options.arith.contains(&Arith::Fixed) {
+        let floor = f64::from(radiosity_core::convergence_floor::<Fixed>(table).to_f32());
+        if tolerance < floor {
+            return Err(CheckError::Options(format!(
+                "--tolerance {} ({tolerance:.3e} power units) is below fixed point's convergence floor for this \
+                 table ({floor:.3e} power units: Q32.32 rounds every receipt, see core's `convergence_floor`); use \
+                 --tolerance {:.1e} or more, or --arith f32",
+                options.tolerance,
+                (floor / max_power * 1.01).max(f64::MIN_POSITIVE)
+            )));
+        }
+    }
+    for &arith in &options.arith {
+        let (converged, truncated) = match arith {
+            Arith::F32 => run.device::<f32>(arith, tolerance, &mut settings, &mut frames)?,
+            Arith::Fixed => run.device::<Fixed>(arith, tolerance, &mut settings, &mut frames)?,
+        };
+        if arith == Arith::F32 {
+            components.push(Component {
+                name: ITERATION_TRUNCATION.into(),
+                compares: match options.frames {
+                    Some(f) => format!(
+                        "f32 after {f} frames of {} units vs f32 converged, same table",
+                        options.budget
+                    ),
+                    None => {
+                        "f32 run to convergence in frames vs f32 converged in one step, same table".into()
+                    }
+                },
+                error: metrics::compare(&truncated, &converged, area)?,
+            });
+        }
+        components.push(Component {
+            name: format!("arithmetic ({arith})"),
+            compares: format!("{arith} converged vs f64 solve of the decoded table"),
+            error: metrics::compare(&converged, answers.device, area)?,
+        });
+    }
+    Ok(CheckReport {
+        patches: area.len(),
+        entries: table.entry_count() as usize,
+        table_bytes,
+        codec: table.codec().to_string(),
+        budget: options.budget,
+        frames_per_setting: options.frames,
+        tolerance,
+        components,
+        settings,
+        frames,
+    })
+}
+
+/// Converged device radiosity of `table` from a cold start at its default intensities, on arithmetic `S`, with
+/// solver tolerance `tolerance` (power units, [`Config::tolerance`]); `None` with the reason if the solver
+/// stops without converging ([`Outcome::NoProgress`], e.g. a saturated fixed-point value).
+///
+/// # Errors
+/// [`CheckError::Solver`] if the solver rejects the table.
+pub fn device_converged<S: Scalar>(
+    table: &Table<'_>,
+    tolerance: f64,
+) -> Result<Result<Radiosity, radiosity_core::NoProgressReason>, CheckError> {
+    let n = table.patch_count() as usize;
+    let mut store = OwnedBuffers::<S>::for_table(table);
+    let buffers = store.buffers();
+    let config =
+        Config { tolerance: S::from_f32(tolerance as f32), overshoot: Config::<S>::RECOMMENDED_OVERSHOOT };
+    let mut solver =
+        Solver::new(table, buffers, config).map_err(|error| CheckError::Solver { arith: "device", error })?;
+    loop {
+        match solver.step(u32::MAX) {
+            Outcome::BudgetSpent { .. } => {}
+            Outcome::Converged { .. } => return Ok(Ok(radiosity(&solver, n))),
+            Outcome::NoProgress { reason, .. } => return Ok(Err(reason)),
+        }
+    }
+}
+
+fn scale(v: [f64; 3], s: [f64; 3]) -> [f64; 3] {
+    [v[0] * s[0], v[1] * s[1], v[2] * s[2]]
+}
+
+struct Run<'r> {
+    table: &'r Table<'r>,
+    area: &'r [f64],
+    schedule: &'r [Vec<[f64; 3]>],
+    exact: &'r [Vec<[f64; 3]>],
+    options: &'r CheckOptions,
+}
+
+fn radiosity<S: Scalar>(solver: &Solver<'_, S>, n: usize) -> Vec<[f64; 3]> {
+    (0..n as u32)
+        .map(|i| solver.radiosity(i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3]))
+        .collect()
+}
+
+fn outcome_name(o: Outcome) -> String {
+    match o {
+        Outcome::Converged { .. } => "converged".into(),
+        Outcome::BudgetSpent { .. } => "budget".into(),
+        Outcome::NoProgress { reason, .. } => format!("no progress: {reason:?}"),
+    }
+}
+
+impl Run<'_> {
+    /// Runs every light setting on arithmetic `S`; returns (converged answer at default lighting from a cold
+    /// solve, answer after the first setting's frames).
+    fn device<S: Scalar>(
+        &self,
+        arith: Arith,
+        tolerance: f64,
+        settings: &mut Vec<Setting>,
+        frames: &mut Vec<Frame>,
+    ) -> Result<(Radiosity, Radiosity), CheckError> {
+        let (table, n) = (self.table, self.area.len());
+        let err = |error| CheckError::Solver { arith: arith.name(), error };
+        let config = Config {
+            tolerance: S::from_f32(tolerance as f32),
+            overshoot: Config::<S>::RECOMMENDED_OVERSHOOT,
+        };
+
+        // Converged reference of this arithmetic: one unbounded step sequence, cold start.
+        let converged = {
+            let mut store = OwnedBuffers::<S>::for_table(table);
+            let mut solver = Solver::new(table, store.buffers(), config).map_err(err)?;
+            while let Outcome::BudgetSpent { .. } = solver.step(u32::MAX) {}
+            radiosity(&solver, n)
+        };
+
+        let mut store = OwnedBuffers::<S>::for_table(table);
+        let mut solver = Solver::new(table, store.buffers(), config).map_err(err)?;
+        let mut truncated = Vec::new();
+        for (s, (intensity, exact)) in self.schedule.iter().zip(self.exact).enumerate() {
+            // The firmware's frame loop: groups whose intensity changed are set, then one bounded step.
+            let intensity_f32: Vec<[f32; 3]> = intensity.iter().map(|rgb| rgb.map(|v| v as f32)).collect();
+            let mut relight_work = 0u64;
+            let limit = self.options.frames.unwrap_or(MAX_FRAMES);
+            let (mut work, mut count, mut converged_now) = (0u64, 0usize, false);
+            let mut last = None;
+            while count < limit {
+                let frame = device::Frame { budget: self.options.budget, intensity: &intensity_f32 };
+                let (light_units, o) =
+                    device::run_frame(&mut solver, &frame, count as u32).map_err(|e| match e {
+                        RunError::Solver { error, .. } | RunError::Buffers { error } => err(error),
+                        other => CheckError::Options(other.to_string()),
+                    })?;
+                relight_work += u64::from(light_units);
+                count += 1;
+                work += u64::from(o.used());
+                let b = radiosity(&solver, n);
+                let e = metrics::compare(&b, exact, self.area)?;
+                frames.push(Frame {
+                    arith,
+                    setting: s,
+                    frame: count,
+                    work: o.used(),
+                    work_total: work,
+                    outcome: outcome_name(o),
+                    rel_l2: e.rel_l2,
+                    max_rel: e.max_rel,
+                    luminance_rel_l2: e.luminance_rel_l2,
+                });
+                last = Some((b, e));
+                converged_now = matches!(o, Outcome::Converged { .. });
+                if self.options.frames.is_none() && !matches!(o, Outcome::BudgetSpent { .. }) {
+                    break;
+                }
+            }
+            let Some((b, error)) = last else {
+                return Err(CheckError::Options("--frames must be at least 1".into()));
+            };
+            if s == 0 {
+                truncated = b;
+            }
+            settings.push(Setting {
+                arith,
+                setting: s,
+                intensity: intensity.clone(),
+                relight_work,
+                frames: count,
+                work,
+                converged: converged_now,
+                error,
+            });
+        }
+        Ok((converged, truncated))
+    }
+}

@@ -1,0 +1,189 @@
+//! What `radiosity check` reports: the error decomposition, every light setting and every frame.
+
+use std::fmt;
+
+use firmware_sim::sim::Arith;
+use serde::Serialize;
+
+use crate::evaluate::Component;
+use crate::metrics::ErrorReport;
+use crate::picture::plot::Plot;
+
+/// One device frame compared with the exact answer.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Frame {
+    /// Arithmetic path (serialized `f32` or `fixed`).
+    pub arith: Arith,
+    /// Light setting (0 = default, then the relight sequence).
+    pub setting: usize,
+    /// Frame within the setting (from 1).
+    pub frame: usize,
+    /// Work units this frame.
+    pub work: u32,
+    /// Work units since the setting began (light-change cost excluded; see `relight_work`).
+    pub work_total: u64,
+    /// Outcome of the frame's step: `converged`, `budget`, or `no progress: REASON`.
+    pub outcome: String,
+    /// Relative L2 error against the exact answer.
+    pub rel_l2: f64,
+    /// Max per-patch relative error against the exact answer.
+    pub max_rel: f64,
+    /// Luminance relative L2 error against the exact answer.
+    pub luminance_rel_l2: f64,
+}
+
+/// Summary of one light setting on one arithmetic path.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Setting {
+    /// Arithmetic path.
+    pub arith: Arith,
+    /// Index of the setting.
+    pub setting: usize,
+    /// Intensity of every dynamic group in this setting.
+    pub intensity: Vec<[f64; 3]>,
+    /// Work units [`radiosity_core::Solver::set_light`] reported for the change (0 for the cold start).
+    pub relight_work: u64,
+    /// Frames run.
+    pub frames: usize,
+    /// Work units in the step budgets.
+    pub work: u64,
+    /// Whether the last frame converged.
+    pub converged: bool,
+    /// Error of the last frame against the exact answer.
+    pub error: ErrorReport,
+}
+
+/// The result of a check.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CheckReport {
+    /// Patches.
+    pub patches: usize,
+    /// Table entries.
+    pub entries: usize,
+    /// Table bytes.
+    pub table_bytes: usize,
+    /// Codec name.
+    pub codec: String,
+    /// Work units per frame.
+    pub budget: u32,
+    /// Frames per setting (`None`: to convergence).
+    pub frames_per_setting: Option<usize>,
+    /// Solver tolerance in power units.
+    pub tolerance: f64,
+    /// The error decomposition.
+    pub components: Vec<Component>,
+    /// Every light setting on every arithmetic path.
+    pub settings: Vec<Setting>,
+    /// Every frame.
+    pub frames: Vec<Frame>,
+}
+
+impl CheckReport {
+    /// The error decomposition as stacked bars: one bar per arithmetic path (`f32`, `fixed`), one segment per
+    /// component (relative L2 of `B`, area-weighted), the path's own arithmetic component on top. The shared
+    /// components (form-factor estimation, sparsification, quantization, ...) appear in every bar.
+    #[must_use]
+    pub fn decomposition_plot(&self, title: &str) -> Plot {
+        let arith: Vec<String> = self
+            .components
+            .iter()
+            .filter_map(|c| c.name.strip_prefix("arithmetic (").and_then(|r| r.strip_suffix(')')))
+            .map(str::to_string)
+            .collect();
+        let mut components: Vec<(String, Vec<f64>)> = self
+            .components
+            .iter()
+            .filter(|c| !c.name.starts_with("arithmetic ("))
+            .map(|c| (c.name.clone(), vec![c.error.rel_l2; arith.len()]))
+            .collect();
+        let own: Vec<f64> = arith
+            .iter()
+            .map(|a| {
+                let name = format!("arithmetic ({a})");
+                self.components.iter().find(|c| c.name == name).map_or(0.0, |c| c.error.rel_l2)
+            })
+            .collect();
+        components.push(("arithmetic".into(), own));
+        Plot::StackedBars {
+            title: title.into(),
+            y_label: "relative L2 error of B (area-weighted)".into(),
+            categories: arith,
+            components,
+        }
+    }
+}
+
+impl fmt::Display for CheckReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "table: {} patches, {} entries, {} bytes, codec {}; budget {} units/frame, frames {}, tolerance {:.3e}",
+            self.patches,
+            self.entries,
+            self.table_bytes,
+            self.codec,
+            self.budget,
+            self.frames_per_setting.map_or("to convergence".to_string(), |n| n.to_string()),
+            self.tolerance
+        )?;
+        writeln!(f, "\nerror decomposition (default intensities)")?;
+        writeln!(f, "{:<24} {:>10} {:>10} {:>10}  compares", "component", "rel L2", "max rel", "lum L2")?;
+        for c in &self.components {
+            writeln!(
+                f,
+                "{:<24} {:>10.3e} {:>10.3e} {:>10.3e}  {}",
+                c.name, c.error.rel_l2, c.error.max_rel, c.error.luminance_rel_l2, c.compares
+            )?;
+        }
+        writeln!(
+            f,
+            "\ndevice vs exact f64 (scene matrix, transfer vectors relit), last frame of each setting"
+        )?;
+        writeln!(
+            f,
+            "{:<6} {:<3} {:<24} {:>7} {:>12} {:>10} {:>10} {:>10} {:>10}",
+            "arith",
+            "#",
+            "intensity (group 0)",
+            "frames",
+            "work",
+            "relight",
+            "rel L2",
+            "max rel",
+            "converged"
+        )?;
+        for s in &self.settings {
+            let i = s
+                .intensity
+                .first()
+                .map_or("-".to_string(), |v| format!("({:.2}, {:.2}, {:.2})", v[0], v[1], v[2]));
+            writeln!(
+                f,
+                "{:<6} {:<3} {:<24} {:>7} {:>12} {:>10} {:>10.3e} {:>10.3e} {:>10}",
+                s.arith.name(),
+                s.setting,
+                i,
+                s.frames,
+                s.work,
+                s.relight_work,
+                s.error.rel_l2,
+                s.error.max_rel,
+                s.converged
+            )?;
+        }
+        writeln!(f, "\nfirst frames of setting 0 (all frames: --format json)")?;
+        writeln!(f, "{:<6} {:>6} {:>12} {:>10} {:>10}", "arith", "frame", "work", "rel L2", "max rel")?;
+        for fr in self.frames.iter().filter(|fr| fr.setting == 0 && (fr.frame <= 4 || fr.frame % 16 == 0)) {
+            writeln!(
+                f,
+                "{:<6} {:>6} {:>12} {:>10.3e} {:>10.3e}",
+                fr.arith.name(),
+                fr.frame,
+                fr.work_total,
+                fr.rel_l2,
+                fr.max_rel
+            )?;
+        }
+        Ok(())
+    }
+}
