@@ -13,11 +13,12 @@
 //! | mesh | [`mesh`], [`patch`] | patches, adaptive refinement, the form-factor matrix type |
 //! | form factors | [`formfactor`], [`raycast`], [`embree`] | the estimator, occlusion rays |
 //! | prepare | [`pipeline`] | the stages above run together for a command |
-//! | reference | [`reference`](mod@reference), [`lighting`] | the f64 solves, per-patch lighting |
+//! | reference | [`reference`](mod@reference), [`lighting`], [`input`] | the f64 solves, per-patch lighting, the input checks they share |
 //! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
-//! | check, regress | [`check`], [`regress`] | the device run against f64, the quantization baseline |
+//! | check, regress | [`check`], [`regress`] | the device run against f64 (frames through `firmware_sim::device::run_frame`, the one device loop), the quantization baseline |
 //! | reports | [`inspect`], [`metrics`], [`relight`], [`view`], [`picture`], [`bench`](mod@bench), [`output`] | what is printed or drawn |
+//! | command line | `src/bin/radiosity/` (`args.rs` every flag and its `--help`, `main.rs` runs the commands) | a flag or subcommand (the library takes plain options) |
 
 pub mod bake;
 pub mod bench;
