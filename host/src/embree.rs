@@ -307,24 +307,8 @@ fn fill_and_attach(
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
 ) -> Result<(), EmbreeError> {
-    let vertices = vertices.iter().map(|v| v.to_array());
-    fill_buffer(
-        device,
-        geometry,
-        sys::RTCBufferType::VERTEX,
-        sys::RTCFormat::FLOAT3,
-        "rtcSetNewGeometryBuffer(VERTEX)",
-        vertices,
-    )?;
-    let indices = triangles.iter().copied();
-    fill_buffer(
-        device,
-        geometry,
-        sys::RTCBufferType::INDEX,
-        sys::RTCFormat::UINT3,
-        "rtcSetNewGeometryBuffer(INDEX)",
-        indices,
-    )?;
+    fill_buffer(device, geometry, vertices.iter().map(|v| v.to_array()))?;
+    fill_buffer(device, geometry, triangles.iter().copied())?;
     // SAFETY: `geometry` is live with both buffers filled; `scene` is live and not yet committed or shared.
     unsafe {
         sys::rtcCommitGeometry(geometry);
@@ -333,26 +317,42 @@ fn fill_and_attach(
     device.check("rtcAttachGeometry")
 }
 
-/// A 4-byte scalar Embree buffers hold (`f32` vertex coordinates, `u32` vertex indices).
-trait BufferScalar: Copy {}
-impl BufferScalar for f32 {}
-impl BufferScalar for u32 {}
+/// A 4-byte scalar of an Embree triangle-geometry buffer, with the buffer it fills: `f32` the vertex
+/// coordinates, `u32` the vertex indices of the triangles.
+trait BufferScalar: Copy {
+    /// The buffer.
+    const KIND: sys::RTCBufferType;
+    /// Its item format (three scalars).
+    const FORMAT: sys::RTCFormat;
+    /// The call that creates it, as errors name it.
+    const OPERATION: &'static str;
+}
 
-/// Asks Embree for a new buffer of `geometry` (`kind`; errors name `operation`) holding `items.len()` items of
-/// `format`, three `T` each with a tight stride, and fills it with `items`.
+impl BufferScalar for f32 {
+    const KIND: sys::RTCBufferType = sys::RTCBufferType::VERTEX;
+    const FORMAT: sys::RTCFormat = sys::RTCFormat::FLOAT3;
+    const OPERATION: &'static str = "rtcSetNewGeometryBuffer(VERTEX)";
+}
+
+impl BufferScalar for u32 {
+    const KIND: sys::RTCBufferType = sys::RTCBufferType::INDEX;
+    const FORMAT: sys::RTCFormat = sys::RTCFormat::UINT3;
+    const OPERATION: &'static str = "rtcSetNewGeometryBuffer(INDEX)";
+}
+
+/// Asks Embree for `T`'s new buffer of `geometry` holding `items.len()` items, three `T` each with a tight
+/// stride, and fills it with `items`.
 fn fill_buffer<T: BufferScalar>(
     device: &DeviceInner,
     geometry: sys::RTCGeometry,
-    kind: sys::RTCBufferType,
-    format: sys::RTCFormat,
-    operation: &'static str,
     items: impl ExactSizeIterator<Item = [T; 3]>,
 ) -> Result<(), EmbreeError> {
+    let operation = T::OPERATION;
     let count = items.len();
     // SAFETY: `geometry` is a live triangle geometry. We ask Embree to allocate a buffer of `count` items with
     // a stride of three `T`; Embree pads such buffers so vector loads past the last item stay in bounds.
     let buffer =
-        unsafe { sys::rtcSetNewGeometryBuffer(geometry, kind, 0, format, 3 * size_of::<T>(), count) };
+        unsafe { sys::rtcSetNewGeometryBuffer(geometry, T::KIND, 0, T::FORMAT, 3 * size_of::<T>(), count) };
     device.check(operation)?;
     if buffer.is_null() {
         return Err(EmbreeError::Device {
