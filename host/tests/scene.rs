@@ -320,18 +320,18 @@ fn bad_material_values() {
         assert!(matches!(e, SceneError::BadMaterial { .. }), "{msg}");
         (msg, path.with_file_name("scene.mtl"))
     };
-    let (msg, f) = mtl_err("newmtl grey\nKd 0.5 1.0 0.5\n");
-    assert_message(&msg, &f, &[":2: material 'grey'", "Kd channel 1 = 1 is outside [0, 1)"]);
-    let (msg, f) = mtl_err("newmtl grey\n\nKd -0.1 0.5 0.5\n");
-    assert_message(&msg, &f, &[":3:", "Kd channel 0 = -0.1 is outside [0, 1)"]);
-    let (msg, f) = mtl_err("newmtl grey\nKd 0.5 NaN 0.5\n");
-    assert_message(&msg, &f, &[":2:", "Kd channel 1 is not finite"]);
-    let (msg, f) = mtl_err("newmtl grey\nKd 0.5 0.5 0.5\nKe 1 -2 1\n");
-    assert_message(&msg, &f, &[":3:", "Ke channel 1 = -2 is negative"]);
-    let (msg, f) = mtl_err("newmtl grey\nKd 0.5 0.5 0.5\nKe inf 1 1\n");
-    assert_message(&msg, &f, &[":3:", "Ke channel 0 is not finite"]);
-    let (msg, f) = mtl_err("newmtl grey\nKs 0.5 0.5 0.5\n");
-    assert_message(&msg, &f, &[":1:", "no reflectance (Kd)"]);
+    let cases: [(&str, &[&str]); 6] = [
+        ("newmtl grey\nKd 0.5 1.0 0.5\n", &[":2: material 'grey'", "Kd channel 1 = 1 is outside [0, 1)"]),
+        ("newmtl grey\n\nKd -0.1 0.5 0.5\n", &[":3:", "Kd channel 0 = -0.1 is outside [0, 1)"]),
+        ("newmtl grey\nKd 0.5 NaN 0.5\n", &[":2:", "Kd channel 1 is not finite"]),
+        ("newmtl grey\nKd 0.5 0.5 0.5\nKe 1 -2 1\n", &[":3:", "Ke channel 1 = -2 is negative"]),
+        ("newmtl grey\nKd 0.5 0.5 0.5\nKe inf 1 1\n", &[":3:", "Ke channel 0 is not finite"]),
+        ("newmtl grey\nKs 0.5 0.5 0.5\n", &[":1:", "no reflectance (Kd)"]),
+    ];
+    for (mtl, expected) in cases {
+        let (msg, f) = mtl_err(mtl);
+        assert_message(&msg, &f, expected);
+    }
 }
 
 #[test]
