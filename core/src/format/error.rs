@@ -162,6 +162,61 @@ pub enum IndexArray {
     StatePatch,
 }
 
+impl TableError {
+    /// Every variant's name, in declaration order: what [`TableError::kind`] returns.
+    pub const KINDS: [&'static str; 21] = [
+        "BadMagic",
+        "UnsupportedVersion",
+        "BadHeader",
+        "TruncatedHeader",
+        "Truncated",
+        "TrailingBytes",
+        "CountsTooLarge",
+        "BadQuantParams",
+        "CrcMismatch",
+        "NonMonotoneOffsets",
+        "IndexOutOfRange",
+        "UnsortedRow",
+        "RowSumExceedsOne",
+        "BadArea",
+        "BadIntensity",
+        "TransferWithoutSolvedBase",
+        "StateCountExceedsPatches",
+        "StateWithoutSolvedBase",
+        "UnsortedStateMap",
+        "StateMaterialMismatch",
+        "MemberWithoutState",
+    ];
+
+    /// The variant's name without its fields (`"CrcMismatch"`), e.g. for counting which checks a corpus reaches.
+    #[must_use]
+    pub const fn kind(&self) -> &'static str {
+        match self {
+            TableError::BadMagic { .. } => "BadMagic",
+            TableError::UnsupportedVersion { .. } => "UnsupportedVersion",
+            TableError::BadHeader => "BadHeader",
+            TableError::TruncatedHeader => "TruncatedHeader",
+            TableError::Truncated { .. } => "Truncated",
+            TableError::TrailingBytes { .. } => "TrailingBytes",
+            TableError::CountsTooLarge => "CountsTooLarge",
+            TableError::BadQuantParams { .. } => "BadQuantParams",
+            TableError::CrcMismatch { .. } => "CrcMismatch",
+            TableError::NonMonotoneOffsets { .. } => "NonMonotoneOffsets",
+            TableError::IndexOutOfRange { .. } => "IndexOutOfRange",
+            TableError::UnsortedRow { .. } => "UnsortedRow",
+            TableError::RowSumExceedsOne { .. } => "RowSumExceedsOne",
+            TableError::BadArea { .. } => "BadArea",
+            TableError::BadIntensity { .. } => "BadIntensity",
+            TableError::TransferWithoutSolvedBase => "TransferWithoutSolvedBase",
+            TableError::StateCountExceedsPatches { .. } => "StateCountExceedsPatches",
+            TableError::StateWithoutSolvedBase => "StateWithoutSolvedBase",
+            TableError::UnsortedStateMap { .. } => "UnsortedStateMap",
+            TableError::StateMaterialMismatch { .. } => "StateMaterialMismatch",
+            TableError::MemberWithoutState { .. } => "MemberWithoutState",
+        }
+    }
+}
+
 impl fmt::Display for TableError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
@@ -228,3 +283,39 @@ impl fmt::Display for TableError {
 }
 
 impl core::error::Error for TableError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kinds_name_every_variant_once_in_order() {
+        let one_of_each = [
+            TableError::BadMagic { found: [0; 4] },
+            TableError::UnsupportedVersion { found: 0, expected: 3 },
+            TableError::BadHeader,
+            TableError::TruncatedHeader,
+            TableError::Truncated { expected: 1, actual: 0 },
+            TableError::TrailingBytes { expected: 0, actual: 1 },
+            TableError::CountsTooLarge,
+            TableError::BadQuantParams { param: QuantParam::FfBits, value: 0 },
+            TableError::CrcMismatch { stored: 0, computed: 1 },
+            TableError::NonMonotoneOffsets { array: OffsetArray::RowStart, position: 0 },
+            TableError::IndexOutOfRange { array: IndexArray::StatePatch, position: 0, index: 1, bound: 1 },
+            TableError::UnsortedRow { row: 0 },
+            TableError::RowSumExceedsOne { row: 0 },
+            TableError::BadArea { patch: 0 },
+            TableError::BadIntensity { group: 0 },
+            TableError::TransferWithoutSolvedBase,
+            TableError::StateCountExceedsPatches { state_count: 2, patch_count: 1 },
+            TableError::StateWithoutSolvedBase,
+            TableError::UnsortedStateMap { slot: 0 },
+            TableError::StateMaterialMismatch { slot: 0 },
+            TableError::MemberWithoutState { position: 0, patch: 0 },
+        ];
+        assert_eq!(one_of_each.map(|e| e.kind()), TableError::KINDS);
+        for (i, a) in TableError::KINDS.iter().enumerate() {
+            assert!(!TableError::KINDS[..i].contains(a), "{a} twice");
+        }
+    }
+}
