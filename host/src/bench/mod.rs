@@ -15,20 +15,20 @@
 //! instructions are work units times the Cortex-M4 cost model's bound per unit (`firmware-sim/COST.md`, read at
 //! build time); wall times are medians of repeated runs. Then the roofline ([`roofline`]), the bake throughput
 //! against raw Embree ([`bakebench`]) and the growth of bake time, nonzeros, table bytes and work with the patch
-//! count ([`growth`]), with log-log least-squares exponents. [`report`] writes `REPORT.md`, `curves.csv`,
+//! count (`growth.rs`), with log-log least-squares exponents. [`report`] writes `REPORT.md`, `curves.csv`,
 //! `growth.csv` and the plots.
 //!
-//! Files: this module holds the options, the result types and [`run`]; [`scenes`] runs one scene (mesh, exact
-//! answer, bakes, every curve), [`curves`] measures each kind of curve, [`device`] runs core's solver for one
+//! Files: this module holds the options, the result types and [`run`]; `scenes.rs` runs one scene (mesh, exact
+//! answer, bakes, every curve), `curves.rs` measures each kind of curve, [`device`] runs core's solver for one
 //! device curve.
 
 pub mod bakebench;
-pub mod curves;
+mod curves;
 pub mod device;
-pub mod growth;
+mod growth;
 pub mod report;
 pub mod roofline;
-pub mod scenes;
+mod scenes;
 
 use std::fmt;
 use std::path::PathBuf;

@@ -1,5 +1,5 @@
 //! One benchmark scene: meshed to a patch count, its exact f64 answer, a bake per codec, and every curve run
-//! on it (the curves themselves are measured in [`super::curves`]).
+//! on it (the curves themselves are measured in `curves.rs`).
 
 use std::path::Path;
 use std::time::Instant;

@@ -96,29 +96,29 @@ fn reach_cell(p: Option<&CurvePoint>, device: bool) -> String {
     }
 }
 
+/// The x value of a curve point on one plot's axis.
+type XValue = fn(&CurvePoint) -> Option<f64>;
+
 fn plots(results: &BenchResults, out: &Path, scene: &str) -> Result<Vec<String>, BenchError> {
     let curves: Vec<&Curve> = results.curves.iter().filter(|c| c.scene == scene).collect();
     let mut files = Vec::new();
-    let axes: [(&str, &str); 3] = [
-        ("work", "work units"),
-        ("instructions", "model instructions (Cortex-M4 bound)"),
-        ("wall", "wall time (s)"),
+    // File key, axis label and x value of each plot; the host's curves have no work units or instructions, so
+    // only the wall-time plot shows them.
+    let axes: [(&str, &str, XValue); 3] = [
+        ("work", "work units", |p| p.work.map(|w| w as f64)),
+        ("instructions", "model instructions (Cortex-M4 bound)", |p| p.instructions),
+        ("wall", "wall time (s)", |p| Some(p.seconds)),
     ];
-    for (key, label) in axes {
+    for (key, label, x_of) in axes {
         let series: Vec<Series> = curves
             .iter()
-            .filter(|c| key == "wall" || c.is_device())
             .map(|c| Series {
                 name: c.label(),
                 points: c
                     .points
                     .iter()
                     .filter_map(|p| {
-                        let x = match key {
-                            "work" => p.work.map(|w| w as f64),
-                            "instructions" => p.instructions,
-                            _ => Some(p.seconds),
-                        }?;
+                        let x = x_of(p)?;
                         (x > 0.0).then_some((x, p.rel_l2.max(1e-16)))
                     })
                     .collect(),
