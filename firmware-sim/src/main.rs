@@ -7,37 +7,119 @@
 //! firmware-sim cost  --log LOG [--log LOG ...] [--calibrate SCRIPT] [--clock-mhz MHZ] [--out COST.md]
 //! ```
 //! Defaults: the committed synthetic table `firmware-sim/tables/uniform-enclosure.rft` and the Cornell box's
-//! scripts `scenes/cornell-box.relight.toml`.
+//! scripts `scenes/cornell-box.relight.toml`. All command-line parsing (clap) lives in this file; the library
+//! modules take plain values.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use firmware_sim::cost::{self, CostModel};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use firmware_sim::cost;
 use firmware_sim::qemu::{self, QemuLog, Target};
 use firmware_sim::script::ScriptFile;
 use firmware_sim::sim::{self, Arith, ScriptSummary};
 use radiosity_core::Table;
 
-const USAGE: &str = "The radiosity device loop on the host, and its Cortex-M firmware under QEMU.
+/// The radiosity device loop on the host, and its Cortex-M firmware under QEMU.
+#[derive(Debug, Parser)]
+#[command(name = "firmware-sim", version)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
 
-usage:
-  firmware-sim gen-table OUT.rft     write the synthetic test table
-  firmware-sim run   ...             run relight scripts on the host simulator (per-frame CSV with --csv)
-  firmware-sim qemu  ...             build the firmware, run it under QEMU, compare with the host bit for bit
-  firmware-sim cost  ...             fit and check the cost model from QEMU logs
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Write the synthetic test table.
+    GenTable {
+        /// Output path of the table.
+        #[arg(value_name = "OUT.rft")]
+        out: PathBuf,
+    },
+    /// Run relight scripts on the host simulator (summary on stdout, per-frame CSV with --csv).
+    Run {
+        #[command(flatten)]
+        input: Input,
+        /// Arithmetic of the device solver: f32 or fixed.
+        #[arg(long, value_name = "f32|fixed", default_value_t = Arith::F32)]
+        arith: Arith,
+        /// Run only the script of this name.
+        #[arg(long, value_name = "NAME")]
+        script: Option<String>,
+        /// Write every frame as a CSV row to this file.
+        #[arg(long, value_name = "OUT")]
+        csv: Option<PathBuf>,
+    },
+    /// Build the firmware, run it under QEMU, compare with the host bit for bit.
+    Qemu {
+        #[command(flatten)]
+        input: Input,
+        /// The firmware build and the machine it runs on.
+        #[arg(long, value_enum, default_value_t = TargetName::M4F32)]
+        target: TargetName,
+        /// Seconds QEMU may run before it is stopped.
+        #[arg(long, value_name = "SECONDS", default_value_t = 120)]
+        timeout: u32,
+        /// Write QEMU's output (the firmware's trace) to this file.
+        #[arg(long, value_name = "OUT")]
+        log: Option<PathBuf>,
+    },
+    /// Fit and check the cost model from QEMU logs (fails if a frame exceeds the model's bound).
+    Cost {
+        /// A QEMU log (`qemu --log`); repeat for every build. The build is named after the file's stem.
+        #[arg(long = "log", value_name = "LOG", required = true)]
+        logs: Vec<PathBuf>,
+        /// The script whose frames calibrate the model.
+        #[arg(long, value_name = "SCRIPT", default_value = "budget-sweep")]
+        calibrate: String,
+        /// Clock of the device, for the time columns.
+        #[arg(long, value_name = "MHZ", default_value_t = 100.0)]
+        clock_mhz: f64,
+        /// Write the report (markdown) to this file instead of stdout.
+        #[arg(long, value_name = "COST.md")]
+        out: Option<PathBuf>,
+    },
+}
 
-  firmware-sim gen-table OUT.rft
-  firmware-sim run   [--table T] [--scripts S] [--arith f32|fixed] [--script NAME] [--csv OUT]
-  firmware-sim qemu  [--table T] [--scripts S] [--target m4-f32|m4-fixed|m0-fixed] [--timeout SECONDS] [--log OUT]
-  firmware-sim cost  --log LOG [--log LOG ...] [--calibrate SCRIPT] [--clock-mhz MHZ] [--out COST.md]";
+/// The table and the relight scripts a run uses.
+#[derive(Debug, Args)]
+struct Input {
+    /// The table (default: the committed synthetic table firmware-sim/tables/uniform-enclosure.rft).
+    #[arg(long, value_name = "T")]
+    table: Option<PathBuf>,
+    /// The relight scripts (default: scenes/cornell-box.relight.toml).
+    #[arg(long, value_name = "S")]
+    scripts: Option<PathBuf>,
+}
+
+/// `--target` values: the firmware builds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum TargetName {
+    /// Cortex-M4F (mps2-an386), f32.
+    #[value(name = "m4-f32")]
+    M4F32,
+    /// Cortex-M4F (mps2-an386), fixed point.
+    #[value(name = "m4-fixed")]
+    M4Fixed,
+    /// Cortex-M0 (BBC micro:bit), fixed point.
+    #[value(name = "m0-fixed")]
+    M0Fixed,
+}
+
+impl TargetName {
+    fn target(self) -> Target {
+        match self {
+            TargetName::M4F32 => qemu::M4_F32,
+            TargetName::M4Fixed => qemu::M4_FIXED,
+            TargetName::M0Fixed => qemu::M0_FIXED,
+        }
+    }
+}
 
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.is_empty() || args.iter().any(|a| a == "--help" || a == "-h" || a == "help") {
-        println!("{USAGE}");
-        return ExitCode::SUCCESS;
-    }
-    match run(&args) {
+    match run(Cli::parse().command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
@@ -46,61 +128,31 @@ fn main() -> ExitCode {
     }
 }
 
-/// Options: `--name value` pairs (repeatable) after the subcommand and its positional arguments.
-struct Opts {
-    positional: Vec<String>,
-    named: Vec<(String, String)>,
-}
-
-impl Opts {
-    fn parse(args: &[String], known: &[&str]) -> Result<Opts, String> {
-        let mut o = Opts { positional: Vec::new(), named: Vec::new() };
-        let mut it = args.iter();
-        while let Some(a) = it.next() {
-            if let Some(name) = a.strip_prefix("--") {
-                if name == "help" {
-                    return Err(USAGE.into());
-                }
-                if !known.contains(&name) {
-                    return Err(format!("unknown option --{name}\n{USAGE}"));
-                }
-                let v = it.next().ok_or_else(|| format!("--{name} needs a value"))?;
-                o.named.push((name.to_string(), v.clone()));
-            } else {
-                o.positional.push(a.clone());
-            }
-        }
-        Ok(o)
-    }
-    fn get(&self, name: &str) -> Option<&str> {
-        self.named.iter().rev().find(|(n, _)| n == name).map(|(_, v)| v.as_str())
-    }
-    fn all(&self, name: &str) -> Vec<&str> {
-        self.named.iter().filter(|(n, _)| n == name).map(|(_, v)| v.as_str()).collect()
-    }
-}
-
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-fn default_table() -> PathBuf {
-    root().join("firmware-sim/tables/uniform-enclosure.rft")
+/// A table and its scripts, read and checked against each other.
+struct Loaded {
+    table_path: PathBuf,
+    bytes: Vec<u8>,
+    scripts_path: PathBuf,
+    scripts: ScriptFile,
 }
 
-fn default_scripts() -> PathBuf {
-    root().join("scenes/cornell-box.relight.toml")
-}
-
-fn load(o: &Opts) -> Result<(PathBuf, Vec<u8>, PathBuf, ScriptFile), String> {
-    let table_path = o.get("table").map_or_else(default_table, PathBuf::from);
-    let scripts_path = o.get("scripts").map_or_else(default_scripts, PathBuf::from);
-    let bytes = std::fs::read(&table_path)
-        .map_err(|e| format!("{}: cannot read table: {e}", table_path.display()))?;
-    let table = Table::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
-    let scripts = ScriptFile::load(&scripts_path).map_err(|e| e.to_string())?;
-    scripts.check_table(table.group_count()).map_err(|e| format!("{}: {e}", scripts_path.display()))?;
-    Ok((table_path, bytes, scripts_path, scripts))
+impl Input {
+    fn load(&self) -> Result<Loaded, String> {
+        let table_path =
+            self.table.clone().unwrap_or_else(|| root().join("firmware-sim/tables/uniform-enclosure.rft"));
+        let scripts_path =
+            self.scripts.clone().unwrap_or_else(|| root().join("scenes/cornell-box.relight.toml"));
+        let bytes = std::fs::read(&table_path)
+            .map_err(|e| format!("{}: cannot read table: {e}", table_path.display()))?;
+        let table = Table::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
+        let scripts = ScriptFile::load(&scripts_path).map_err(|e| e.to_string())?;
+        scripts.check_table(table.group_count()).map_err(|e| format!("{}: {e}", scripts_path.display()))?;
+        Ok(Loaded { table_path, bytes, scripts_path, scripts })
+    }
 }
 
 fn simulate(
@@ -108,7 +160,7 @@ fn simulate(
     bytes: &[u8],
     scripts: &ScriptFile,
     only: Option<&str>,
-    csv: Option<&mut dyn std::io::Write>,
+    csv: Option<&mut dyn Write>,
 ) -> Result<Vec<ScriptSummary>, String> {
     let table = Table::parse(bytes).map_err(|e| e.to_string())?;
     sim::simulate_file(arith, &table, scripts, only, csv).map_err(|e| e.to_string())
@@ -133,113 +185,79 @@ fn print_summary(arith: Arith, summaries: &[ScriptSummary]) {
     }
 }
 
-fn run(args: &[String]) -> Result<(), String> {
-    let Some(cmd) = args.first() else { return Err(USAGE.into()) };
-    let rest = &args[1..];
-    match cmd.as_str() {
-        "gen-table" => {
-            let o = Opts::parse(rest, &[])?;
-            let out =
-                o.positional.first().ok_or_else(|| format!("gen-table needs an output path\n{USAGE}"))?;
+/// `path: error` for a file that cannot be read or written.
+fn file_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
+    move |e| format!("{}: {e}", path.display())
+}
+
+fn run(command: Command) -> Result<(), String> {
+    match command {
+        Command::GenTable { out } => {
             let blob = firmware_sim::synthetic::default_table().map_err(|e| e.to_string())?;
-            std::fs::write(out, &blob).map_err(|e| format!("{out}: {e}"))?;
-            println!("wrote {out} ({} bytes)", blob.len());
+            std::fs::write(&out, &blob).map_err(file_err(&out))?;
+            println!("wrote {} ({} bytes)", out.display(), blob.len());
             Ok(())
         }
-        "run" => {
-            let o = Opts::parse(rest, &["table", "scripts", "arith", "script", "csv"])?;
-            let (_, bytes, _, scripts) = load(&o)?;
-            let arith = Arith::from_name(o.get("arith").unwrap_or("f32"))
-                .ok_or_else(|| "--arith must be f32 or fixed".to_string())?;
-            let mut file = match o.get("csv") {
-                Some(p) => {
-                    Some(std::io::BufWriter::new(std::fs::File::create(p).map_err(|e| format!("{p}: {e}"))?))
-                }
+        Command::Run { input, arith, script, csv } => {
+            let loaded = input.load()?;
+            let mut file = match &csv {
+                Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p).map_err(file_err(p))?)),
                 None => None,
             };
             if let Some(f) = file.as_mut() {
-                use std::io::Write;
                 writeln!(f, "{}", sim::CSV_HEADER).map_err(|e| e.to_string())?;
             }
             let summaries = simulate(
                 arith,
-                &bytes,
-                &scripts,
-                o.get("script"),
-                file.as_mut().map(|f| f as &mut dyn std::io::Write),
+                &loaded.bytes,
+                &loaded.scripts,
+                script.as_deref(),
+                file.as_mut().map(|f| f as &mut dyn Write),
             )?;
             print_summary(arith, &summaries);
             Ok(())
         }
-        "qemu" => {
-            let o = Opts::parse(rest, &["table", "scripts", "target", "timeout", "log"])?;
-            let (table_path, bytes, scripts_path, scripts) = load(&o)?;
-            let target = match o.get("target").unwrap_or("m4-f32") {
-                "m4-f32" => qemu::M4_F32,
-                "m4-fixed" => qemu::M4_FIXED,
-                "m0-fixed" => qemu::M0_FIXED,
-                t => return Err(format!("unknown --target {t} (m4-f32, m4-fixed, m0-fixed)")),
-            };
-            let timeout: u32 =
-                o.get("timeout").unwrap_or("120").parse().map_err(|_| "--timeout: seconds".to_string())?;
-            qemu_run(target, &table_path, &scripts_path, &bytes, &scripts, timeout, o.get("log"))
+        Command::Qemu { input, target, timeout, log } => {
+            qemu_run(target.target(), &input.load()?, timeout, log.as_deref())
         }
-        "cost" => {
-            let o = Opts::parse(rest, &["log", "calibrate", "clock-mhz", "out"])?;
-            let logs = o.all("log");
-            if logs.is_empty() {
-                return Err(format!("cost needs at least one --log\n{USAGE}"));
-            }
+        Command::Cost { logs, calibrate, clock_mhz, out } => {
             let mut parsed = Vec::new();
             for l in &logs {
-                let text = std::fs::read_to_string(l).map_err(|e| format!("{l}: {e}"))?;
-                let name = Path::new(l)
+                let text = std::fs::read_to_string(l).map_err(file_err(l))?;
+                let name = l
                     .file_stem()
-                    .map_or_else(|| l.to_string(), |s| s.to_string_lossy().into_owned());
-                parsed.push((name, QemuLog::parse(&text).map_err(|e| format!("{l}: {e}"))?));
+                    .map_or_else(|| l.display().to_string(), |s| s.to_string_lossy().into_owned());
+                parsed.push((name, QemuLog::parse(&text).map_err(|e| format!("{}: {e}", l.display()))?));
             }
-            let clock: f64 =
-                o.get("clock-mhz").unwrap_or("100").parse().map_err(|_| "--clock-mhz: a number")?;
-            let calibrate = o.get("calibrate").unwrap_or("budget-sweep");
-            let report = cost::report(&parsed, calibrate, clock)?;
-            match o.get("out") {
-                Some(p) => std::fs::write(p, &report.markdown).map_err(|e| format!("{p}: {e}"))?,
+            let report = cost::report(&parsed, &calibrate, clock_mhz)?;
+            match &out {
+                Some(p) => std::fs::write(p, &report.markdown).map_err(file_err(p))?,
                 None => print!("{}", report.markdown),
             }
             if report.violations > 0 {
                 return Err(format!("{} frames exceed the cost model's bound", report.violations));
             }
-            let _: &[CostModel] = &report.models;
             Ok(())
         }
-        _ => Err(format!("unknown subcommand {cmd:?}\n{USAGE}")),
     }
 }
 
-fn qemu_run(
-    target: Target,
-    table_path: &Path,
-    scripts_path: &Path,
-    bytes: &[u8],
-    scripts: &ScriptFile,
-    timeout: u32,
-    log: Option<&str>,
-) -> Result<(), String> {
-    let elf = qemu::build_firmware(target, table_path, scripts_path)?;
+fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -> Result<(), String> {
+    let elf = qemu::build_firmware(target, &loaded.table_path, &loaded.scripts_path)?;
     if let Ok(out) = std::process::Command::new("arm-none-eabi-size").arg("-A").arg(&elf).output() {
         let sizes = qemu::Sizes::parse(&String::from_utf8_lossy(&out.stdout));
         println!(
             "size: {} ({:?}, {} bytes of table): flash {} bytes, RAM {} bytes (static; the stack comes on top)",
             target.triple,
             target.arith,
-            bytes.len(),
+            loaded.bytes.len(),
             sizes.flash,
             sizes.ram
         );
     }
     let (text, ok) = qemu::run_qemu(target, &elf, timeout)?;
     if let Some(p) = log {
-        std::fs::write(p, &text).map_err(|e| format!("{p}: {e}"))?;
+        std::fs::write(p, &text).map_err(file_err(p))?;
     }
     let parsed = QemuLog::parse(&text)?;
     if !ok || !parsed.done_ok {
@@ -248,7 +266,7 @@ fn qemu_run(
     if let Some((expected, measured)) = parsed.calibration {
         println!("SysTick calibration: loop of {expected} instructions measured as {measured}");
     }
-    let host = simulate(target.arith, bytes, scripts, None, None)?;
+    let host = simulate(target.arith, &loaded.bytes, &loaded.scripts, None, None)?;
     let n = qemu::compare(&host, &parsed)?;
     println!("bit-exact: host simulator and QEMU agree on all {n} frames ({:?})", target.arith);
     Ok(())

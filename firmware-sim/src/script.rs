@@ -319,18 +319,18 @@ impl ScriptFile {
 mod tests {
     use super::*;
 
+    // Frames as an array of inline tables: TOML's other spelling of `[[script.frame]]` sections (the scenes'
+    // files use the sections), which the parser must take the same way.
     const OK: &str = r#"
 [[script]]
 name = "dim"
 tolerance = 1e-3
 budget = 100
 initial = [[1.0, 1.0, 1.0]]
-[[script.frame]]
-intensity = [[0.0, 0.5, 1.0]]
-repeat = 4
-ramp = true
-[[script.frame]]
-budget = 7
+frame = [
+    { intensity = [[0.0, 0.5, 1.0]], repeat = 4, ramp = true },
+    { budget = 7 },
+]
 "#;
 
     #[test]
@@ -355,7 +355,7 @@ budget = 7
             (OK.replace("repeat = 4", "repeat = 0"), "repeat must be at least 1"),
             (OK.replace("name = \"dim\"", "name = \"a b\""), "name must be"),
             (OK.replace("tolerance = 1e-3", "tolerance = 0.0"), "tolerance 0 must be"),
-            (OK.replace("ramp = true", "ramp = true\nspeed = 2"), "unknown field `speed`"),
+            (OK.replace("ramp = true", "ramp = true, speed = 2"), "unknown field `speed`"),
             (
                 OK.replace("[[0.0, 0.5, 1.0]]", "[[0.0, 0.5, 1.0], [1.0, 1.0, 1.0]]"),
                 "2 light-group intensities",

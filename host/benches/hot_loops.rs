@@ -4,8 +4,9 @@
 
 use std::hint::black_box;
 
-use criterion::{criterion_main, Criterion, Throughput};
-use radiosity_core::{Config, Table};
+use criterion::measurement::WallTime;
+use criterion::{criterion_main, BenchmarkGroup, Criterion, Throughput};
+use radiosity_core::{Config, Solver, Table};
 use radiosity_host::bench::{cornell_table, device::Owned, roofline::stream_pass};
 
 fn hot_loops(c: &mut Criterion) {
@@ -14,32 +15,15 @@ fn hot_loops(c: &mut Criterion) {
     let entries = u64::from(table.entry_count());
     // Sweeps visit the rows of the patches with run-time state.
     let patches = table.state_count();
-    let config = Config { tolerance: 0.0f32, overshoot: 0 };
 
     let mut g = c.benchmark_group("core");
     // One budget of 20,000 work units of shooting from the cold start (reset is O(patches) and included).
     g.throughput(Throughput::Elements(20_000));
-    g.bench_function("shot (20k units, f32)", |b| {
-        let mut owned = Owned::<f32>::new(&table);
-        let (buffers, _) = owned.split();
-        let mut solver = radiosity_core::Solver::new(&table, buffers, config).expect("solver");
-        b.iter(|| {
-            solver.reset();
-            black_box(solver.step(20_000))
-        });
-    });
+    from_cold(&mut g, "shot (20k units, f32)", &table, |solver| solver.step(20_000));
     // One whole Gauss-Seidel sweep (rows + entries + end scan) from the cold start.
     let sweep = u32::try_from(entries + 2 * u64::from(patches)).unwrap_or(u32::MAX);
     g.throughput(Throughput::Elements(entries));
-    g.bench_function("sweep (Gauss-Seidel, f32)", |b| {
-        let mut owned = Owned::<f32>::new(&table);
-        let (buffers, _) = owned.split();
-        let mut solver = radiosity_core::Solver::new(&table, buffers, config).expect("solver");
-        b.iter(|| {
-            solver.reset();
-            black_box(solver.step_gauss_seidel(sweep))
-        });
-    });
+    from_cold(&mut g, "sweep (Gauss-Seidel, f32)", &table, |solver| solver.step_gauss_seidel(sweep));
     g.throughput(Throughput::Bytes(baked.table.len() as u64));
     g.bench_function("parse", |b| b.iter(|| black_box(Table::parse(black_box(&baked.table)).is_ok())));
     g.throughput(Throughput::Elements(entries));
@@ -58,6 +42,26 @@ fn hot_loops(c: &mut Criterion) {
         b.iter(|| black_box(radiosity_core::relight_transfer(&table, black_box(&intensity), &mut out)));
     });
     g.finish();
+}
+
+/// Benchmarks `step` on an f32 solver of `table` (tolerance 0, no overshooting), reset to the cold start before
+/// every iteration.
+fn from_cold<R>(
+    g: &mut BenchmarkGroup<'_, WallTime>,
+    name: &str,
+    table: &Table<'_>,
+    step: impl Fn(&mut Solver<'_, f32>) -> R,
+) {
+    let config = Config { tolerance: 0.0f32, overshoot: 0 };
+    g.bench_function(name, |b| {
+        let mut owned = Owned::<f32>::new(table);
+        let (buffers, _) = owned.split();
+        let mut solver = Solver::new(table, buffers, config).expect("solver");
+        b.iter(|| {
+            solver.reset();
+            black_box(step(&mut solver))
+        });
+    });
 }
 
 // The macro defines an undocumented `benches` function.

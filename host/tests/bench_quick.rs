@@ -3,7 +3,8 @@
 
 use std::path::PathBuf;
 
-use radiosity_host::bench::{report::CSV_HEADER, run, BenchOptions};
+use firmware_sim::sim::Arith;
+use radiosity_host::bench::{report::CSV_HEADER, run, BenchOptions, DeviceRun};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("radiosity-{name}-{}", std::process::id()));
@@ -77,13 +78,7 @@ fn quick_bench_writes_a_well_formed_report() {
         let shoot = results
             .curves
             .iter()
-            .find(|c| {
-                c.scene == s.name
-                    && c.method == "shooting"
-                    && c.arith == "f32"
-                    && c.codec == "16"
-                    && !c.overshoot
-            })
+            .find(|c| c.scene == s.name && c.is(DeviceRun::shooting(Arith::F32, 16, false)))
             .expect("f32 shooting curve");
         assert!(shoot.reach(0.1).is_some(), "{}: f32 shooting never reached 10%", s.name);
         for (_, r) in &s.roofline {

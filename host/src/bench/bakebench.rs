@@ -13,11 +13,15 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::BenchError;
+use super::device::median;
+use super::edge_for_patches;
+use super::{BakeThroughput, BenchError, BenchOptions};
 use crate::embree::{Ray, TriangleScene};
-use crate::formfactor;
+use crate::formfactor::{self, compute_form_factors, FormFactorOptions};
+use crate::mesh::{mesh, MeshOptions};
 use crate::patch::{FormFactorMatrix, Patch};
 use crate::rng::SplitMix64;
+use crate::scene::Scene;
 
 /// The occluder scene of `patches`, built by the form-factor estimator's own [`formfactor::occluder_scene`].
 ///
@@ -86,4 +90,69 @@ pub fn time_occlusion(
             .sum()
     });
     Ok((t0.elapsed().as_secs_f64(), blocked))
+}
+
+/// Form-factor rays per second against raw Embree on the Cornell box meshed to about `target` patches (form
+/// factors at the bake default), on 1 and 2 threads, with the form factors' phase times.
+///
+/// # Errors
+/// If meshing, the form factors or Embree fail.
+pub fn bake_throughput(options: &BenchOptions, target: usize) -> Result<BakeThroughput, BenchError> {
+    let ffo = FormFactorOptions { progress: false, ..FormFactorOptions::default() };
+    let path = options.scenes.join("cornell-box.obj");
+    let scene = Scene::load(&path)?;
+    let (edge, _) = edge_for_patches(&scene, target)?;
+    let m =
+        mesh(&scene, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: usize::MAX / 4 })
+            .map_err(|e| BenchError::Options(format!("meshing: {e}")))?;
+    // Interleaved rounds: form factors on 1 and 2 threads, then raw Embree on 1 and 2 threads, so both rates of
+    // a ratio are measured minutes apart at most, not in separate blocks (the shared machine's speed drifts).
+    // The first 1-thread run also gives the matrix whose pairs the raw rays join.
+    let rounds = options.reps.clamp(1, 3);
+    let run_ff = |threads: usize| {
+        compute_form_factors(&m.patches, &FormFactorOptions { threads: Some(threads), ..ffo.clone() })
+            .map_err(|e| BenchError::Options(format!("form factors: {e}")))
+    };
+    // Per thread count (index 0: 1 thread, 1: 2 threads): total, kernel-phase and visibility-phase seconds.
+    let mut ff_times: [[Vec<f64>; 3]; 2] = Default::default();
+    let (mut rays_cast, mut kernels) = ([0u64; 2], [0u64; 2]);
+    let mut record = |slot: usize, stats: &crate::formfactor::FormFactorStats| {
+        ff_times[slot][0].push(stats.elapsed.as_secs_f64());
+        ff_times[slot][1].push(stats.kernel_time.as_secs_f64());
+        ff_times[slot][2].push(stats.visibility_time.as_secs_f64());
+        rays_cast[slot] = stats.rays_cast;
+        kernels[slot] = stats.kernel_evaluations;
+    };
+    let (matrix, stats) = run_ff(1)?;
+    record(0, &stats);
+    let scene_rt = occluder_scene(&m.patches, ffo.robust)?;
+    let rays = pair_rays(&m.patches, &matrix, ffo.rays_per_pair, scene_rt.offset());
+    let mut raw_times: [Vec<f64>; 2] = Default::default();
+    for round in 0..rounds {
+        if round > 0 {
+            record(0, &run_ff(1)?.1);
+        }
+        record(1, &run_ff(2)?.1);
+        for (slot, threads) in [(0usize, 1usize), (1, 2)] {
+            raw_times[slot].push(time_occlusion(&scene_rt, &rays, threads)?.0);
+        }
+    }
+    let mut ff = Vec::new();
+    let mut phases = Vec::new();
+    let mut raw = Vec::new();
+    for (slot, threads) in [(0usize, 1usize), (1, 2)] {
+        let [total, kernel, visibility] = &mut ff_times[slot];
+        ff.push((threads, rays_cast[slot], median(total)));
+        phases.push((threads, kernels[slot], median(kernel), median(visibility)));
+        raw.push((threads, rays.len(), median(&mut raw_times[slot])));
+    }
+    Ok(BakeThroughput {
+        scene: format!("cornell-box (~{target} patches)"),
+        patches: m.patches.len(),
+        samples: ffo.samples_per_patch,
+        rays_per_pair: ffo.rays_per_pair,
+        ff,
+        raw,
+        phases,
+    })
 }

@@ -7,6 +7,7 @@
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
@@ -72,6 +73,41 @@ fn decades(lo: f64, hi: f64) -> Range<f64> {
         b = a * 10.0;
     }
     a..b
+}
+
+/// The axes and grid of a plot with a logarithmic x axis (ticks as powers of ten), in the plots' font.
+fn log_x_mesh<DB: DrawingBackend, X, Y>(
+    chart: &mut ChartContext<'_, DB, Cartesian2d<X, Y>>,
+    x_desc: &str,
+    y_desc: &str,
+    y_ticks: &dyn Fn(&f64) -> String,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
+where
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&|v| format!("{v:.0e}"))
+        .y_label_formatter(y_ticks)
+        .label_style((FONT_FAMILY, 14))
+        .axis_desc_style((FONT_FAMILY, 16))
+        .draw()
+}
+
+/// The legend box in the upper right, in the plots' font.
+fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .label_font((FONT_FAMILY, 14))
+        .draw()
 }
 
 impl Plot {
@@ -187,16 +223,7 @@ impl Plot {
                     .y_label_area_size(72)
                     .build_cartesian_2d(decades(x0, x1).log_scale(), decades(y0, y1).log_scale())
                     .map_err(&e)?;
-                chart
-                    .configure_mesh()
-                    .x_desc(x_label.as_str())
-                    .y_desc(y_label.as_str())
-                    .x_label_formatter(&|v| format!("{v:.0e}"))
-                    .y_label_formatter(&|v| format!("{v:.0e}"))
-                    .label_style((FONT_FAMILY, 14))
-                    .axis_desc_style((FONT_FAMILY, 16))
-                    .draw()
-                    .map_err(&e)?;
+                log_x_mesh(&mut chart, x_label, y_label, &|v| format!("{v:.0e}")).map_err(&e)?;
                 for (i, s) in series.iter().enumerate() {
                     let colour = Palette99::pick(i).to_rgba();
                     chart
@@ -210,14 +237,7 @@ impl Plot {
                         .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                         .map_err(&e)?;
                 }
-                chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperRight)
-                    .background_style(WHITE.mix(0.9))
-                    .border_style(BLACK)
-                    .label_font((FONT_FAMILY, 14))
-                    .draw()
-                    .map_err(&e)?;
+                legend(&mut chart).map_err(&e)?;
             }
             Plot::StackedBars { title, y_label, categories, components } => {
                 let n = categories.len();
@@ -271,14 +291,7 @@ impl Plot {
                         .label(name.as_str())
                         .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 14, y + 6)], colour.filled()));
                 }
-                chart
-                    .configure_series_labels()
-                    .position(SeriesLabelPosition::UpperRight)
-                    .background_style(WHITE.mix(0.9))
-                    .border_style(BLACK)
-                    .label_font((FONT_FAMILY, 14))
-                    .draw()
-                    .map_err(&e)?;
+                legend(&mut chart).map_err(&e)?;
             }
             Plot::Histogram { title, x_label, .. } => {
                 let (edges, counts) = self.histogram_bins().unwrap_or_default();
@@ -291,16 +304,7 @@ impl Plot {
                     .y_label_area_size(64)
                     .build_cartesian_2d(x.log_scale(), 0.0..top)
                     .map_err(&e)?;
-                chart
-                    .configure_mesh()
-                    .x_desc(x_label.as_str())
-                    .y_desc("patches")
-                    .x_label_formatter(&|v| format!("{v:.0e}"))
-                    .y_label_formatter(&|v| format!("{v:.0}"))
-                    .label_style((FONT_FAMILY, 14))
-                    .axis_desc_style((FONT_FAMILY, 16))
-                    .draw()
-                    .map_err(&e)?;
+                log_x_mesh(&mut chart, x_label, "patches", &|v| format!("{v:.0}")).map_err(&e)?;
                 let colour = Palette99::pick(0).to_rgba();
                 chart
                     .draw_series(counts.iter().enumerate().map(|(i, &c)| {
