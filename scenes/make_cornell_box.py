@@ -3,31 +3,44 @@
 
 Source: Cornell University Program of Computer Graphics, "Cornell Box Data",
 https://www.graphics.cornell.edu/online/box/data.html (millimetres, vertices in published order).
+The vertices are read from the repository's reference copy of that page, `../../shared/data/cornell-box.md`.
 Run from this folder: `python3 make_cornell_box.py`. The MTL file and the TOML file are written by hand.
 """
 
+import os
+
 SOURCE = "Cornell Program of Computer Graphics, Cornell Box Data, graphics.cornell.edu/online/box/data.html"
 
-FLOOR = [(552.8, 0, 0), (0, 0, 0), (0, 0, 559.2), (549.6, 0, 559.2)]
-LIGHT = [(343, 548.8, 227), (343, 548.8, 332), (213, 548.8, 332), (213, 548.8, 227)]
-CEILING_Y = 548.8
-BACK = [(549.6, 0, 559.2), (0, 0, 559.2), (0, 548.8, 559.2), (556, 548.8, 559.2)]
-GREEN = [(0, 0, 559.2), (0, 0, 0), (0, 548.8, 0), (0, 548.8, 559.2)]
-RED = [(552.8, 0, 0), (549.6, 0, 559.2), (556, 548.8, 559.2), (556, 548.8, 0)]
-SHORT = [
-    ("short block top", [(130, 165, 65), (82, 165, 225), (240, 165, 272), (290, 165, 114)]),
-    ("short block side", [(290, 0, 114), (290, 165, 114), (240, 165, 272), (240, 0, 272)]),
-    ("short block side", [(130, 0, 65), (130, 165, 65), (290, 165, 114), (290, 0, 114)]),
-    ("short block side", [(82, 0, 225), (82, 165, 225), (130, 165, 65), (130, 0, 65)]),
-    ("short block side", [(240, 0, 272), (240, 165, 272), (82, 165, 225), (82, 0, 225)]),
-]
-TALL = [
-    ("tall block top", [(423, 330, 247), (265, 330, 296), (314, 330, 456), (472, 330, 406)]),
-    ("tall block side", [(423, 0, 247), (423, 330, 247), (472, 330, 406), (472, 0, 406)]),
-    ("tall block side", [(472, 0, 406), (472, 330, 406), (314, 330, 456), (314, 0, 456)]),
-    ("tall block side", [(314, 0, 456), (314, 330, 456), (265, 330, 296), (265, 0, 296)]),
-    ("tall block side", [(265, 0, 296), (265, 330, 296), (423, 330, 247), (423, 0, 247)]),
-]
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "data", "cornell-box.md")
+
+
+def published():
+    """The published quads, read from the reference data's table (`shared/data/cornell-box.md`, beside the
+    repository): surface name (without its parenthesised note) -> list of quads, each a list of (x, y, z)."""
+    quads = {}
+    with open(DATA) as f:
+        for line in f:
+            if not (line.startswith("| ") and "(" in line):
+                continue
+            surface, _material, vertices = [c.strip() for c in line.strip().strip("|").split("|")]
+            surface = surface.split(" (")[0]
+            for quad in vertices.split(";"):
+                points = [v.strip().lstrip("(") for v in quad.split(")") if v.strip()]
+                quads.setdefault(surface, []).append([tuple(float(c) for c in p.split(",")) for p in points])
+    return quads
+
+
+PUBLISHED = published()
+FLOOR = PUBLISHED["floor"][0]
+LIGHT = PUBLISHED["light"][0]
+CEILING_Y = PUBLISHED["ceiling"][0][0][1]
+BACK = PUBLISHED["back wall"][0]
+GREEN = PUBLISHED["right wall"][0]
+RED = PUBLISHED["left wall"][0]
+SHORT = [("short block top", PUBLISHED["short block top"][0])]
+SHORT += [("short block side", q) for q in PUBLISHED["short block sides"]]
+TALL = [("tall block top", PUBLISHED["tall block top"][0])]
+TALL += [("tall block side", q) for q in PUBLISHED["tall block sides"]]
 
 
 def ceiling_pieces():
