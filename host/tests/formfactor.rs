@@ -100,14 +100,19 @@ fn point_kernel_matches_closed_form() {
     assert!(tilted > 0.0 && tilted < 1.0);
 }
 
+/// Both entries of a two-patch matrix are within relative `tolerance` of the closed form `exact`.
+fn assert_pair_within(m: &FormFactorMatrix, exact: f64, tolerance: f64) {
+    for (i, j) in [(0, 1), (1, 0)] {
+        let f = entry(m, i, j);
+        assert!(relative_error(f, exact) < tolerance, "F_{i}{j} = {f} vs {exact}");
+    }
+}
+
 #[test]
 fn facing_unit_squares_at_default_settings() {
     let (m, stats) = compute(&facing_squares(), &defaults()).unwrap();
     // Target from the issue: within 0.5%.
-    for (i, j) in [(0, 1), (1, 0)] {
-        let f = entry(&m, i, j);
-        assert!(relative_error(f, F_FACING) < 0.005, "F_{i}{j} = {f} vs {F_FACING}");
-    }
+    assert_pair_within(&m, F_FACING, 0.005);
     assert_eq!(stats.patches, 2);
     assert_eq!(stats.nonzeros, 2);
     assert!(stats.rays_cast > 0);
@@ -117,10 +122,7 @@ fn facing_unit_squares_at_default_settings() {
 #[test]
 fn perpendicular_squares_sharing_an_edge_at_default_settings() {
     let (m, _) = compute(&perpendicular_squares(), &defaults()).unwrap();
-    for (i, j) in [(0, 1), (1, 0)] {
-        let f = entry(&m, i, j);
-        assert!(relative_error(f, F_PERPENDICULAR) < 0.005, "F_{i}{j} = {f} vs {F_PERPENDICULAR}");
-    }
+    assert_pair_within(&m, F_PERPENDICULAR, 0.005);
 }
 
 #[test]

@@ -8,6 +8,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 use radiosity_host::picture::camera::Camera;
+use radiosity_host::picture::render::View;
 use radiosity_host::picture::tonemap::{luminance, srgb_decode};
 use radiosity_host::picture::write_png;
 use radiosity_host::pipeline::Prepared;
@@ -33,6 +34,15 @@ fn scratch(name: &str) -> PathBuf {
     dir.join(name)
 }
 
+/// The coarse Cornell box with radiosity `b` rendered `SIZE` x `SIZE` from the default camera in `mode`, and
+/// written to the scratch file `name` for a person to look at.
+fn render_to(b: &[[f64; 3]], mode: RenderMode<'_>, name: &str) -> View {
+    let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode };
+    let view = render_view(&cornell().0, b, &options).unwrap();
+    write_png(&scratch(name), &view.image).unwrap();
+    view
+}
+
 fn material_name(p: &Prepared, patch: usize) -> &str {
     &p.scene.materials[p.patches[patch].material].name
 }
@@ -45,9 +55,7 @@ fn pixel_luminance(rgb: [u8; 3]) -> f64 {
 #[test]
 fn cornell_box_looks_right() {
     let (p, b) = cornell();
-    let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode: RenderMode::Shaded };
-    let view = render_view(p, b, &options).unwrap();
-    write_png(&scratch("cornell-shaded.png"), &view.image).unwrap();
+    let view = render_to(b, RenderMode::Shaded, "cornell-shaded.png");
     assert_eq!((view.image.width, view.image.height), (SIZE, SIZE));
 
     // The published camera sees the box's open side: most of the picture is the box.
@@ -129,10 +137,8 @@ fn cornell_box_looks_right() {
 
 #[test]
 fn patch_and_error_views() {
-    let (p, b) = cornell();
-    let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode: RenderMode::Patches };
-    let view = render_view(p, b, &options).unwrap();
-    write_png(&scratch("cornell-patches.png"), &view.image).unwrap();
+    let (_, b) = cornell();
+    let view = render_to(b, RenderMode::Patches, "cornell-patches.png");
     // Neighbouring patches get distinct colours, so the mesh shows: many distinct colours in the picture.
     let mut colours: Vec<[u8; 3]> = (0..SIZE * SIZE).map(|k| view.image.get(k % SIZE, k / SIZE)).collect();
     colours.sort_unstable();
@@ -144,10 +150,7 @@ fn patch_and_error_views() {
     let target = view.patch.iter().flatten().copied().nth(SIZE as usize * 10).unwrap() as usize;
     let mut wrong = b.clone();
     wrong[target] = wrong[target].map(|v| 2.0 * v);
-    let options =
-        RenderOptions { camera: None, width: SIZE, height: SIZE, mode: RenderMode::Error { reference: b } };
-    let err = render_view(p, &wrong, &options).unwrap();
-    write_png(&scratch("cornell-error.png"), &err.image).unwrap();
+    let err = render_to(&wrong, RenderMode::Error { reference: b }, "cornell-error.png");
     assert_eq!(err.image.height, SIZE + LEGEND_HEIGHT);
     let scale = err.error_scale.unwrap();
     for (k, patch) in err.patch.iter().enumerate() {
