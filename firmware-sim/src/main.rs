@@ -243,31 +243,26 @@ fn run(command: Command) -> Result<(), String> {
 }
 
 fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -> Result<(), String> {
-    let elf = qemu::build_firmware(target, &loaded.table_path, &loaded.scripts_path)?;
-    if let Ok(out) = std::process::Command::new("arm-none-eabi-size").arg("-A").arg(&elf).output() {
-        let sizes = qemu::Sizes::parse(&String::from_utf8_lossy(&out.stdout));
-        println!(
-            "size: {} ({:?}, {} bytes of table): flash {} bytes, RAM {} bytes (static; the stack comes on top)",
-            target.triple,
-            target.arith,
-            loaded.bytes.len(),
-            sizes.flash,
-            sizes.ram
-        );
-    }
-    let (text, ok) = qemu::run_qemu(target, &elf, timeout)?;
-    if let Some(p) = log {
-        std::fs::write(p, &text).map_err(file_err(p))?;
-    }
-    let parsed = QemuLog::parse(&text)?;
-    if !ok || !parsed.done_ok {
-        return Err(format!("firmware failed under QEMU (errors: {:?})", parsed.errors));
-    }
-    if let Some((expected, measured)) = parsed.calibration {
+    let table = Table::parse(&loaded.bytes).map_err(|e| e.to_string())?;
+    let paths = (loaded.table_path.as_path(), loaded.scripts_path.as_path());
+    // The log is written as soon as QEMU ends, so a failed run can be read.
+    let write_log = |text: &str| match log {
+        Some(p) => std::fs::write(p, text).map_err(file_err(p)),
+        None => Ok(()),
+    };
+    let checked = qemu::check_firmware(target, &table, &loaded.scripts, paths, timeout, write_log)?;
+    println!(
+        "size: {} ({:?}, {} bytes of table): flash {} bytes, RAM {} bytes (static; the stack comes on top)",
+        target.triple,
+        target.arith,
+        loaded.bytes.len(),
+        checked.sizes.flash,
+        checked.sizes.ram
+    );
+    if let Some((expected, measured)) = checked.log.calibration {
         println!("SysTick calibration: loop of {expected} instructions measured as {measured}");
     }
-    let host = simulate(target.arith, &loaded.bytes, &loaded.scripts, None, None)?;
-    let n = qemu::compare(&host, &parsed)?;
+    let n = checked.frames_bit_exact;
     println!("bit-exact: host simulator and QEMU agree on all {n} frames ({:?})", target.arith);
     Ok(())
 }

@@ -240,3 +240,60 @@ impl Sizes {
         s
     }
 }
+
+impl Sizes {
+    /// The sizes of `elf`, by `arm-none-eabi-size -A`.
+    ///
+    /// # Errors
+    /// If the tool cannot be run (it comes with `make deps`).
+    pub fn of(elf: &Path) -> Result<Sizes, String> {
+        let out = Command::new("arm-none-eabi-size")
+            .arg("-A")
+            .arg(elf)
+            .output()
+            .map_err(|e| format!("cannot run arm-none-eabi-size (install it with `make deps`): {e}"))?;
+        Ok(Sizes::parse(&String::from_utf8_lossy(&out.stdout)))
+    }
+}
+
+/// What [`check_firmware`] found: the firmware's log, its sizes and how many frames agreed bit for bit with the
+/// host simulator.
+#[derive(Clone, Debug)]
+pub struct Checked {
+    /// The parsed serial log.
+    pub log: QemuLog,
+    /// Flash and static RAM of the ELF.
+    pub sizes: Sizes,
+    /// Frames compared (all of them agreed: a disagreement is an error).
+    pub frames_bit_exact: usize,
+}
+
+/// Builds the firmware for `target` with `table` and `scripts` compiled in, runs it under QEMU (at most
+/// `timeout_s` seconds; `on_output` sees the raw serial output as soon as QEMU ends, whatever follows), and
+/// compares every frame with the host simulator's run of the same table and scripts: the one QEMU check behind
+/// `firmware-sim run --qemu` and `radiosity relight --qemu`.
+///
+/// # Errors
+/// A build, QEMU or size-tool failure, a firmware that reports errors or does not finish, a host simulation
+/// failure, or the first frame where firmware and host disagree.
+pub fn check_firmware(
+    target: Target,
+    table: &radiosity_core::Table<'_>,
+    scripts: &crate::script::ScriptFile,
+    (table_path, scripts_path): (&Path, &Path),
+    timeout_s: u32,
+    on_output: impl FnOnce(&str) -> Result<(), String>,
+) -> Result<Checked, String> {
+    let elf = build_firmware(target, table_path, scripts_path)?;
+    let sizes = Sizes::of(&elf)?;
+    let (text, ok) = run_qemu(target, &elf, timeout_s)?;
+    on_output(&text)?;
+    let log = QemuLog::parse(&text)?;
+    if !ok || !log.done_ok || !log.errors.is_empty() {
+        return Err(format!("the firmware failed under QEMU (errors: {:?})", log.errors));
+    }
+    let host =
+        crate::sim::simulate_file(target.arith, table, scripts, None, None).map_err(|e| e.to_string())?;
+    let frames_bit_exact = compare(&host, &log)?;
+    Ok(Checked { log, sizes, frames_bit_exact })
+}

@@ -315,21 +315,16 @@ fn run_firmware(
     options: &RelightOptions,
 ) -> Result<(QemuRun, QemuLog), RelightError> {
     let fail = |reason: String| RelightError::Qemu { target: name, reason };
-    let elf = qemu::build_firmware(target, table_path, scripts_path).map_err(fail)?;
-    let (output, ok) = qemu::run_qemu(target, &elf, options.qemu_timeout_s).map_err(fail)?;
-    let log = QemuLog::parse(&output).map_err(fail)?;
-    if !ok || !log.done_ok || !log.errors.is_empty() {
-        return Err(fail(format!("the firmware failed: {:?}", log.errors)));
-    }
-    let host = sim::simulate_file(target.arith, table, file, None, None)?;
-    let frames_bit_exact = qemu::compare(&host, &log).map_err(fail)?;
-    let size = std::process::Command::new("arm-none-eabi-size")
-        .arg("-A")
-        .arg(&elf)
-        .output()
-        .map_err(|e| fail(format!("cannot run arm-none-eabi-size (install it with `make deps`): {e}")))?;
-    let sizes = qemu::Sizes::parse(&String::from_utf8_lossy(&size.stdout));
-    Ok((QemuRun { target: name, flash: sizes.flash, ram: sizes.ram, frames_bit_exact }, log))
+    let paths = (table_path, scripts_path);
+    let c =
+        qemu::check_firmware(target, table, file, paths, options.qemu_timeout_s, |_| Ok(())).map_err(fail)?;
+    let run = QemuRun {
+        target: name,
+        flash: c.sizes.flash,
+        ram: c.sizes.ram,
+        frames_bit_exact: c.frames_bit_exact,
+    };
+    Ok((run, c.log))
 }
 
 /// Renders the f32 device answer of every frame of the report's first script to `<dir>/<script>-NNNN.png`
