@@ -2,7 +2,7 @@
 SHELL := /bin/bash
 CARGO ?= cargo
 
-.PHONY: deps demo test bench fmt-check clippy unit-tests embedded-builds
+.PHONY: deps demo test bench fuzz fmt-check clippy unit-tests embedded-builds
 
 deps:
 	@bash scripts/deps.sh
@@ -17,3 +17,8 @@ test: deps
 # criterion benchmarks of the hot loops.
 bench: deps
 	$(CARGO) run --release -p radiosity-host --bin radiosity -- bench --out bench
+
+# Fuzzing (nightly + cargo-fuzz, installed if missing): the table parser past the CRC, from real seed tables.
+# FUZZ_RUNS sets the executions (default 10 M). Not part of `make test`.
+fuzz: deps
+	@bash scripts/fuzz.sh

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# `make fuzz`: fuzzes the table parser past the CRC (core/fuzz, target parse_crc) from a corpus seeded with real
+# tables, then tallies which TableError kinds the corpus reaches. Not part of `make test` (CI does not fuzz).
+#
+# Needs a nightly toolchain and cargo-fuzz; installs cargo-fuzz from crates.io if missing, and nightly through
+# rustup if missing. FUZZ_RUNS (default 10,000,000) executions; the corpus grows under out/fuzz/ (not committed).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+runs="${FUZZ_RUNS:-10000000}"
+step() { printf '\n==> fuzz: %s\n' "$1"; }
+
+if ! rustup toolchain list | grep -q '^nightly'; then
+    step "nightly toolchain (rustup)"
+    rustup toolchain install nightly --profile minimal
+fi
+if ! command -v cargo-fuzz > /dev/null; then
+    step "cargo-fuzz (crates.io)"
+    cargo install cargo-fuzz --locked
+fi
+
+step "seed tables (radiosity bake on the bundled scenes)"
+cargo build --release --locked -q -p radiosity-host --bin radiosity
+bin=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/release/radiosity
+seeds=out/fuzz/seeds
+corpus=out/fuzz/parse_crc
+mkdir -p "$seeds" "$corpus"
+bake() {
+    local name=$1
+    shift
+    "$bin" bake "$@" -o "$seeds/$name.rft" > /dev/null
+    printf '  %-28s %7d bytes\n' "$name" "$(stat -c %s "$seeds/$name.rft")"
+}
+# One patch per face keeps the seeds small (a few KiB), so mutations are cheap; between them they cover both
+# code widths, the transfer basis, a solved base with partial run-time state (two-rooms: room B is static) and
+# the closed furnace.
+bake cornell-16 scenes/cornell-box.obj --no-subdivide
+bake cornell-8 scenes/cornell-box.obj --no-subdivide --bits 8
+bake cornell-transfer scenes/cornell-box.obj --no-subdivide --transfer
+bake two-rooms-partial-state scenes/two-rooms.obj --no-subdivide
+bake two-rooms-transfer-8 scenes/two-rooms.obj --no-subdivide --transfer --bits 8
+bake furnace scenes/furnace.obj --no-subdivide
+bake facing-squares scenes/facing-squares.obj --no-subdivide
+
+step "fuzz parse_crc: $runs executions"
+(cd core/fuzz && cargo +nightly fuzz run parse_crc "../../$corpus" "../../$seeds" -- \
+    -runs="$runs" -max_len=65536 -print_final_stats=1)
+
+step "what the corpus reaches (tally)"
+(cd core/fuzz && cargo +nightly run --release -q --bin tally -- "../../$corpus" "../../$seeds")
