@@ -2,7 +2,9 @@
 //!
 //! Scene loading, meshing into patches, form factors with occlusion rays (`raycast`: Embree in production, a
 //! pure-Rust BVH for tests and cross-checks), the f64 reference solve, table writing, checks and reports. The
-//! physics conventions are those of `radiosity-core`; `rng` is the one random number generator.
+//! physics conventions are those of `radiosity-core`; `rng` is the one random number generator, and
+//! [`rgb::Rgb`] (glam's `DVec3`, `x, y, z` = R, G, B) the one colour type of every per-patch reflectance,
+//! emission, radiosity and intensity.
 //!
 //! # Map
 //! The pipeline, in order, and where a change of each kind goes:
@@ -39,6 +41,7 @@ pub mod raycast;
 pub mod reference;
 pub mod regress;
 pub mod relight;
+pub mod rgb;
 pub mod rng;
 pub mod scene;
 pub mod view;
