@@ -15,7 +15,7 @@
 //! | mesh | [`mesh`], [`patch`] | patches, adaptive refinement, the form-factor matrix type |
 //! | form factors | [`formfactor`], [`raycast`], [`embree`] | the estimator, occlusion rays |
 //! | prepare | [`pipeline`] | the stages above run together for a command |
-//! | reference | [`reference`](mod@reference), [`lighting`], [`input`] | the f64 solves, per-patch lighting, the input checks they share |
+//! | reference | [`reference`](mod@reference), [`lighting`], [`input`], [`rgb`] | the f64 solves, per-patch lighting, the input checks they share, the colour type |
 //! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
 //! | check, regress | [`check`], [`regress`] | the device run against f64 (frames through `firmware_sim::device::run_frame`, the one device loop), the quantization baseline |
