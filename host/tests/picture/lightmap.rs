@@ -161,18 +161,13 @@ fn light_map_of_a_triangle_fills_the_uncovered_texels_from_the_nearest_patch() {
     for j in 0..r.height + 2 * map.padding {
         for i in 0..r.width + 2 * map.padding {
             let (x, y) = (r.x + i - map.padding, r.y + j - map.padding);
-            let texel = map.atlas.pixels[(y * map.atlas.width + x) as usize].map(f64::from);
+            let texel = Rgb::from_array(map.atlas.pixels[(y * map.atlas.width + x) as usize].map(f64::from));
             let (fi, fj) =
                 (f64::from(i) - f64::from(map.padding) + 0.5, f64::from(j) - f64::from(map.padding) + 0.5);
             let centre = r.origin + r.u_axis * (fi * r.texel_size) + r.v_axis * (fj * r.texel_size);
             if (0..4).any(|k| shader.distance_in_plane(k, centre) == 0.0) {
                 // Covered texels: the field itself (f32 atlas: values ~10, rounding 6e-7).
-                assert_close(
-                    Rgb::from_array(texel),
-                    linear_field(centre),
-                    1e-6,
-                    &format!("texel ({i}, {j})"),
-                );
+                assert_close(texel, linear_field(centre), 1e-6, &format!("texel ({i}, {j})"));
                 inside += 1;
             } else {
                 // Uncovered texels: a point of the triangle, so within the field's range over its corners.

@@ -116,20 +116,10 @@ fn smooth_shading_does_not_blend_across_a_material_boundary() {
     // Control: with one material the shared vertices take the area-weighted mean (1 * 1 + 3 * 10) / 4 = 7.75
     // (two neighbours in a row do not span the plane, so the fit falls back to the mean).
     let joined = SmoothShader::new(&side_by_side(0), &ShadingOptions::default()).unwrap();
-    let mean = [7.75, 15.5, 23.25];
+    let mean = Rgb::new(7.75, 15.5, 23.25);
     for &p in &shared {
-        assert_close(
-            joined.shade(&radiosity, 0, p).unwrap(),
-            Rgb::from_array(mean),
-            1e-12,
-            "left patch, same material",
-        );
-        assert_close(
-            joined.shade(&radiosity, 1, p).unwrap(),
-            Rgb::from_array(mean),
-            1e-12,
-            "right patch, same material",
-        );
+        assert_close(joined.shade(&radiosity, 0, p).unwrap(), mean, 1e-12, "left patch, same material");
+        assert_close(joined.shade(&radiosity, 1, p).unwrap(), mean, 1e-12, "right patch, same material");
     }
 }
 
