@@ -1,6 +1,7 @@
 //! [`InputError`]: the checks every numeric routine of the host runs on its slices (one entry per patch, every
 //! value finite), shared by [`crate::metrics`] and [`crate::reference`] so both say the same thing.
 
+use crate::rgb::Rgb;
 use thiserror::Error;
 
 /// A per-patch input slice that is the wrong length or holds NaN or infinity.
@@ -47,9 +48,9 @@ pub fn check_len<T>(what: &'static str, values: &[T], n: usize) -> Result<(), In
 ///
 /// # Errors
 /// [`InputError::NonFinite`] naming the first patch and channel that is not.
-pub fn check_finite(what: &'static str, values: &[[f64; 3]]) -> Result<(), InputError> {
+pub fn check_finite(what: &'static str, values: &[Rgb]) -> Result<(), InputError> {
     for (patch, v) in values.iter().enumerate() {
-        for (channel, &value) in v.iter().enumerate() {
+        for (channel, value) in v.to_array().into_iter().enumerate() {
             if !value.is_finite() {
                 return Err(InputError::NonFinite { what, patch, channel, value });
             }

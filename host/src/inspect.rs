@@ -6,6 +6,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use crate::rgb::{channel_max, Rgb};
 use radiosity_core::codec::decode_emission_f32;
 use radiosity_core::{Table, TableError, FORMAT_VERSION};
 use serde::Serialize;
@@ -216,9 +217,9 @@ pub struct TransferInfo {
     pub bytes: usize,
     /// Per light group, the scale `2^K` of its codes per channel (W/m^2 per unit intensity); a response `T`
     /// is within `max(2^-13 T, 2^(K - 27))` of the host's f64 value.
-    pub scale: Vec<[f64; 3]>,
+    pub scale: Vec<Rgb>,
     /// Per light group, the largest decoded response per channel (W/m^2 per unit intensity).
-    pub max_response: Vec<[f64; 3]>,
+    pub max_response: Vec<Rgb>,
 }
 
 impl fmt::Display for InspectReport {
@@ -346,18 +347,16 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
     let transfer = table.has_transfer().then(|| TransferInfo {
         bytes: bytes_of.transfer,
         scale: (0..table.group_count())
-            .map(|g| table.transfer_exponent(g).unwrap_or([0; 3]).map(|k| 2f64.powi(i32::from(k))))
+            .map(|g| {
+                Rgb::from_array(table.transfer_exponent(g).unwrap_or([0; 3]).map(|k| 2f64.powi(i32::from(k))))
+            })
             .collect(),
         max_response: (0..table.group_count())
             .map(|g| {
-                let mut m = [0.0f64; 3];
-                for i in 0..n {
+                (0..n).fold(Rgb::ZERO, |m, i| {
                     let r = table.transfer_response(i, g).unwrap_or([0.0; 3]);
-                    for c in 0..3 {
-                        m[c] = m[c].max(f64::from(r[c]));
-                    }
-                }
-                m
+                    channel_max(m, Rgb::from_array(r.map(f64::from)))
+                })
             })
             .collect(),
     });

@@ -2,7 +2,9 @@
 //!
 //! Scene loading, meshing into patches, form factors with occlusion rays (`raycast`: Embree in production, a
 //! pure-Rust BVH for tests and cross-checks), the f64 reference solve, table writing, checks and reports. The
-//! physics conventions are those of `radiosity-core`; `rng` is the one random number generator.
+//! physics conventions are those of `radiosity-core`; `rng` is the one random number generator, and
+//! [`rgb::Rgb`] (glam's `DVec3`, `x, y, z` = R, G, B) the one colour type of every per-patch reflectance,
+//! emission, radiosity and intensity.
 //!
 //! # Map
 //! The pipeline, in order, and where a change of each kind goes:
@@ -13,7 +15,7 @@
 //! | mesh | [`mesh`], [`patch`] | patches, adaptive refinement, the form-factor matrix type |
 //! | form factors | [`formfactor`], [`raycast`], [`embree`] | the estimator, occlusion rays |
 //! | prepare | [`pipeline`] | the stages above run together for a command |
-//! | reference | [`reference`](mod@reference), [`lighting`], [`input`] | the f64 solves, per-patch lighting, the input checks they share |
+//! | reference | [`reference`](mod@reference), [`lighting`], [`input`], [`rgb`] | the f64 solves, per-patch lighting, the input checks they share, the colour type |
 //! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
 //! | check, regress | [`check`], [`regress`] | the device run against f64 (frames through `firmware_sim::device::run_frame`, the one device loop), the quantization baseline |
@@ -39,6 +41,7 @@ pub mod raycast;
 pub mod reference;
 pub mod regress;
 pub mod relight;
+pub mod rgb;
 pub mod rng;
 pub mod scene;
 pub mod view;

@@ -7,23 +7,24 @@
 //! `default_intensity` so the baseline answer is `B_static + sum_g default_intensity_g * T_g`.
 
 use crate::patch::Patch;
+use crate::rgb::Rgb;
 use crate::scene::Scene;
 
 /// Reflectance and emission of every patch, with the scene's dynamic light groups.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PatchLighting {
     /// Reflectance per patch and channel (the material's `Kd`).
-    pub rho: Vec<[f64; 3]>,
+    pub rho: Vec<Rgb>,
     /// Emission of static lights per patch (W/m^2), at their default intensities.
-    pub static_emission: Vec<[f64; 3]>,
+    pub static_emission: Vec<Rgb>,
     /// Emission per patch of its dynamic light group at unit intensity (W/m^2); zero outside dynamic groups.
-    pub unit_emission: Vec<[f64; 3]>,
+    pub unit_emission: Vec<Rgb>,
     /// Dynamic light group of each patch, as an index into `dynamic_groups`.
     pub group: Vec<Option<usize>>,
     /// Indices into [`Scene::light_groups`] of the dynamic groups, in scene order.
     pub dynamic_groups: Vec<usize>,
     /// Default intensity per channel of each dynamic group (same order as `dynamic_groups`).
-    pub default_intensity: Vec<[f64; 3]>,
+    pub default_intensity: Vec<Rgb>,
 }
 
 impl PatchLighting {
@@ -39,8 +40,8 @@ impl PatchLighting {
         let n = patches.len();
         let mut lighting = PatchLighting {
             rho: Vec::with_capacity(n),
-            static_emission: vec![[0.0; 3]; n],
-            unit_emission: vec![[0.0; 3]; n],
+            static_emission: vec![Rgb::ZERO; n],
+            unit_emission: vec![Rgb::ZERO; n],
             group: vec![None; n],
             dynamic_groups,
             default_intensity,
@@ -54,7 +55,7 @@ impl PatchLighting {
                 lighting.unit_emission[k] = material.emission;
                 lighting.group[k] = lighting.dynamic_groups.iter().position(|&d| d == g);
             } else {
-                lighting.static_emission[k] = mul(material.emission, group.intensity);
+                lighting.static_emission[k] = material.emission * group.intensity;
             }
         }
         lighting
@@ -65,10 +66,10 @@ impl PatchLighting {
     /// # Panics
     /// If `intensity` has fewer entries than there are dynamic groups.
     #[must_use]
-    pub fn emission(&self, intensity: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    pub fn emission(&self, intensity: &[Rgb]) -> Vec<Rgb> {
         (0..self.rho.len())
             .map(|k| match self.group[k] {
-                Some(g) => add(self.static_emission[k], mul(self.unit_emission[k], intensity[g])),
+                Some(g) => self.static_emission[k] + self.unit_emission[k] * intensity[g],
                 None => self.static_emission[k],
             })
             .collect()
@@ -76,15 +77,7 @@ impl PatchLighting {
 
     /// Total emission per patch with every dynamic group at its default intensity.
     #[must_use]
-    pub fn default_emission(&self) -> Vec<[f64; 3]> {
+    pub fn default_emission(&self) -> Vec<Rgb> {
         self.emission(&self.default_intensity)
     }
-}
-
-fn mul(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] * b[0], a[1] * b[1], a[2] * b[2]]
-}
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }

@@ -11,7 +11,7 @@
 //!   A patch a thousand times darker than the scene average is judged against the average's thousandth, so an
 //!   error that is invisible next to the rest of the scene does not dominate the maximum; patches brighter than
 //!   the floor are judged against themselves;
-//! - **luminance**, Rec. 709 (ITU-R BT.709-6, item 3.2): `Y = 0.2126 R + 0.7152 G + 0.0722 B`; its area-weighted
+//! - **luminance**, Rec. 709 ([`luminance`], ITU-R BT.709-6, item 3.2): `Y = 0.2126 R + 0.7152 G + 0.0722 B`; its area-weighted
 //!   relative L2 and its max per-patch relative error with the same rule (`floor_Y = 1e-3` times the
 //!   area-weighted mean of `|Y_r|`).
 //!
@@ -24,12 +24,10 @@ use serde::Serialize;
 use thiserror::Error;
 
 use crate::input::{check_finite, check_len, InputError};
+use crate::rgb::{luminance, Rgb};
 
 /// The dark-patch floor as a fraction of the area-weighted mean radiosity (or luminance).
 pub const FLOOR_FRACTION: f64 = 1e-3;
-
-/// Rec. 709 luminance weights for (R, G, B).
-pub const REC709_LUMINANCE: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// Invalid input to [`compare`].
 #[derive(Clone, Debug, PartialEq, Error)]
@@ -92,12 +90,6 @@ impl fmt::Display for ErrorReport {
     }
 }
 
-/// Rec. 709 luminance of an RGB radiosity.
-#[must_use]
-pub fn luminance(rgb: [f64; 3]) -> f64 {
-    REC709_LUMINANCE[0] * rgb[0] + REC709_LUMINANCE[1] * rgb[1] + REC709_LUMINANCE[2] * rgb[2]
-}
-
 /// `num / den` with `0 / 0 = 0` and `x / 0 = inf` for `x > 0`.
 pub(crate) fn relative(num: f64, den: f64) -> f64 {
     if den > 0.0 {
@@ -107,6 +99,11 @@ pub(crate) fn relative(num: f64, den: f64) -> f64 {
     } else {
         f64::INFINITY
     }
+}
+
+/// [`relative`] per channel.
+pub(crate) fn relative_channels(num: Rgb, den: Rgb) -> Rgb {
+    Rgb::new(relative(num.x, den.x), relative(num.y, den.y), relative(num.z, den.z))
 }
 
 /// Area-weighted relative L2 and floored max relative error of per-patch magnitudes.
@@ -138,7 +135,7 @@ fn scalar_errors(diff: &[f64], reference: &[f64], area: &[f64]) -> (f64, f64, us
 /// # Errors
 /// If `b` or `area` does not have one entry per reference patch, a radiosity is not finite, or an area is not a
 /// positive finite number.
-pub fn compare(b: &[[f64; 3]], reference: &[[f64; 3]], area: &[f64]) -> Result<ErrorReport, MetricsError> {
+pub fn compare(b: &[Rgb], reference: &[Rgb], area: &[f64]) -> Result<ErrorReport, MetricsError> {
     let n = reference.len();
     check_len("device answer", b, n)?;
     check_len("area", area, n)?;
@@ -147,9 +144,8 @@ pub fn compare(b: &[[f64; 3]], reference: &[[f64; 3]], area: &[f64]) -> Result<E
     if let Some((patch, &value)) = area.iter().enumerate().find(|(_, a)| !(a.is_finite() && **a > 0.0)) {
         return Err(MetricsError::BadArea { patch, value });
     }
-    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let diff: Vec<f64> = b.iter().zip(reference).map(|(b, r)| norm([0, 1, 2].map(|c| b[c] - r[c]))).collect();
-    let magnitude: Vec<f64> = reference.iter().map(|&r| norm(r)).collect();
+    let diff: Vec<f64> = b.iter().zip(reference).map(|(&b, &r)| (b - r).length()).collect();
+    let magnitude: Vec<f64> = reference.iter().map(|r| r.length()).collect();
     let (rel_l2, max_rel, max_rel_patch, floor) = scalar_errors(&diff, &magnitude, area);
 
     let y_diff: Vec<f64> =

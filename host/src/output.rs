@@ -7,6 +7,7 @@
 use std::io::{self, Write};
 
 use crate::patch::Patch;
+use crate::rgb::Rgb;
 
 /// Header of the patch table CSV.
 pub const PATCH_CSV_HEADER: &str =
@@ -23,9 +24,9 @@ pub const PATCH_CSV_HEADER: &str =
 pub fn write_patch_csv(
     out: &mut impl Write,
     patches: &[Patch],
-    rho: &[[f64; 3]],
-    e: &[[f64; 3]],
-    b: &[[f64; 3]],
+    rho: &[Rgb],
+    e: &[Rgb],
+    b: &[Rgb],
 ) -> io::Result<()> {
     writeln!(out, "{PATCH_CSV_HEADER}")?;
     for (k, p) in patches.iter().enumerate() {

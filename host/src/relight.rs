@@ -29,6 +29,7 @@ use crate::picture::shading::{ShadingOptions, SmoothShader};
 use crate::picture::PictureError;
 use crate::pipeline::Prepared;
 use crate::reference::{exact_transfer, Method, ReferenceError};
+use crate::rgb::Rgb;
 use crate::view::{default_camera, PatchTracer, ViewError};
 
 /// Why a relight run failed.
@@ -140,7 +141,7 @@ pub struct RelightReport {
     pub qemu: Vec<QemuRun>,
     /// The f32 device radiosity of every frame of the first selected script (for pictures), scene patch order.
     #[serde(skip)]
-    pub first_script_frames: Vec<Vec<[f64; 3]>>,
+    pub first_script_frames: Vec<Vec<Rgb>>,
     /// Name of the first selected script.
     pub first_script: String,
 }
@@ -152,7 +153,7 @@ struct DeviceFrame {
     used: u32,
     light_units: u32,
     converged: bool,
-    b: Vec<[f64; 3]>,
+    b: Vec<Rgb>,
 }
 
 /// Runs `script` through the device loop in arithmetic `S`, collecting every frame's radiosity.
@@ -166,7 +167,7 @@ fn device_frames<S: Bits>(table: &Table<'_>, script: &OwnedScript) -> Result<Vec
                 let b = (0..n)
                     .map(|i| {
                         let v = solver.radiosity(i).unwrap_or([S::ZERO; 3]);
-                        v.map(|x| f64::from(x.to_f32()))
+                        Rgb::from_array(v.map(|x| f64::from(x.to_f32())))
                     })
                     .collect();
                 frames.push(DeviceFrame {
@@ -251,7 +252,8 @@ pub fn relight(
                 Arith::Fixed => device_frames::<Fixed>(&table, script)?,
             };
             for (f, spec) in frames.iter().zip(&script.frames) {
-                let intensity: Vec<[f64; 3]> = spec.intensity.iter().map(|v| v.map(f64::from)).collect();
+                let intensity: Vec<Rgb> =
+                    spec.intensity.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
                 let exact = tv.relight(&intensity)?;
                 let error = metrics::compare(&f.b, &exact, &area).map_err(|e| {
                     script_error(format!("script {:?} frame {} ({arith}): {e}", script.name, f.frame))
@@ -470,7 +472,7 @@ pub const CONVERGED_TOLERANCE: f32 = 1e-6;
 /// # Errors
 /// [`RelightError::Table`] if the table does not parse, [`RelightError::Device`] if a light change is rejected or
 /// the solve does not converge within [`firmware_sim::script::DEFAULT_BOOT_BUDGET`] work units.
-pub fn device_answer(table_bytes: &[u8], intensity: &[[f32; 3]]) -> Result<Vec<[f64; 3]>, RelightError> {
+pub fn device_answer(table_bytes: &[u8], intensity: &[[f32; 3]]) -> Result<Vec<Rgb>, RelightError> {
     let table = Table::parse(table_bytes).map_err(RelightError::Table)?;
     let script = OwnedScript {
         name: "converged".into(),

@@ -23,6 +23,7 @@ use crate::picture::shading::{ShadingOptions, SmoothShader};
 use crate::picture::{PictureError, RgbImage};
 use crate::pipeline::Prepared;
 use crate::reference::{exact_transfer, Method, ReferenceError};
+use crate::rgb::Rgb;
 
 /// Errors of the view glue; each wraps the module that failed.
 #[derive(Debug, thiserror::Error)]
@@ -101,7 +102,7 @@ impl PatchTracer {
 ///
 /// # Errors
 /// [`ViewError::Reference`] if the system is invalid or the solve fails.
-pub fn solve_default(prepared: &Prepared) -> Result<Vec<[f64; 3]>, ViewError> {
+pub fn solve_default(prepared: &Prepared) -> Result<Vec<Rgb>, ViewError> {
     let l = &prepared.lighting;
     let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
     Ok(tv.relight(&l.default_intensity)?)
@@ -118,7 +119,7 @@ pub enum RenderMode<'a> {
     /// strip appended below the picture ([`Colouring::Error`]).
     Error {
         /// The reference radiosity (e.g. the f64 solve), one value per patch.
-        reference: &'a [[f64; 3]],
+        reference: &'a [Rgb],
     },
 }
 
@@ -188,11 +189,7 @@ pub fn auto_camera(patches: &[Patch]) -> Result<Camera, ViewError> {
 /// # Errors
 /// [`ViewError::Embree`] building the ray-tracing scene; [`ViewError::Picture`] for a bad size, a bad camera,
 /// `b` or the reference of the wrong length, or a non-finite value (naming the patch or pixel).
-pub fn render_view(
-    prepared: &Prepared,
-    b: &[[f64; 3]],
-    options: &RenderOptions<'_>,
-) -> Result<View, ViewError> {
+pub fn render_view(prepared: &Prepared, b: &[Rgb], options: &RenderOptions<'_>) -> Result<View, ViewError> {
     let camera = match options.camera {
         Some(c) => c,
         None => default_camera(prepared)?,
@@ -221,7 +218,7 @@ pub fn render_view(
 /// As [`render_view`].
 pub fn render_scene(
     prepared: &Prepared,
-    b: &[[f64; 3]],
+    b: &[Rgb],
     options: &RenderOptions<'_>,
 ) -> Result<RgbImage, ViewError> {
     Ok(render_view(prepared, b, options)?.image)
@@ -247,7 +244,7 @@ fn stack(top: &RgbImage, bottom: &RgbImage) -> RgbImage {
 /// # Errors
 /// [`ViewError::Picture`] if a face has no patch, `b` has the wrong length or holds a non-finite value, or a file
 /// cannot be written.
-pub fn write_light_map(prepared: &Prepared, b: &[[f64; 3]], stem: &Path) -> Result<[PathBuf; 3], ViewError> {
+pub fn write_light_map(prepared: &Prepared, b: &[Rgb], stem: &Path) -> Result<[PathBuf; 3], ViewError> {
     let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
     let map = bake_light_map(&prepared.patches, &shader, b, &LightMapOptions::default())?;
     Ok(map.write(stem, None)?)

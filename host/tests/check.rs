@@ -75,8 +75,8 @@ fn cornell_decomposition_is_consistent() {
     // Bound of the 16-bit component: emission codes round to 2^-11 relative, reflectance codes to 2^-17
     // absolute, form-factor codes to < 2^-12 relative (core's codec docs); a relative perturbation d of R F
     // moves B by at most d * rho_max / (1 - rho_max) relative (Neumann series of (I - R F)^-1).
-    let rho_max = p.lighting.rho.iter().flatten().copied().fold(0.0, f64::max);
-    let rho_min = p.lighting.rho.iter().flatten().copied().filter(|&r| r > 0.0).fold(1.0, f64::min);
+    let rho_max = p.lighting.rho.iter().flat_map(|r| r.to_array()).fold(0.0, f64::max);
+    let rho_min = p.lighting.rho.iter().flat_map(|r| r.to_array()).filter(|&r| r > 0.0).fold(1.0, f64::min);
     let d = 2f64.powi(-12) + 2f64.powi(-17) / rho_min;
     let bound = 2f64.powi(-11) + d * rho_max / (1.0 - rho_max);
     assert!(q16 <= bound, "16-bit quantization {q16} above its bound {bound}");

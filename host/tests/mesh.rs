@@ -7,6 +7,7 @@ use glam::DVec3;
 use proptest::prelude::*;
 use radiosity_host::mesh::{adjacency, mesh, refine, MeshError, MeshOptions};
 use radiosity_host::patch::Patch;
+use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::{Face, Material, MeshingLimits, Polygon, Scene};
 
 fn load(name: &str) -> Scene {
@@ -287,7 +288,11 @@ fn one_face_scene(polygon: Polygon) -> Scene {
     Scene {
         path: PathBuf::from("random.obj"),
         faces: vec![face],
-        materials: vec![Material { name: "grey".to_owned(), reflectance: [0.5; 3], emission: [0.0; 3] }],
+        materials: vec![Material {
+            name: "grey".to_owned(),
+            reflectance: Rgb::splat(0.5),
+            emission: Rgb::ZERO,
+        }],
         light_groups: Vec::new(),
         meshing: MeshingLimits::default(),
         warnings: Vec::new(),

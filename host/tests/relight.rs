@@ -162,7 +162,8 @@ fn device_answer_is_converged_and_close_to_f64() {
     let p = prepared("cornell-box.obj");
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
     let baked = bake(&input, &BakeOptions::default()).unwrap();
-    let intensity: Vec<[f32; 3]> = p.lighting.default_intensity.iter().map(|v| v.map(|x| x as f32)).collect();
+    let intensity: Vec<[f32; 3]> =
+        p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
     let device = relight::device_answer(&baked.table, &intensity).unwrap();
     let exact = radiosity_host::view::solve_default(&p).unwrap();
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();

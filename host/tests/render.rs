@@ -9,9 +9,10 @@ use std::sync::OnceLock;
 use glam::DVec3;
 use radiosity_host::picture::camera::Camera;
 use radiosity_host::picture::render::View;
-use radiosity_host::picture::tonemap::{luminance, srgb_decode};
+use radiosity_host::picture::tonemap::srgb_decode;
 use radiosity_host::picture::write_png;
 use radiosity_host::pipeline::Prepared;
+use radiosity_host::rgb::{luminance, Rgb};
 use radiosity_host::view::{
     render_view, solve_default, write_light_map, PatchTracer, RenderMode, RenderOptions, LEGEND_HEIGHT,
 };
@@ -19,8 +20,8 @@ use radiosity_host::view::{
 const SIZE: u32 = 64;
 
 /// The coarse Cornell box of `common` and its f64 solution, prepared once for the whole file.
-fn cornell() -> &'static (Prepared, Vec<[f64; 3]>) {
-    static CELL: OnceLock<(Prepared, Vec<[f64; 3]>)> = OnceLock::new();
+fn cornell() -> &'static (Prepared, Vec<Rgb>) {
+    static CELL: OnceLock<(Prepared, Vec<Rgb>)> = OnceLock::new();
     CELL.get_or_init(|| {
         let p = common::coarse_cornell();
         let b = solve_default(&p).unwrap();
@@ -36,7 +37,7 @@ fn scratch(name: &str) -> PathBuf {
 
 /// The coarse Cornell box with radiosity `b` rendered `SIZE` x `SIZE` from the default camera in `mode`, and
 /// written to the scratch file `name` for a person to look at.
-fn render_to(b: &[[f64; 3]], mode: RenderMode<'_>, name: &str) -> View {
+fn render_to(b: &[Rgb], mode: RenderMode<'_>, name: &str) -> View {
     let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode };
     let view = render_view(&cornell().0, b, &options).unwrap();
     write_png(&scratch(name), &view.image).unwrap();
@@ -49,7 +50,7 @@ fn material_name(p: &Prepared, patch: usize) -> &str {
 
 /// Linear luminance of an 8-bit sRGB pixel (what the viewer's screen shows, up to the display's scale).
 fn pixel_luminance(rgb: [u8; 3]) -> f64 {
-    luminance(rgb.map(|c| srgb_decode(f64::from(c) / 255.0)))
+    luminance(Rgb::from_array(rgb.map(|c| srgb_decode(f64::from(c) / 255.0))))
 }
 
 #[test]
@@ -65,7 +66,7 @@ fn cornell_box_looks_right() {
     // Every pixel that sees a surface is finite and not black: every surface of the closed room behind the open
     // side receives at least indirect light, so a black pixel would be a shading or tone-mapping fault.
     for (k, (lin, patch)) in view.linear.iter().zip(&view.patch).enumerate() {
-        assert!(lin.iter().all(|v| v.is_finite()), "pixel {k}: radiosity {lin:?}");
+        assert!(lin.is_finite(), "pixel {k}: radiosity {lin:?}");
         if patch.is_some() {
             let px = view.image.get(k as u32 % SIZE, k as u32 / SIZE);
             assert_ne!(px, [0, 0, 0], "pixel {k} sees patch {patch:?} but is black");

@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::DVec3;
 use proptest::prelude::*;
+use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::{Scene, SceneError};
 
 fn scenes() -> PathBuf {
@@ -108,17 +109,17 @@ fn cornell_box_loads_as_published() {
         }
     }
     // Materials as stated in the issue and the MTL comment.
-    assert_eq!(material(&s, "white").reflectance, [0.725, 0.71, 0.68]);
-    assert_eq!(material(&s, "red").reflectance, [0.63, 0.065, 0.05]);
-    assert_eq!(material(&s, "green").reflectance, [0.14, 0.45, 0.091]);
-    assert_eq!(material(&s, "light").emission, [17.0, 11.8, 4.0]);
+    assert_eq!(material(&s, "white").reflectance, Rgb::new(0.725, 0.71, 0.68));
+    assert_eq!(material(&s, "red").reflectance, Rgb::new(0.63, 0.065, 0.05));
+    assert_eq!(material(&s, "green").reflectance, Rgb::new(0.14, 0.45, 0.091));
+    assert_eq!(material(&s, "light").emission, Rgb::new(17.0, 11.8, 4.0));
     for m in ["white", "red", "green"] {
-        assert_eq!(material(&s, m).emission, [0.0; 3], "{m} emits");
+        assert_eq!(material(&s, m).emission, Rgb::ZERO, "{m} emits");
     }
     // One dynamic light group at unit intensity, and the TOML meshing limits.
     assert_eq!(s.light_groups.len(), 1);
     let g = &s.light_groups[0];
-    assert_eq!((g.name.as_str(), g.dynamic, g.intensity), ("light", true, [1.0; 3]));
+    assert_eq!((g.name.as_str(), g.dynamic, g.intensity), ("light", true, Rgb::ONE));
     assert_eq!(g.materials.iter().map(|&m| s.materials[m].name.as_str()).collect::<Vec<_>>(), ["light"]);
     assert_eq!(s.meshing.max_patch_edge, Some(100.0));
     assert_eq!(s.meshing.patch_budget, Some(1000));
@@ -187,8 +188,8 @@ fn furnace_is_a_closed_inward_cube() {
     }
     assert!(vector_area(&s).length() <= area_tolerance(&s));
     assert_eq!(s.materials.len(), 1);
-    assert_eq!(s.materials[0].reflectance, [0.9; 3]);
-    assert_eq!(s.materials[0].emission, [1.0; 3]);
+    assert_eq!(s.materials[0].reflectance, Rgb::splat(0.9));
+    assert_eq!(s.materials[0].emission, Rgb::ONE);
     assert_eq!(s.light_groups.len(), 1);
     assert_eq!(s.light_groups[0].name, "furnace");
 }
@@ -456,7 +457,7 @@ fn toml_errors() {
     let g = &s.light_groups[0];
     assert_eq!(
         (g.name.as_str(), g.dynamic, g.intensity, g.materials.clone()),
-        ("sun", false, [2.0; 3], vec![1])
+        ("sun", false, Rgb::splat(2.0), vec![1])
     );
     assert_eq!((s.meshing.max_patch_edge, s.meshing.patch_budget), (Some(0.25), Some(64)));
     // An emitting material the TOML file does not list gets its own dynamic group at unit intensity, after the
@@ -470,7 +471,7 @@ fn toml_errors() {
     ))
     .unwrap();
     let groups: Vec<_> = s.light_groups.iter().map(|g| (g.name.as_str(), g.dynamic, g.intensity)).collect();
-    assert_eq!(groups, [("sun", true, [1.0; 3]), ("lamp2", true, [1.0; 3])]);
+    assert_eq!(groups, [("sun", true, Rgb::ONE), ("lamp2", true, Rgb::ONE)]);
     assert_eq!(s.light_group_of(2), Some(1));
     assert_eq!(s.light_group_of(0), None);
 }

@@ -9,6 +9,7 @@ use radiosity_core::{Config, Outcome, OwnedBuffers, Solver, Table};
 use radiosity_host::bake::{bake, decode_table, shooting_form, BakeInput, BakeOptions};
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{DenseLu, RadiositySystem};
+use radiosity_host::rgb::max_channel;
 
 /// Faces `0..ROOM_A_FACES` of the OBJ are room A (floor, four walls, four ceiling strips, the lamp panel).
 const ROOM_A_FACES: usize = 10;
@@ -66,9 +67,9 @@ fn only_the_dynamically_lit_room_carries_state() {
     // arithmetic term of core's solver tests).
     let in_a = |i: usize| p.patches[i].face < ROOM_A_FACES;
     let max_over = |f: &dyn Fn(usize) -> f64| (0..n).filter(|&i| in_a(i)).map(f).fold(0.0, f64::max);
-    let rho_max = max_over(&|i| p.lighting.rho[i].iter().copied().fold(0.0, f64::max));
-    let e_max = max_over(&|i| p.lighting.unit_emission[i].iter().copied().fold(0.0, f64::max));
-    let b_max = max_over(&|i| b_ref[i].iter().copied().fold(0.0, f64::max));
+    let rho_max = max_over(&|i| max_channel(p.lighting.rho[i]));
+    let e_max = max_over(&|i| max_channel(p.lighting.unit_emission[i]));
+    let b_max = max_over(&|i| max_channel(b_ref[i]));
     let a_min = max_over(&|i| 1.0 / area[i]).recip();
     let eps32 = f64::from(f32::EPSILON);
     let bound_a = (2f64.powi(-11) * e_max + (2f64.powi(-12) + 2f64.powi(-17)) * b_max) / (1.0 - rho_max)

@@ -84,6 +84,7 @@ use crate::inspect::SectionBytes;
 use crate::lighting::PatchLighting;
 use crate::patch::{FormFactorMatrix, Patch};
 use crate::reference::{Method, ReferenceError, TransferVectors};
+use crate::rgb::Rgb;
 use crate::scene::Scene;
 use state::SlotRows;
 
@@ -129,7 +130,7 @@ pub struct BakeInput<'a> {
     /// Patches (area and material are used).
     pub patches: &'a [Patch],
     /// Reflectance per material (RGB, each in `[0, 1)`); `Patch::material` indexes it.
-    pub materials: Vec<[f64; 3]>,
+    pub materials: Vec<Rgb>,
     /// Reflectance and emission per patch, with the dynamic light groups.
     pub lighting: &'a PatchLighting,
     /// Name of each dynamic light group, in the order of `lighting.dynamic_groups`.
@@ -230,7 +231,7 @@ pub struct Baked {
     /// Per patch, whether it needs run-time state.
     pub reachable: Vec<bool>,
     /// The f64 static solution `B_s` (W/m^2) on the sparsified matrix.
-    pub static_radiosity: Vec<[f64; 3]>,
+    pub static_radiosity: Vec<Rgb>,
     /// The f64 transfer basis the table's transfer section was quantized from (with
     /// [`BakeOptions::transfer`]).
     pub transfer: Option<TransferVectors>,
@@ -275,8 +276,8 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         .map(|(i, p)| PatchSpec {
             area: p.area as f32,
             material: u32::try_from(p.material).unwrap_or(u32::MAX),
-            base_emission: to_f32x3(lighting.static_emission[i]),
-            base_irradiance: to_f32x3(irradiance[i]),
+            base_emission: lighting.static_emission[i].as_vec3().to_array(),
+            base_irradiance: irradiance[i].as_vec3().to_array(),
         })
         .collect();
 
@@ -285,14 +286,17 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     let mut members: Vec<Vec<MemberSpec>> = vec![Vec::new(); ids.len()];
     for (i, g) in lighting.group.iter().enumerate() {
         if let Some(g) = *g {
-            members[g].push(MemberSpec { patch: i as u32, emission: to_f32x3(lighting.unit_emission[i]) });
+            members[g].push(MemberSpec {
+                patch: i as u32,
+                emission: lighting.unit_emission[i].as_vec3().to_array(),
+            });
         }
     }
     let groups: Vec<GroupSpec<'_>> = ids
         .iter()
         .zip(&members)
         .zip(&lighting.default_intensity)
-        .map(|((&id, m), &d)| GroupSpec { id, default_intensity: to_f32x3(d), members: m })
+        .map(|((&id, m), &d)| GroupSpec { id, default_intensity: d.as_vec3().to_array(), members: m })
         .collect();
 
     // 4. Transfer basis on the table's own matrix, the shooting form of the sparsified rows, so that it and the
@@ -306,8 +310,9 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         None
     };
     // Patch-major, as core's writer takes it: response of patch i to group g at [i * groups + g].
-    let transfer_f32: Option<Vec<[f32; 3]>> =
-        transfer.as_ref().map(|tv| (0..n).flat_map(|i| tv.t.iter().map(move |t| to_f32x3(t[i]))).collect());
+    let transfer_f32: Option<Vec<[f32; 3]>> = transfer
+        .as_ref()
+        .map(|tv| (0..n).flat_map(|i| tv.t.iter().map(move |t| t[i].as_vec3().to_array())).collect());
 
     // 5. Reachability: the patches with run-time state, and their rows over slots.
     let reachable = reachable_patches(&sparse.matrix, &lighting.group, &lighting.rho);
@@ -315,7 +320,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
 
     // 6. Quantize and write.
     let fingerprint = scene_fingerprint(input.patches);
-    let materials: Vec<[f32; 3]> = input.materials.iter().map(|&r| to_f32x3(r)).collect();
+    let materials: Vec<[f32; 3]> = input.materials.iter().map(|&r| r.as_vec3().to_array()).collect();
     let form_factor: Vec<f32> = slots.value.iter().map(|&f| f as f32).collect();
     let spec = TableSpec {
         patches: &patch_specs,
@@ -373,7 +378,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
         },
         table_bytes,
         base_solved: true,
-        static_emitters: lighting.static_emission.iter().filter(|e| e.iter().any(|&v| v > 0.0)).count(),
+        static_emitters: lighting.static_emission.iter().filter(|e| e.cmpgt(Rgb::ZERO).any()).count(),
         runtime_state: slots.runtime_state(n),
         fingerprint,
     };
@@ -425,7 +430,8 @@ fn check_input(input: &BakeInput<'_>) -> Result<(), BakeError> {
         if *rho != l.rho[k] {
             return Err(input_error(format!(
                 "patch {k}: lighting reflectance {:?} differs from its material's {:?}",
-                l.rho[k], rho
+                l.rho[k].to_array(),
+                rho.to_array()
             )));
         }
         if let Some(grp) = l.group[k] {
@@ -435,8 +441,4 @@ fn check_input(input: &BakeInput<'_>) -> Result<(), BakeError> {
         }
     }
     Ok(())
-}
-
-fn to_f32x3(v: [f64; 3]) -> [f32; 3] {
-    v.map(|x| x as f32)
 }

@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use super::{EnergyDropped, RuntimeState};
 use crate::inspect::SectionBytes;
+use crate::rgb::Rgb;
 
 /// A dynamic light group as written to the table.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -18,7 +19,7 @@ pub struct GroupReport {
     /// Member patches.
     pub members: usize,
     /// Default intensity (RGB).
-    pub default_intensity: [f64; 3],
+    pub default_intensity: Rgb,
 }
 
 /// What the steps of a bake did.
@@ -71,7 +72,10 @@ impl fmt::Display for BakeReport {
             writeln!(
                 f,
                 "  {:<16} id {:#010x}  {} members  default {:?}",
-                g.name, g.id, g.members, g.default_intensity
+                g.name,
+                g.id,
+                g.members,
+                g.default_intensity.to_array()
             )?;
         }
         writeln!(f, "static emitters    {} patches (folded into the solved base)", self.static_emitters)?;

@@ -7,6 +7,7 @@ use crate::reference::{
     solve_many, transfer_vectors, GaussSeidelOptions, LightGroupEmission, Method, Radiosity, RadiositySystem,
     ReferenceError, TransferVectors,
 };
+use crate::rgb::{max_channel, Rgb};
 
 /// Largest patch count for which a bake solves with dense LU by default.
 pub const DENSE_BAKE_LIMIT: usize = 1024;
@@ -62,14 +63,12 @@ pub fn shooting_form(ff: &FormFactorMatrix, area: &[f64]) -> FormFactorMatrix {
 /// The irradiance `G_i = sum_j F_ij B_j` that gathering rows `ff` bring from radiosity `b` (with the shooting
 /// form of stored rows: what the device's shooting deposits).
 #[must_use]
-pub fn gather(ff: &FormFactorMatrix, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+pub fn gather(ff: &FormFactorMatrix, b: &[Rgb]) -> Vec<Rgb> {
     (0..ff.n())
         .map(|i| {
-            let mut g = [0.0; 3];
+            let mut g = Rgb::ZERO;
             for (j, f) in ff.row(i) {
-                for c in 0..3 {
-                    g[c] += f * b[j][c];
-                }
+                g += f * b[j];
             }
             g
         })
@@ -82,15 +81,15 @@ pub fn gather(ff: &FormFactorMatrix, b: &[[f64; 3]]) -> Vec<[f64; 3]> {
 /// # Errors
 /// The reference solver's.
 fn solve_set(
-    rho: &[[f64; 3]],
+    rho: &[Rgb],
     ff: &FormFactorMatrix,
-    rhs: &[&[[f64; 3]]],
+    rhs: &[&[Rgb]],
     row_sum_tolerance: f64,
     method: &Method,
 ) -> Result<(Vec<Radiosity>, f64), ReferenceError> {
     let system = RadiositySystem::with_row_sum_tolerance(rho, ff, row_sum_tolerance)?;
     let solutions = solve_many(system, rhs, method)?;
-    let residual = solutions.iter().flat_map(|s| s.residual).fold(0.0, f64::max);
+    let residual = solutions.iter().map(|s| s.residual).fold(0.0, |worst: f64, r| worst.max(max_channel(r)));
     Ok((solutions.into_iter().map(|s| s.b).collect(), residual))
 }
 
@@ -99,9 +98,9 @@ fn solve_set(
 /// # Errors
 /// The reference solver's.
 pub(crate) fn solve_one(
-    rho: &[[f64; 3]],
+    rho: &[Rgb],
     ff: &FormFactorMatrix,
-    e: &[[f64; 3]],
+    e: &[Rgb],
     row_sum_tolerance: f64,
     method: &Method,
 ) -> Result<(Radiosity, f64), ReferenceError> {

@@ -6,10 +6,11 @@ use std::collections::VecDeque;
 use serde::Serialize;
 
 use crate::patch::FormFactorMatrix;
+use crate::rgb::Rgb;
 
 /// Patches needing run-time state (see the [`crate::bake`] docs, step 5), breadth-first over the stored rows.
 #[must_use]
-pub fn reachable_patches(sparse: &FormFactorMatrix, group: &[Option<usize>], rho: &[[f64; 3]]) -> Vec<bool> {
+pub fn reachable_patches(sparse: &FormFactorMatrix, group: &[Option<usize>], rho: &[Rgb]) -> Vec<bool> {
     let mut reached = vec![false; sparse.n()];
     let mut queue = VecDeque::new();
     for (i, g) in group.iter().enumerate() {
@@ -20,7 +21,7 @@ pub fn reachable_patches(sparse: &FormFactorMatrix, group: &[Option<usize>], rho
     }
     while let Some(i) = queue.pop_front() {
         for (j, f) in sparse.row(i) {
-            if f > 0.0 && !reached[j] && rho[j].iter().any(|&r| r > 0.0) {
+            if f > 0.0 && !reached[j] && rho[j].cmpgt(Rgb::ZERO).any() {
                 reached[j] = true;
                 queue.push_back(j);
             }

@@ -14,6 +14,7 @@ use crate::bake::Baked;
 use crate::metrics;
 use crate::pipeline::Prepared;
 use crate::reference::{gauss_seidel, DenseLu, GaussSeidelOptions, RadiositySystem};
+use crate::rgb::Rgb;
 
 /// The core step a device curve runs: shooting (the relights too) with or without overshooting, or a sweep.
 fn step(run: DeviceRun) -> Step {
@@ -44,7 +45,7 @@ impl SceneRun<'_> {
         run: DeviceRun,
         table_bytes: usize,
         start: &Start,
-        exact: &[[f64; 3]],
+        exact: &[Rgb],
         stop: &StopRule,
     ) -> Result<(), BenchError> {
         let per_unit = self.instr.of(run.arith);
@@ -94,9 +95,9 @@ impl SceneRun<'_> {
     pub(super) fn transfer(
         &mut self,
         baked: &Baked,
-        intensity: &[[f64; 3]],
+        intensity: &[Rgb],
         bits: u32,
-        exact: &[[f64; 3]],
+        exact: &[Rgb],
         area: &[f64],
     ) -> Result<(), BenchError> {
         let table = Table::parse(&baked.table).map_err(|e| BenchError::Solver(format!("table: {e:?}")))?;
@@ -143,9 +144,10 @@ impl SceneRun<'_> {
     fn relight_transfer<S: Scalar>(
         &self,
         table: &Table<'_>,
-        intensity: &[[f64; 3]],
-    ) -> Result<(u32, f64, Vec<[f64; 3]>), BenchError> {
-        let intensity: Vec<[S; 3]> = intensity.iter().map(|v| v.map(|x| S::from_f32(x as f32))).collect();
+        intensity: &[Rgb],
+    ) -> Result<(u32, f64, Vec<Rgb>), BenchError> {
+        let intensity: Vec<[S; 3]> =
+            intensity.iter().map(|v| v.as_vec3().to_array().map(S::from_f32)).collect();
         let mut out = vec![[S::ZERO; 3]; table.patch_count() as usize];
         let mut times = Vec::new();
         let mut work = 0;
@@ -156,7 +158,7 @@ impl SceneRun<'_> {
             times.push(t0.elapsed().as_secs_f64());
         }
         times.sort_by(f64::total_cmp);
-        let b: Vec<[f64; 3]> = out.iter().map(|v| v.map(|x| f64::from(x.to_f32()))).collect();
+        let b: Vec<Rgb> = out.iter().map(|v| Rgb::from_array(v.map(|x| f64::from(x.to_f32())))).collect();
         Ok((work, times[times.len() / 2], b))
     }
 }
@@ -178,14 +180,14 @@ pub(super) fn host_curves(
     options: &BenchOptions,
     name: &str,
     p: &Prepared,
-    exact: &[[f64; 3]],
+    exact: &[Rgb],
 ) -> Result<(Vec<Curve>, usize), BenchError> {
     let l = &p.lighting;
     let e = l.default_emission();
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
     let system = RadiositySystem::new(&l.rho, &p.form_factors)?;
     let n = p.patches.len();
-    let point = |b: &[[f64; 3]], times: &mut [f64]| -> Result<CurvePoint, BenchError> {
+    let point = |b: &[Rgb], times: &mut [f64]| -> Result<CurvePoint, BenchError> {
         let err = metrics::compare(b, exact, &area)?;
         Ok(CurvePoint {
             work: None,

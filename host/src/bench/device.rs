@@ -11,6 +11,7 @@ use radiosity_core::{Buffers, Config, NoProgressReason, Outcome, OwnedBuffers, S
 
 use super::BenchError;
 use crate::metrics;
+use crate::rgb::Rgb;
 
 /// Which core step a curve uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -98,9 +99,9 @@ impl<S: Scalar> Owned<S> {
 }
 
 /// Radiosity of every patch, in f64.
-pub fn radiosity<S: Scalar>(solver: &Solver<'_, S>, table: &Table<'_>) -> Vec<[f64; 3]> {
+pub fn radiosity<S: Scalar>(solver: &Solver<'_, S>, table: &Table<'_>) -> Vec<Rgb> {
     (0..table.patch_count())
-        .map(|i| solver.radiosity(i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3]))
+        .map(|i| solver.radiosity(i).map_or(Rgb::NAN, |b| Rgb::from_array(b.map(|v| f64::from(v.to_f32())))))
         .collect()
 }
 
@@ -140,7 +141,7 @@ pub fn run_curve<S: Scalar>(
     case: &DeviceCase<'_>,
     step: Step,
     start: &Start,
-    exact: &[[f64; 3]],
+    exact: &[Rgb],
     stop: &StopRule,
     reps: usize,
 ) -> Result<Vec<Point>, BenchError> {

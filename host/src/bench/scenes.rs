@@ -16,6 +16,7 @@ use crate::formfactor::FormFactorOptions;
 use crate::mesh::{mesh, MeshOptions};
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
 use crate::reference::{exact_transfer, GaussSeidelOptions, Method};
+use crate::rgb::{max_channel, Rgb};
 use crate::scene::Scene;
 
 /// A benchmark scene: a file of the scenes folder meshed to about `target` patches, with the reflectance
@@ -124,10 +125,10 @@ fn prepare_at(
     let mut p = prepare(path, &options)?;
     if let Some(r) = rho {
         for m in &mut p.scene.materials {
-            m.reflectance = [r; 3];
+            m.reflectance = Rgb::splat(r);
         }
         for v in &mut p.lighting.rho {
-            *v = [r; 3];
+            *v = Rgb::splat(r);
         }
     }
     Ok(p)
@@ -145,8 +146,8 @@ pub fn cornell_table(target: usize, bits: u32, transfer: bool) -> Result<bake::B
 }
 
 /// Intensity per dynamic group after the light change: `(1, 0.2, 0.2)` times the default.
-fn changed_intensity(p: &Prepared) -> Vec<[f64; 3]> {
-    p.lighting.default_intensity.iter().map(|d| [d[0], d[1] * 0.2, d[2] * 0.2]).collect()
+fn changed_intensity(p: &Prepared) -> Vec<Rgb> {
+    p.lighting.default_intensity.iter().map(|&d| d * Rgb::new(1.0, 0.2, 0.2)).collect()
 }
 
 fn stop_rule(entries: usize, patches: usize, rho_max: f64, quick: bool) -> StopRule {
@@ -200,7 +201,7 @@ pub(super) fn run_scene(
     let changed = changed_intensity(&p);
     let exact_changed = tv.relight(&changed)?;
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
-    let rho_max = p.lighting.rho.iter().flatten().copied().fold(0.0, f64::max);
+    let rho_max = p.lighting.rho.iter().fold(0.0, |m: f64, &r| m.max(max_channel(r)));
 
     let mut run = SceneRun { options, name: &spec.name, instr, curves: Vec::new() };
     let mut result = SceneResult {
@@ -249,7 +250,7 @@ pub(super) fn run_scene(
             }
         }
         if bits == 16 {
-            let to: Vec<[f32; 3]> = changed.iter().map(|v| v.map(|x| x as f32)).collect();
+            let to: Vec<[f32; 3]> = changed.iter().map(|v| v.as_vec3().to_array()).collect();
             let s = StopRule { first: 1, ..stop };
             let relight = |method| DeviceRun::new(method, Arith::F32, bits);
             let ec = &exact_changed;

@@ -9,13 +9,14 @@ use crate::bake::Decoded;
 use crate::evaluate::{Component, EvaluateError, ITERATION_TRUNCATION};
 use crate::metrics;
 use crate::reference::{Radiosity, TransferVectors};
+use crate::rgb::Rgb;
 
 /// The answers the device is compared with.
 pub(super) struct Answers<'a> {
     /// The scene's exact transfer vectors (every frame is compared with them, relit).
     pub(super) exact: &'a TransferVectors,
     /// The scene's default intensities (the first light setting).
-    pub(super) default_intensity: &'a [[f64; 3]],
+    pub(super) default_intensity: &'a [Rgb],
     /// The decoded table.
     pub(super) decoded: &'a Decoded,
     /// Its f64 answer (what the device converges to).
@@ -43,11 +44,11 @@ pub(super) fn device_part(
     let groups = default.len();
     let mut schedule = vec![default.clone()];
     if options.relight {
-        schedule.push(vec![[0.0; 3]; groups]);
+        schedule.push(vec![Rgb::ZERO; groups]);
         schedule.push(default.clone());
-        schedule.push(default.iter().map(|&d| scale(d, [1.0, 0.2, 0.2])).collect());
+        schedule.push(default.iter().map(|&d| d * Rgb::new(1.0, 0.2, 0.2)).collect());
     }
-    let exact: Vec<Vec<[f64; 3]>> = schedule
+    let exact: Vec<Vec<Rgb>> = schedule
         .iter()
         .map(|s| answers.exact.relight(s))
         .collect::<Result<_, _>>()
@@ -133,21 +134,17 @@ pub fn device_converged<S: Scalar>(
     }
 }
 
-fn scale(v: [f64; 3], s: [f64; 3]) -> [f64; 3] {
-    [v[0] * s[0], v[1] * s[1], v[2] * s[2]]
-}
-
 struct Run<'r> {
     table: &'r Table<'r>,
     area: &'r [f64],
-    schedule: &'r [Vec<[f64; 3]>],
-    exact: &'r [Vec<[f64; 3]>],
+    schedule: &'r [Vec<Rgb>],
+    exact: &'r [Vec<Rgb>],
     options: &'r CheckOptions,
 }
 
-fn radiosity<S: Scalar>(solver: &Solver<'_, S>, n: usize) -> Vec<[f64; 3]> {
+fn radiosity<S: Scalar>(solver: &Solver<'_, S>, n: usize) -> Vec<Rgb> {
     (0..n as u32)
-        .map(|i| solver.radiosity(i).map(|b| b.map(|v| f64::from(v.to_f32()))).unwrap_or([f64::NAN; 3]))
+        .map(|i| solver.radiosity(i).map_or(Rgb::NAN, |b| Rgb::from_array(b.map(|v| f64::from(v.to_f32())))))
         .collect()
 }
 
@@ -189,7 +186,7 @@ impl Run<'_> {
         let mut truncated = Vec::new();
         for (s, (intensity, exact)) in self.schedule.iter().zip(self.exact).enumerate() {
             // The firmware's frame loop: groups whose intensity changed are set, then one bounded step.
-            let intensity_f32: Vec<[f32; 3]> = intensity.iter().map(|rgb| rgb.map(|v| v as f32)).collect();
+            let intensity_f32: Vec<[f32; 3]> = intensity.iter().map(|rgb| rgb.as_vec3().to_array()).collect();
             let mut relight_work = 0u64;
             let limit = self.options.frames.unwrap_or(MAX_FRAMES);
             let (mut work, mut count, mut converged_now) = (0u64, 0usize, false);

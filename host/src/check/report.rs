@@ -8,6 +8,7 @@ use serde::Serialize;
 use crate::evaluate::Component;
 use crate::metrics::ErrorReport;
 use crate::picture::plot::Plot;
+use crate::rgb::Rgb;
 
 /// One device frame compared with the exact answer.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -40,7 +41,7 @@ pub struct Setting {
     /// Index of the setting.
     pub setting: usize,
     /// Intensity of every dynamic group in this setting.
-    pub intensity: Vec<[f64; 3]>,
+    pub intensity: Vec<Rgb>,
     /// Work units [`radiosity_core::Solver::set_light`] reported for the change (0 for the cold start).
     pub relight_work: u64,
     /// Frames run.

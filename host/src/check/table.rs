@@ -127,7 +127,7 @@ pub fn match_scene(table: &Table<'_>, p: &Prepared) -> Result<(), String> {
             ));
         }
         let e_t = table.base_emission(i as u32).unwrap_or([u16::MAX; 3]).map(decode_emission_f32);
-        for (c, (&t, &s)) in e_t.iter().zip(&l.static_emission[i]).enumerate() {
+        for (c, (&t, s)) in e_t.iter().zip(l.static_emission[i].to_array()).enumerate() {
             let t = f64::from(t);
             let within = (t - s).abs() <= s * 2f64.powi(-11) + 2f64.powi(-41);
             if !within {
@@ -139,13 +139,14 @@ pub fn match_scene(table: &Table<'_>, p: &Prepared) -> Result<(), String> {
         }
     }
     for (k, mat) in p.scene.materials.iter().enumerate() {
-        let want = mat.reflectance.map(|r| encode_reflectance(r as f32));
+        let want = mat.reflectance.as_vec3().to_array().map(encode_reflectance);
         let got = table.reflectance(k as u32).unwrap_or([u16::MAX; 3]);
         if want != got {
             let dec = got.map(|c| f64::from(c) / 65536.0);
             return Err(format!(
                 "material {k} (`{}`): reflectance {dec:?} in the table, {:?} in the scene",
-                mat.name, mat.reflectance
+                mat.name,
+                mat.reflectance.to_array()
             ));
         }
     }

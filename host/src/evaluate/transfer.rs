@@ -8,6 +8,7 @@ use super::EvaluateError;
 use crate::inspect::SectionBytes;
 use crate::metrics::{self, ErrorReport};
 use crate::reference::TransferVectors;
+use crate::rgb::Rgb;
 
 /// The transfer basis of a bake (see [`crate::bake::BakeOptions::transfer`]) and its relight's errors.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -27,17 +28,17 @@ pub struct TransferReport {
 pub(super) fn report(
     table: &Table<'_>,
     tv: &TransferVectors,
-    intensity: &[[f64; 3]],
-    b_ref: &[[f64; 3]],
+    intensity: &[Rgb],
+    b_ref: &[Rgb],
     area: &[f64],
 ) -> Result<TransferReport, EvaluateError> {
-    let i_f32: Vec<[f32; 3]> = intensity.iter().map(|v| v.map(|x| x as f32)).collect();
+    let i_f32: Vec<[f32; 3]> = intensity.iter().map(|v| v.as_vec3().to_array()).collect();
     let mut out = vec![[0.0f32; 3]; table.patch_count() as usize];
     radiosity_core::relight_transfer(table, &i_f32, &mut out).map_err(EvaluateError::Transfer)?;
-    let relit: Vec<[f64; 3]> = out.iter().map(|b| b.map(f64::from)).collect();
+    let relit: Vec<Rgb> = out.iter().map(|b| Rgb::from_array(b.map(f64::from))).collect();
     // The f64 basis at the intensities the device was given (f32-rounded), so only the basis's quantization
     // and the static base's codes separate the two.
-    let i_used: Vec<[f64; 3]> = i_f32.iter().map(|v| v.map(f64::from)).collect();
+    let i_used: Vec<Rgb> = i_f32.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
     let exact = tv
         .relight(&i_used)
         .map_err(|source| EvaluateError::Reference { what: "transfer relight", source })?;

@@ -7,6 +7,7 @@ use super::adjacency::{adjacency, touches};
 use super::pieces::{centroid_quads, make_patch, quad_grid, triangle_grid};
 use super::MeshError;
 use crate::patch::Patch;
+use crate::rgb::Rgb;
 use crate::scene::{Polygon, Scene};
 
 /// Splits the patches listed in `which` into children; the others are kept. Each split patch is replaced, in
@@ -88,11 +89,11 @@ pub struct RefineInput<'a> {
     /// The current patches.
     pub patches: &'a [Patch],
     /// Radiosity per patch (the f64 reference solution of this mesh).
-    pub radiosity: &'a [[f64; 3]],
+    pub radiosity: &'a [Rgb],
     /// Emission per patch.
-    pub emission: &'a [[f64; 3]],
+    pub emission: &'a [Rgb],
     /// Reflectance per patch.
-    pub reflectance: &'a [[f64; 3]],
+    pub reflectance: &'a [Rgb],
     /// The form factors of this mesh, their flags marking partly visible pairs (shadow boundaries).
     pub form_factors: &'a crate::patch::FormFactorMatrix,
 }
@@ -119,8 +120,9 @@ impl RefineScore {
     }
 }
 
-fn luminance(c: &[f64; 3]) -> f64 {
-    (c[0] + c[1] + c[2]) / 3.0
+/// The luminance-like value refinement compares: the mean of the three channels.
+fn channel_mean(c: &Rgb) -> f64 {
+    c.element_sum() / 3.0
 }
 
 /// The [`RefineScore`] of every patch.
@@ -137,12 +139,12 @@ pub fn refine_scores(input: &RefineInput<'_>) -> Vec<RefineScore> {
             && input.form_factors.n() == n,
         "one value per patch"
     );
-    let b: Vec<f64> = input.radiosity.iter().map(luminance).collect();
+    let b: Vec<f64> = input.radiosity.iter().map(channel_mean).collect();
     let neighbours = adjacency(input.patches);
     let ff = input.form_factors;
     (0..n)
         .map(|i| {
-            let rho = luminance(&input.reflectance[i]);
+            let rho = channel_mean(&input.reflectance[i]);
             let gradient = neighbours[i].iter().map(|&j| (b[i] - b[j]).abs()).fold(0.0, f64::max);
             let mut shadow = 0.0;
             let mut irradiance = 0.0;
@@ -183,8 +185,8 @@ pub fn select_for_refinement(
     let mean = |emitting_too: bool| {
         let (mut weighted, mut area) = (0.0, 0.0);
         for (i, p) in patches.iter().enumerate() {
-            if emitting_too || luminance(&input.emission[i]) == 0.0 {
-                weighted += luminance(&input.radiosity[i]) * p.area;
+            if emitting_too || channel_mean(&input.emission[i]) == 0.0 {
+                weighted += channel_mean(&input.radiosity[i]) * p.area;
                 area += p.area;
             }
         }
@@ -194,7 +196,7 @@ pub fn select_for_refinement(
             0.0
         }
     };
-    let reference = if patches.iter().enumerate().any(|(i, _)| luminance(&input.emission[i]) == 0.0) {
+    let reference = if patches.iter().enumerate().any(|(i, _)| channel_mean(&input.emission[i]) == 0.0) {
         mean(false)
     } else {
         mean(true)

@@ -17,6 +17,7 @@ use plotters::prelude::*;
 use super::text::{ensure_font, format_tick, FONT_FAMILY};
 use super::tonemap::srgb_encode_u8;
 use super::{PictureError, RgbImage};
+use crate::rgb::Rgb;
 
 /// Control points `(L*, a*, b*)` at `t = 0, 0.25, 0.5, 0.75, 1`.
 const CONTROL_LAB: [[f64; 3]; 5] =
@@ -35,7 +36,7 @@ pub fn ramp_lab(t: f64) -> [f64; 3] {
 
 /// CIELAB (D65) -> linear sRGB, not clipped (CIE 15:2004 inverse; IEC 61966-2-1 XYZ -> RGB matrix).
 #[must_use]
-pub fn lab_to_linear_srgb(lab: [f64; 3]) -> [f64; 3] {
+pub fn lab_to_linear_srgb(lab: [f64; 3]) -> Rgb {
     const WHITE: [f64; 3] = [0.950_47, 1.0, 1.088_83];
     let delta: f64 = 6.0 / 29.0;
     let finv = |t: f64| if t > delta { t * t * t } else { 3.0 * delta * delta * (t - 4.0 / 29.0) };
@@ -43,23 +44,23 @@ pub fn lab_to_linear_srgb(lab: [f64; 3]) -> [f64; 3] {
     let x = WHITE[0] * finv(fy + lab[1] / 500.0);
     let y = WHITE[1] * finv(fy);
     let z = WHITE[2] * finv(fy - lab[2] / 200.0);
-    [
+    Rgb::new(
         3.2406 * x - 1.5372 * y - 0.4986 * z,
         -0.9689 * x + 1.8758 * y + 0.0415 * z,
         0.0557 * x - 0.2040 * y + 1.0570 * z,
-    ]
+    )
 }
 
 /// The ramp at `t` in `[0, 1]` as linear sRGB (clipped to `[0, 1]`).
 #[must_use]
-pub fn ramp(t: f64) -> [f64; 3] {
+pub fn ramp(t: f64) -> Rgb {
     lab_to_linear_srgb(ramp_lab(t)).map(|v| v.clamp(0.0, 1.0))
 }
 
 /// The ramp at `t` in `[0, 1]` as 8-bit sRGB.
 #[must_use]
 pub fn ramp_srgb8(t: f64) -> [u8; 3] {
-    ramp(t).map(srgb_encode_u8)
+    ramp(t).to_array().map(srgb_encode_u8)
 }
 
 /// Maps error values onto the ramp: `min` -> 0 (dark violet), `max` -> 1 (yellow), linearly or in `log10`.
@@ -211,5 +212,5 @@ pub fn patch_colour(index: usize) -> [u8; 3] {
     let hue = (index as f64 * GOLDEN_ANGLE) % std::f64::consts::TAU;
     let l = [55.0, 65.0, 75.0][index % 3];
     let lab = [l, 30.0 * hue.cos(), 30.0 * hue.sin()];
-    lab_to_linear_srgb(lab).map(|v| srgb_encode_u8(v.clamp(0.0, 1.0)))
+    lab_to_linear_srgb(lab).to_array().map(|v| srgb_encode_u8(v.clamp(0.0, 1.0)))
 }

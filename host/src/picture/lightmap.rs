@@ -23,9 +23,9 @@ use serde::Serialize;
 
 use super::hdr::{write_hdr, LinearImage};
 use super::shading::SmoothShader;
-use super::tonemap::luminance;
 use super::{write_file, write_png, PictureError, ToneMap};
 use crate::patch::Patch;
+use crate::rgb::{luminance, Rgb};
 
 /// Options for [`bake_light_map`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -61,13 +61,13 @@ pub struct FaceRect {
     /// Height in texels (padding excluded).
     pub height: u32,
     /// Scene-space point at the outer corner of texel `(x, y)`.
-    pub origin: [f64; 3],
+    pub origin: DVec3,
     /// Unit vector along increasing atlas columns.
-    pub u_axis: [f64; 3],
+    pub u_axis: DVec3,
     /// Unit vector along increasing atlas rows.
-    pub v_axis: [f64; 3],
+    pub v_axis: DVec3,
     /// Face normal.
-    pub normal: [f64; 3],
+    pub normal: DVec3,
     /// Texel edge length in scene units.
     pub texel_size: f64,
     /// Number of patches the face was meshed into.
@@ -78,10 +78,10 @@ impl FaceRect {
     /// Atlas texel coordinates (continuous: texel `(i, j)` spans `[i, i + 1) x [j, j + 1)`) of a point on the face.
     #[must_use]
     pub fn atlas_coords(&self, point: DVec3) -> (f64, f64) {
-        let d = point - DVec3::from_array(self.origin);
+        let d = point - self.origin;
         (
-            f64::from(self.x) + d.dot(DVec3::from_array(self.u_axis)) / self.texel_size,
-            f64::from(self.y) + d.dot(DVec3::from_array(self.v_axis)) / self.texel_size,
+            f64::from(self.x) + d.dot(self.u_axis) / self.texel_size,
+            f64::from(self.y) + d.dot(self.v_axis) / self.texel_size,
         )
     }
 }
@@ -109,7 +109,7 @@ pub struct LightMap {
 pub fn bake_light_map(
     patches: &[Patch],
     shader: &SmoothShader,
-    radiosity: &[[f64; 3]],
+    radiosity: &[Rgb],
     options: &LightMapOptions,
 ) -> Result<LightMap, PictureError> {
     if shader.patch_count() != patches.len() || radiosity.len() != patches.len() {
@@ -297,7 +297,7 @@ pub fn bake_light_map(
                 let patch = owner[j as usize * pw as usize + i as usize].unwrap_or(l.members[0]);
                 let value = shader.shade(radiosity, patch, centre(i, j))?;
                 let index = (py + j) as usize * atlas_width as usize + (px + i) as usize;
-                atlas.pixels[index] = value.map(|c| c as f32);
+                atlas.pixels[index] = value.as_vec3().to_array();
             }
         }
         rects.push(FaceRect {
@@ -306,10 +306,10 @@ pub fn bake_light_map(
             y: py + pad,
             width: w,
             height: h,
-            origin: l.origin.to_array(),
-            u_axis: l.u.to_array(),
-            v_axis: l.v.to_array(),
-            normal: l.normal.to_array(),
+            origin: l.origin,
+            u_axis: l.u,
+            v_axis: l.v,
+            normal: l.normal,
             texel_size,
             patches: l.members.len(),
         });
@@ -343,7 +343,9 @@ impl LightMap {
         for r in &self.rects {
             for y in r.y..r.y + r.height {
                 for x in r.x..r.x + r.width {
-                    out.push(luminance(self.atlas.pixels[y as usize * w + x as usize].map(f64::from)));
+                    out.push(luminance(Rgb::from_array(
+                        self.atlas.pixels[y as usize * w + x as usize].map(f64::from),
+                    )));
                 }
             }
         }
@@ -367,7 +369,7 @@ impl LightMap {
                 ToneMap::DEFAULT_WHITE,
             )?,
         };
-        let linear: Vec<[f64; 3]> = self.atlas.pixels.iter().map(|p| p.map(f64::from)).collect();
+        let linear: Vec<Rgb> = self.atlas.pixels.iter().map(|p| Rgb::from_array(p.map(f64::from))).collect();
         write_hdr(&hdr, &self.atlas)?;
         write_png(&png, &tone.map_image(&linear, self.atlas.width, self.atlas.height)?)?;
         let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();

@@ -15,8 +15,8 @@ use rayon::prelude::*;
 use super::camera::Camera;
 use super::colormap::{patch_colour, ErrorScale};
 use super::shading::SmoothShader;
-use super::tonemap::luminance;
 use super::{PictureError, RgbImage, ToneMap};
+use crate::rgb::{luminance, max_channel, Rgb};
 
 /// A camera and an image size.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -50,7 +50,7 @@ pub enum Colouring<'a> {
     /// Per-patch relative error against `reference`, false-coloured with `scale` (or the default scale).
     Error {
         /// The reference radiosity, one value per patch.
-        reference: &'a [[f64; 3]],
+        reference: &'a [Rgb],
         /// The colour scale; `None` chooses the module's default.
         scale: Option<ErrorScale>,
     },
@@ -62,7 +62,7 @@ pub struct View {
     /// The picture.
     pub image: RgbImage,
     /// Linear radiosity per pixel (zero where nothing is hit), rows from the top.
-    pub linear: Vec<[f64; 3]>,
+    pub linear: Vec<Rgb>,
     /// The patch seen at each pixel.
     pub patch: Vec<Option<u32>>,
     /// The tone map used (shaded and flat views).
@@ -76,7 +76,7 @@ pub struct View {
 /// # Errors
 /// [`PictureError::Invalid`] if the lengths differ; [`PictureError::NonFinite`] naming a patch with a NaN or
 /// infinite value in either.
-pub fn patch_errors(value: &[[f64; 3]], reference: &[[f64; 3]]) -> Result<Vec<f64>, PictureError> {
+pub fn patch_errors(value: &[Rgb], reference: &[Rgb]) -> Result<Vec<f64>, PictureError> {
     if value.len() != reference.len() {
         return Err(PictureError::invalid(
             "error view",
@@ -84,21 +84,20 @@ pub fn patch_errors(value: &[[f64; 3]], reference: &[[f64; 3]]) -> Result<Vec<f6
         ));
     }
     for (what, set) in [("radiosity of patch", value), ("reference radiosity of patch", reference)] {
-        if let Some((index, v)) =
-            set.iter().enumerate().find_map(|(i, b)| b.iter().find(|v| !v.is_finite()).map(|v| (i, *v)))
+        if let Some((index, v)) = set
+            .iter()
+            .enumerate()
+            .find_map(|(i, b)| b.to_array().into_iter().find(|v| !v.is_finite()).map(|v| (i, v)))
         {
             return Err(PictureError::NonFinite { what, index, value: v });
         }
     }
-    let peak = reference.iter().flat_map(|r| r.iter().copied()).fold(0.0, f64::max);
+    let peak = reference.iter().fold(0.0, |peak: f64, &r| peak.max(max_channel(r)));
     let floor = (1e-3 * peak).max(f64::MIN_POSITIVE);
     Ok(value
         .iter()
         .zip(reference)
-        .map(|(b, r)| {
-            let diff = (0..3).map(|c| (b[c] - r[c]).abs()).fold(0.0, f64::max);
-            diff / r.iter().copied().fold(0.0, f64::max).max(floor)
-        })
+        .map(|(&b, &r)| max_channel((b - r).abs()) / max_channel(r).max(floor))
         .collect())
 }
 
@@ -160,7 +159,7 @@ pub fn render(
     frame: &Frame,
     trace: &(dyn Fn(DVec3, DVec3) -> Option<Hit> + Sync),
     shader: &SmoothShader,
-    radiosity: &[[f64; 3]],
+    radiosity: &[Rgb],
     colouring: Colouring<'_>,
     tone: Option<ToneMap>,
 ) -> Result<View, PictureError> {
@@ -179,7 +178,7 @@ pub fn render(
 pub fn colour_view(
     view: &ViewHits,
     shader: &SmoothShader,
-    radiosity: &[[f64; 3]],
+    radiosity: &[Rgb],
     colouring: Colouring<'_>,
     tone: Option<ToneMap>,
 ) -> Result<View, PictureError> {
@@ -202,10 +201,10 @@ pub fn colour_view(
             format!("pixel ({}, {}) hit patch {} of {}", k % w, k / w, h.patch, radiosity.len()),
         ));
     }
-    let linear: Vec<[f64; 3]> = hits
+    let linear: Vec<Rgb> = hits
         .par_iter()
         .map(|h| match (h, colouring) {
-            (None, _) => Ok([0.0; 3]),
+            (None, _) => Ok(Rgb::ZERO),
             (Some(h), Colouring::Shaded) => shader.shade(radiosity, h.patch, h.point),
             (Some(h), _) => Ok(radiosity[h.patch]),
         })
@@ -276,7 +275,7 @@ pub fn colour_view(
 pub fn write_frame_sequence(
     view: &ViewHits,
     shader: &SmoothShader,
-    frames: &[Vec<[f64; 3]>],
+    frames: &[Vec<Rgb>],
     tone: Option<ToneMap>,
     dir: &std::path::Path,
     prefix: &str,

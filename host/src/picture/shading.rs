@@ -39,6 +39,7 @@ use glam::{DMat3, DVec2, DVec3};
 
 use super::PictureError;
 use crate::patch::Patch;
+use crate::rgb::{channel_max, channel_min, Rgb};
 
 /// Options for [`SmoothShader::new`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -298,7 +299,7 @@ impl SmoothShader {
         &self.weights[self.weight_start[c]..self.weight_start[c + 1]]
     }
 
-    fn check(&self, radiosity: &[[f64; 3]], patch: usize) -> Result<(), PictureError> {
+    fn check(&self, radiosity: &[Rgb], patch: usize) -> Result<(), PictureError> {
         if radiosity.len() != self.frames.len() {
             return Err(PictureError::invalid(
                 "radiosity",
@@ -314,40 +315,34 @@ impl SmoothShader {
         Ok(())
     }
 
-    fn corner_value(
-        &self,
-        radiosity: &[[f64; 3]],
-        patch: usize,
-        corner: usize,
-    ) -> Result<[f64; 3], PictureError> {
-        let mut sum = [0.0; 3];
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
+    fn corner_value(&self, radiosity: &[Rgb], patch: usize, corner: usize) -> Result<Rgb, PictureError> {
+        let mut sum = Rgb::ZERO;
+        let mut lo = Rgb::INFINITY;
+        let mut hi = Rgb::NEG_INFINITY;
         for &(q, w) in self.corner_weights(patch, corner) {
             let b = radiosity[q as usize];
-            for (ch, &v) in b.iter().enumerate() {
-                if !v.is_finite() {
-                    return Err(PictureError::NonFinite {
-                        what: "radiosity of patch",
-                        index: q as usize,
-                        value: v,
-                    });
-                }
-                sum[ch] += w * v;
-                lo[ch] = lo[ch].min(v);
-                hi[ch] = hi[ch].max(v);
+            if let Some(v) = b.to_array().into_iter().find(|v| !v.is_finite()) {
+                return Err(PictureError::NonFinite {
+                    what: "radiosity of patch",
+                    index: q as usize,
+                    value: v,
+                });
             }
+            sum += w * b;
+            lo = channel_min(lo, b);
+            hi = channel_max(hi, b);
         }
         // Bound the extrapolation (see the module docs): never below half the smallest or above twice the largest
         // neighbour value. Only steep changes (shadow edges) reach the bounds; smooth fields never do.
-        Ok([0, 1, 2].map(|ch| {
+        let bounded = |ch: usize| {
             let (a, b) = if lo[ch] >= 0.0 {
                 (0.5 * lo[ch], 2.0 * hi[ch])
             } else {
                 (2.0 * lo[ch], 2.0 * hi[ch].max(0.0))
             };
             sum[ch].clamp(a, b.max(a))
-        }))
+        };
+        Ok(Rgb::new(bounded(0), bounded(1), bounded(2)))
     }
 
     /// The smoothed value at corner `corner` of patch `patch` (the fitted value within its bounds, see the module
@@ -356,12 +351,7 @@ impl SmoothShader {
     /// # Errors
     /// [`PictureError::Invalid`] if `radiosity` does not have one value per patch or `patch` / `corner` is out of
     /// range; [`PictureError::NonFinite`] naming a neighbouring patch whose radiosity is NaN or infinite.
-    pub fn vertex_value(
-        &self,
-        radiosity: &[[f64; 3]],
-        patch: usize,
-        corner: usize,
-    ) -> Result<[f64; 3], PictureError> {
+    pub fn vertex_value(&self, radiosity: &[Rgb], patch: usize, corner: usize) -> Result<Rgb, PictureError> {
         self.check(radiosity, patch)?;
         if corner >= self.frames[patch].corners.len() {
             return Err(PictureError::invalid(
@@ -393,12 +383,7 @@ impl SmoothShader {
     ///
     /// # Errors
     /// As [`SmoothShader::vertex_value`], and [`PictureError::NonFinite`] if `point` is not finite.
-    pub fn shade(
-        &self,
-        radiosity: &[[f64; 3]],
-        patch: usize,
-        point: DVec3,
-    ) -> Result<[f64; 3], PictureError> {
+    pub fn shade(&self, radiosity: &[Rgb], patch: usize, point: DVec3) -> Result<Rgb, PictureError> {
         self.check(radiosity, patch)?;
         if let Some((index, &value)) = point.to_array().iter().enumerate().find(|(_, v)| !v.is_finite()) {
             return Err(PictureError::NonFinite { what: "shading point coordinate", index, value });
@@ -413,15 +398,12 @@ impl SmoothShader {
                 .unwrap_or(q);
         }
         let lambda = interpolation_weights(&f.corners, q);
-        let mut out = [0.0; 3];
+        let mut out = Rgb::ZERO;
         for (k, &l) in lambda.iter().enumerate() {
             if l == 0.0 {
                 continue;
             }
-            let c = self.corner_value(radiosity, patch, k)?;
-            for ch in 0..3 {
-                out[ch] += l * c[ch];
-            }
+            out += l * self.corner_value(radiosity, patch, k)?;
         }
         Ok(out.map(|v| v.max(0.0)))
     }

@@ -8,7 +8,8 @@
 //!    everything below keeps its contrast.
 //! 2. **Operator**: the extended Reinhard operator on luminance (Reinhard, Stark, Shirley, Ferwerda, "Photographic
 //!    Tone Reproduction for Digital Images", SIGGRAPH 2002, eq. 4): `L_d = L (1 + L / L_white^2) / (1 + L)`, with
-//!    `L = Y(c')` the Rec. 709 luminance `0.2126 R + 0.7152 G + 0.0722 B` (ITU-R BT.709, the sRGB primaries).
+//!    `L = Y(c')` the Rec. 709 luminance `0.2126 R + 0.7152 G + 0.0722 B` ([`luminance`]; ITU-R BT.709, the sRGB
+//!    primaries).
 //!    The colour is scaled by `L_d / L`, which keeps its hue and saturation; channels above 1 are then clipped.
 //!    `L_white` is the exposed luminance that maps to exactly 1.
 //! 3. **Encoding**: the sRGB opto-electronic transfer function (IEC 61966-2-1:1999):
@@ -18,15 +19,7 @@
 //! infinities are refused with an error naming the pixel.
 
 use super::PictureError;
-
-/// Rec. 709 / sRGB luminance weights (ITU-R BT.709-6, item 3.3).
-pub const LUMINANCE_WEIGHTS: [f64; 3] = [0.2126, 0.7152, 0.0722];
-
-/// Rec. 709 relative luminance of a linear RGB value.
-#[must_use]
-pub fn luminance(rgb: [f64; 3]) -> f64 {
-    LUMINANCE_WEIGHTS[0] * rgb[0] + LUMINANCE_WEIGHTS[1] * rgb[1] + LUMINANCE_WEIGHTS[2] * rgb[2]
-}
+use crate::rgb::{luminance, Rgb};
 
 /// The sRGB transfer function (IEC 61966-2-1), linear `[0, 1]` -> encoded `[0, 1]`. Inputs are clamped to `[0, 1]`
 /// (NaN maps to 0).
@@ -175,8 +168,8 @@ impl ToneMap {
     ///
     /// # Errors
     /// [`PictureError::NonFinite`] if a channel is NaN or infinite (`index` is the channel).
-    pub fn map_linear(&self, rgb: [f64; 3]) -> Result<[f64; 3], PictureError> {
-        for (index, &v) in rgb.iter().enumerate() {
+    pub fn map_linear(&self, rgb: Rgb) -> Result<Rgb, PictureError> {
+        for (index, v) in rgb.to_array().into_iter().enumerate() {
             if !v.is_finite() {
                 return Err(PictureError::NonFinite { what: "tone map input channel", index, value: v });
             }
@@ -185,7 +178,7 @@ impl ToneMap {
         let l = luminance(c);
         if l <= 0.0 {
             // Only possible for black (all channels zero after clamping).
-            return Ok([0.0; 3]);
+            return Ok(Rgb::ZERO);
         }
         let ld = l * (1.0 + l / (self.white * self.white)) / (1.0 + l);
         let k = ld / l;
@@ -196,8 +189,8 @@ impl ToneMap {
     ///
     /// # Errors
     /// As [`ToneMap::map_linear`].
-    pub fn map_srgb8(&self, rgb: [f64; 3]) -> Result<[u8; 3], PictureError> {
-        Ok(self.map_linear(rgb)?.map(srgb_encode_u8))
+    pub fn map_srgb8(&self, rgb: Rgb) -> Result<[u8; 3], PictureError> {
+        Ok(self.map_linear(rgb)?.to_array().map(srgb_encode_u8))
     }
 
     /// Tone maps a linear image (`width * height` RGB values, rows from the top) to an 8-bit sRGB image.
@@ -205,7 +198,7 @@ impl ToneMap {
     /// # Errors
     /// [`PictureError::Invalid`] if the length is not `width * height`; [`PictureError::NonFinite`] naming the
     /// first pixel with a NaN or infinite channel.
-    pub fn map_image(&self, linear: &[[f64; 3]], width: u32, height: u32) -> Result<RgbImage, PictureError> {
+    pub fn map_image(&self, linear: &[Rgb], width: u32, height: u32) -> Result<RgbImage, PictureError> {
         let n = width as usize * height as usize;
         if linear.len() != n {
             return Err(PictureError::invalid(

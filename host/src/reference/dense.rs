@@ -8,6 +8,7 @@ use faer::{Mat, Par};
 
 use super::error::{check_finite, check_len, ReferenceError};
 use super::system::{RadiositySystem, Solution};
+use crate::rgb::Rgb;
 
 /// Largest system [`DenseLu::factor`] accepts: 4096 patches, `4096^2 * 8` bytes = 128 MiB per channel.
 pub const MAX_DENSE_PATCHES: usize = 4096;
@@ -116,7 +117,7 @@ impl<'a> DenseLu<'a> {
     ///
     /// # Errors
     /// A length mismatch or a non-finite emission.
-    pub fn solve(&self, e: &[[f64; 3]]) -> Result<Solution, ReferenceError> {
+    pub fn solve(&self, e: &[Rgb]) -> Result<Solution, ReferenceError> {
         let mut all = self.solve_many(&[e])?;
         Ok(all.remove(0))
     }
@@ -125,14 +126,14 @@ impl<'a> DenseLu<'a> {
     ///
     /// # Errors
     /// A length mismatch or a non-finite emission in any of them.
-    pub fn solve_many(&self, rhs: &[&[[f64; 3]]]) -> Result<Vec<Solution>, ReferenceError> {
+    pub fn solve_many(&self, rhs: &[&[Rgb]]) -> Result<Vec<Solution>, ReferenceError> {
         let n = self.system.len();
         for e in rhs {
             check_len("emission", e, n)?;
             check_finite("emission", e)?;
         }
         let k = rhs.len();
-        let mut out: Vec<Vec<[f64; 3]>> = vec![vec![[0.0; 3]; n]; k];
+        let mut out: Vec<Vec<Rgb>> = vec![vec![Rgb::ZERO; n]; k];
         let par = Par::Seq;
         let mut buffer = MemBuffer::new(solve::solve_in_place_scratch::<usize, f64>(n, k, par));
         for channel in 0..3 {

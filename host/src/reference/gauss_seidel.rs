@@ -3,7 +3,8 @@
 
 use super::error::{check_finite, check_len, ReferenceError};
 use super::system::{RadiositySystem, Solution};
-use crate::metrics::relative;
+use crate::metrics::relative_channels;
+use crate::rgb::{channel_max, max_channel, Rgb};
 
 /// Default relative residual Gauss-Seidel iterates to.
 pub const DEFAULT_TOLERANCE: f64 = 1e-12;
@@ -59,7 +60,7 @@ pub fn gauss_seidel_sweep_bound(q: f64, tolerance: f64) -> usize {
 /// sweeps done and the residual reached) when the cap is hit.
 pub fn gauss_seidel(
     system: &RadiositySystem<'_>,
-    e: &[[f64; 3]],
+    e: &[Rgb],
     options: &GaussSeidelOptions,
 ) -> Result<Solution, ReferenceError> {
     let n = system.len();
@@ -70,47 +71,36 @@ pub fn gauss_seidel(
         return Err(ReferenceError::InvalidTolerance(tolerance));
     }
     let q = system.contraction();
-    let max_sweeps = options
-        .max_sweeps
-        .unwrap_or_else(|| gauss_seidel_sweep_bound(q.iter().copied().fold(0.0, f64::max), tolerance));
-    let worst = |r: &[f64; 3]| r.iter().copied().fold(0.0, f64::max);
-    let mut scale = [0.0f64; 3];
-    for row in e {
-        for c in 0..3 {
-            scale[c] = scale[c].max(row[c].abs());
-        }
-    }
+    let max_sweeps =
+        options.max_sweeps.unwrap_or_else(|| gauss_seidel_sweep_bound(max_channel(q), tolerance));
+    let scale = e.iter().fold(Rgb::ZERO, |scale, row| channel_max(scale, row.abs()));
 
     let mut b = e.to_vec();
     let mut residual = system.relative_residual(&b, e)?;
     let mut sweeps = 0;
-    while worst(&residual) > tolerance {
+    while max_channel(residual) > tolerance {
         if sweeps >= max_sweeps {
-            return Err(ReferenceError::NotConverged { sweeps, residual: worst(&residual), tolerance });
+            return Err(ReferenceError::NotConverged { sweeps, residual: max_channel(residual), tolerance });
         }
-        let mut change = [0.0f64; 3];
+        let mut change = Rgb::ZERO;
         for i in 0..n {
-            let mut gathered = [0.0; 3];
+            let mut gathered = Rgb::ZERO;
             let mut self_ff = 0.0;
             for (j, f) in system.form_factors().row(i) {
                 if j == i {
                     self_ff = f;
                 } else {
-                    for c in 0..3 {
-                        gathered[c] += f * b[j][c];
-                    }
+                    gathered += f * b[j];
                 }
             }
             let rho = system.rho()[i];
-            let new = [0, 1, 2].map(|c| (e[i][c] + rho[c] * gathered[c]) / (1.0 - rho[c] * self_ff));
-            for c in 0..3 {
-                change[c] = change[c].max((new[c] - b[i][c]).abs());
-            }
+            let new = (e[i] + rho * gathered) / (1.0 - rho * self_ff);
+            change = channel_max(change, (new - b[i]).abs());
             b[i] = new;
         }
         sweeps += 1;
-        let bound = [0, 1, 2].map(|c| relative(q[c] * change[c], scale[c]));
-        if worst(&bound) <= tolerance || sweeps >= max_sweeps {
+        let bound = relative_channels(q * change, scale);
+        if max_channel(bound) <= tolerance || sweeps >= max_sweeps {
             residual = system.relative_residual(&b, e)?;
         }
     }

@@ -5,6 +5,7 @@ use super::dense::{DenseLu, MAX_DENSE_PATCHES};
 use super::error::ReferenceError;
 use super::gauss_seidel::{gauss_seidel, GaussSeidelOptions};
 use super::system::{RadiositySystem, Solution};
+use crate::rgb::Rgb;
 
 /// Which reference solver to use.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,7 +44,7 @@ impl Method {
 /// Any error of [`DenseLu::factor_with_limit`], [`DenseLu::solve_many`] or [`gauss_seidel`].
 pub fn solve_many(
     system: RadiositySystem<'_>,
-    rhs: &[&[[f64; 3]]],
+    rhs: &[&[Rgb]],
     method: &Method,
 ) -> Result<Vec<Solution>, ReferenceError> {
     match method {

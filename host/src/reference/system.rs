@@ -3,8 +3,9 @@
 //! posed).
 
 use super::error::{check_finite, check_len, ReferenceError};
-use crate::metrics::relative;
+use crate::metrics::relative_channels;
 use crate::patch::FormFactorMatrix;
+use crate::rgb::{channel_max, Rgb};
 
 /// Default slack on form-factor row sums above 1.
 ///
@@ -19,10 +20,10 @@ pub const DEFAULT_ROW_SUM_TOLERANCE: f64 = 1e-9;
 /// Construction checks everything the solvers rely on (see the module docs); afterwards every solve is well posed.
 #[derive(Clone, Copy, Debug)]
 pub struct RadiositySystem<'a> {
-    rho: &'a [[f64; 3]],
+    rho: &'a [Rgb],
     ff: &'a FormFactorMatrix,
     /// `q` per channel: `max_i rho_i * s_i`.
-    contraction: [f64; 3],
+    contraction: Rgb,
 }
 
 impl<'a> RadiositySystem<'a> {
@@ -30,7 +31,7 @@ impl<'a> RadiositySystem<'a> {
     ///
     /// # Errors
     /// See [`RadiositySystem::with_row_sum_tolerance`].
-    pub fn new(rho: &'a [[f64; 3]], ff: &'a FormFactorMatrix) -> Result<Self, ReferenceError> {
+    pub fn new(rho: &'a [Rgb], ff: &'a FormFactorMatrix) -> Result<Self, ReferenceError> {
         Self::with_row_sum_tolerance(rho, ff, DEFAULT_ROW_SUM_TOLERANCE)
     }
 
@@ -41,7 +42,7 @@ impl<'a> RadiositySystem<'a> {
     /// `1 + row_sum_tolerance`, or `rho_i * s_i >= 1` for some patch and channel. (The matrix's structure and
     /// finite values are guaranteed by [`FormFactorMatrix::new`].)
     pub fn with_row_sum_tolerance(
-        rho: &'a [[f64; 3]],
+        rho: &'a [Rgb],
         ff: &'a FormFactorMatrix,
         row_sum_tolerance: f64,
     ) -> Result<Self, ReferenceError> {
@@ -52,13 +53,13 @@ impl<'a> RadiositySystem<'a> {
         check_len("reflectance", rho, n)?;
         check_finite("reflectance", rho)?;
         for (patch, r) in rho.iter().enumerate() {
-            for (channel, &value) in r.iter().enumerate() {
+            for (channel, value) in r.to_array().into_iter().enumerate() {
                 if !(0.0..1.0).contains(&value) {
                     return Err(ReferenceError::ReflectanceOutOfRange { patch, channel, value });
                 }
             }
         }
-        let mut contraction = [0.0f64; 3];
+        let mut contraction = Rgb::ZERO;
         for (row, rho_row) in rho.iter().enumerate() {
             let mut sum = 0.0;
             for (col, value) in ff.row(row) {
@@ -70,12 +71,12 @@ impl<'a> RadiositySystem<'a> {
             if sum > 1.0 + row_sum_tolerance {
                 return Err(ReferenceError::RowSumTooLarge { row, sum, tolerance: row_sum_tolerance });
             }
-            for (channel, (&r, q_max)) in rho_row.iter().zip(&mut contraction).enumerate() {
-                let q = r * sum;
+            for channel in 0..3 {
+                let (r, q) = (rho_row[channel], rho_row[channel] * sum);
                 if q >= 1.0 {
                     return Err(ReferenceError::NotContractive { patch: row, channel, rho: r, row_sum: sum });
                 }
-                *q_max = q_max.max(q);
+                contraction[channel] = contraction[channel].max(q);
             }
         }
         Ok(Self { rho, ff, contraction })
@@ -95,7 +96,7 @@ impl<'a> RadiositySystem<'a> {
 
     /// Reflectance per patch.
     #[must_use]
-    pub fn rho(&self) -> &'a [[f64; 3]] {
+    pub fn rho(&self) -> &'a [Rgb] {
         self.rho
     }
 
@@ -107,13 +108,13 @@ impl<'a> RadiositySystem<'a> {
 
     /// The contraction factor `q = max_i rho_i * sum_j F_ij` per channel, below 1.
     #[must_use]
-    pub fn contraction(&self) -> [f64; 3] {
+    pub fn contraction(&self) -> Rgb {
         self.contraction
     }
 
     /// Upper bound on the max-norm condition number of `I - R F` per channel: `(1 + q) / (1 - q)`.
     #[must_use]
-    pub fn condition_bound(&self) -> [f64; 3] {
+    pub fn condition_bound(&self) -> Rgb {
         self.contraction.map(|q| (1.0 + q) / (1.0 - q))
     }
 
@@ -121,18 +122,15 @@ impl<'a> RadiositySystem<'a> {
     ///
     /// # Errors
     /// If `b` does not have one entry per patch.
-    pub fn apply(&self, b: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, ReferenceError> {
+    pub fn apply(&self, b: &[Rgb]) -> Result<Vec<Rgb>, ReferenceError> {
         check_len("radiosity", b, self.len())?;
         Ok((0..self.len())
             .map(|i| {
-                let mut gathered = [0.0; 3];
+                let mut gathered = Rgb::ZERO;
                 for (j, f) in self.ff.row(i) {
-                    for c in 0..3 {
-                        gathered[c] += f * b[j][c];
-                    }
+                    gathered += f * b[j];
                 }
-                let rho = self.rho[i];
-                [0, 1, 2].map(|c| b[i][c] - rho[c] * gathered[c])
+                b[i] - self.rho[i] * gathered
             })
             .collect())
     }
@@ -142,31 +140,29 @@ impl<'a> RadiositySystem<'a> {
     ///
     /// # Errors
     /// If `b` or `e` does not have one entry per patch.
-    pub fn relative_residual(&self, b: &[[f64; 3]], e: &[[f64; 3]]) -> Result<[f64; 3], ReferenceError> {
+    pub fn relative_residual(&self, b: &[Rgb], e: &[Rgb]) -> Result<Rgb, ReferenceError> {
         check_len("emission", e, self.len())?;
         let lhs = self.apply(b)?;
-        let mut res = [0.0f64; 3];
-        let mut scale = [0.0f64; 3];
-        for (l, e) in lhs.iter().zip(e) {
-            for c in 0..3 {
-                res[c] = res[c].max((e[c] - l[c]).abs());
-                scale[c] = scale[c].max(e[c].abs());
-            }
+        let mut res = Rgb::ZERO;
+        let mut scale = Rgb::ZERO;
+        for (&l, &e) in lhs.iter().zip(e) {
+            res = channel_max(res, (e - l).abs());
+            scale = channel_max(scale, e.abs());
         }
-        Ok([0, 1, 2].map(|c| relative(res[c], scale[c])))
+        Ok(relative_channels(res, scale))
     }
 }
 
 /// Radiosity per patch (W/m^2, RGB).
-pub type Radiosity = Vec<[f64; 3]>;
+pub type Radiosity = Vec<Rgb>;
 
 /// A reference answer and how well it satisfies the equation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Solution {
     /// Radiosity per patch and channel.
-    pub b: Vec<[f64; 3]>,
+    pub b: Vec<Rgb>,
     /// Relative residual per channel, recomputed from `b` (see [`RadiositySystem::relative_residual`]).
-    pub residual: [f64; 3],
+    pub residual: Rgb,
     /// Gauss-Seidel sweeps performed (0 for the dense solver).
     pub sweeps: usize,
 }

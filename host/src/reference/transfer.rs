@@ -6,14 +6,15 @@ use super::method::{solve_many, Method};
 use super::system::RadiositySystem;
 use crate::lighting::PatchLighting;
 use crate::patch::FormFactorMatrix;
+use crate::rgb::{max_channel, Rgb};
 
 /// Emission of a scene split into a static part and dynamic light groups.
 #[derive(Clone, Copy, Debug)]
 pub struct LightGroupEmission<'a> {
     /// Emission of the static lights, always on, per patch (W/m^2).
-    pub static_emission: &'a [[f64; 3]],
+    pub static_emission: &'a [Rgb],
     /// Emission per patch of its dynamic light group at unit intensity (W/m^2); zero for patches in no group.
-    pub unit_emission: &'a [[f64; 3]],
+    pub unit_emission: &'a [Rgb],
     /// Dynamic light group of each patch (`None`: in no dynamic group).
     pub group: &'a [Option<usize>],
     /// Number of dynamic light groups.
@@ -38,9 +39,9 @@ impl<'a> LightGroupEmission<'a> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct TransferVectors {
     /// Radiosity from the static emission alone.
-    pub b_static: Vec<[f64; 3]>,
+    pub b_static: Vec<Rgb>,
     /// `t[g]`: radiosity from light group `g` at unit intensity (all other emission off).
-    pub t: Vec<Vec<[f64; 3]>>,
+    pub t: Vec<Vec<Rgb>>,
     /// Largest relative residual over all the solves and channels.
     pub residual: f64,
     /// Gauss-Seidel sweeps over all the solves (0 for the dense solver).
@@ -52,10 +53,10 @@ impl TransferVectors {
     ///
     /// # Errors
     /// If `intensity` does not have one entry per group, or an intensity is not finite.
-    pub fn relight(&self, intensity: &[[f64; 3]]) -> Result<Vec<[f64; 3]>, ReferenceError> {
+    pub fn relight(&self, intensity: &[Rgb]) -> Result<Vec<Rgb>, ReferenceError> {
         check_len("intensity", intensity, self.t.len())?;
         for (group, v) in intensity.iter().enumerate() {
-            for (channel, &value) in v.iter().enumerate() {
+            for (channel, value) in v.to_array().into_iter().enumerate() {
                 if !value.is_finite() {
                     return Err(ReferenceError::NonFiniteIntensity { group, channel, value });
                 }
@@ -63,10 +64,8 @@ impl TransferVectors {
         }
         let mut b = self.b_static.clone();
         for (t, i) in self.t.iter().zip(intensity) {
-            for (bp, tp) in b.iter_mut().zip(t) {
-                for c in 0..3 {
-                    bp[c] += i[c] * tp[c];
-                }
+            for (bp, &tp) in b.iter_mut().zip(t) {
+                *bp += *i * tp;
             }
         }
         Ok(b)
@@ -91,7 +90,7 @@ pub fn transfer_vectors(
     check_len("unit emission", lights.unit_emission, n)?;
     check_len("light group membership", lights.group, n)?;
     check_finite("unit emission", lights.unit_emission)?;
-    let mut rhs = vec![vec![[0.0; 3]; n]; lights.group_count];
+    let mut rhs = vec![vec![Rgb::ZERO; n]; lights.group_count];
     for (patch, (g, e)) in lights.group.iter().zip(lights.unit_emission).enumerate() {
         match *g {
             Some(group) if group >= lights.group_count => {
@@ -102,14 +101,14 @@ pub fn transfer_vectors(
                 });
             }
             Some(group) => rhs[group][patch] = *e,
-            None if e.iter().any(|&v| v != 0.0) => return Err(ReferenceError::UngroupedEmission { patch }),
+            None if *e != Rgb::ZERO => return Err(ReferenceError::UngroupedEmission { patch }),
             None => {}
         }
     }
-    let mut all: Vec<&[[f64; 3]]> = vec![lights.static_emission];
+    let mut all: Vec<&[Rgb]> = vec![lights.static_emission];
     all.extend(rhs.iter().map(Vec::as_slice));
     let solutions = solve_many(system, &all, method)?;
-    let residual = solutions.iter().flat_map(|s| s.residual).fold(0.0, f64::max);
+    let residual = solutions.iter().map(|s| s.residual).fold(0.0, |worst: f64, r| worst.max(max_channel(r)));
     let sweeps = solutions.iter().map(|s| s.sweeps).sum();
     let mut solutions = solutions.into_iter().map(|s| s.b);
     let b_static = solutions.next().unwrap_or_default();

@@ -8,6 +8,7 @@ use std::path::Path;
 use super::config::TomlGroup;
 use super::error::SceneError;
 use super::material::Material;
+use crate::rgb::Rgb;
 
 /// A light group: emitting materials whose intensity changes together.
 #[derive(Clone, Debug, PartialEq)]
@@ -19,7 +20,7 @@ pub struct LightGroup {
     /// Whether the group's intensity can change at run time (a static group is folded into the base).
     pub dynamic: bool,
     /// Default intensity per RGB channel, multiplying the materials' `Ke`.
-    pub intensity: [f64; 3],
+    pub intensity: Rgb,
 }
 
 pub(super) fn build_light_groups(
@@ -65,16 +66,16 @@ pub(super) fn build_light_groups(
         }
         let number = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
         let intensity = match &g.intensity {
-            None => [1.0; 3],
+            None => Rgb::ONE,
             Some(toml::Value::Array(a)) if a.len() == 3 => {
                 match (number(&a[0]), number(&a[1]), number(&a[2])) {
-                    (Some(r), Some(g), Some(b)) => [r, g, b],
-                    _ => [f64::NAN; 3],
+                    (Some(r), Some(g), Some(b)) => Rgb::new(r, g, b),
+                    _ => Rgb::NAN,
                 }
             }
-            Some(v) => number(v).map_or([f64::NAN; 3], |x| [x; 3]),
+            Some(v) => number(v).map_or(Rgb::NAN, Rgb::splat),
         };
-        if intensity.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+        if !(intensity.is_finite() && intensity.cmpge(Rgb::ZERO).all()) {
             return Err(invalid(format!(
                 "light group '{}' has intensity {}; it must be one number or an array of 3, each finite and >= 0",
                 g.name,
@@ -97,7 +98,7 @@ pub(super) fn build_light_groups(
                 name: mat.name.clone(),
                 materials: vec![m],
                 dynamic: true,
-                intensity: [1.0; 3],
+                intensity: Rgb::ONE,
             });
         }
     }

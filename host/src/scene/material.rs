@@ -3,6 +3,7 @@
 
 use super::error::SceneError;
 use super::obj::{MaterialSource, ObjData};
+use crate::rgb::Rgb;
 
 /// A diffuse material.
 #[derive(Clone, Debug, PartialEq)]
@@ -10,16 +11,16 @@ pub struct Material {
     /// Name from the MTL `newmtl` statement.
     pub name: String,
     /// Reflectance per RGB channel (`Kd`), each in `[0, 1)`.
-    pub reflectance: [f64; 3],
+    pub reflectance: Rgb,
     /// Emission per RGB channel (`Ke`), radiant exitance in W/m^2, each finite and `>= 0`.
-    pub emission: [f64; 3],
+    pub emission: Rgb,
 }
 
 impl Material {
     /// Whether the material emits light (any channel of `Ke` above zero).
     #[must_use]
     pub fn is_emitter(&self) -> bool {
-        self.emission.iter().any(|&e| e > 0.0)
+        self.emission.cmpgt(Rgb::ZERO).any()
     }
 }
 
@@ -59,7 +60,11 @@ pub(super) fn check_materials(obj: &ObjData) -> Result<Vec<Material>, SceneError
                 return Err(bad(src.ke_line, format!("emission Ke channel {c} = {e} is negative")));
             }
         }
-        out.push(Material { name: m.name.clone(), reflectance: kd, emission: ke });
+        out.push(Material {
+            name: m.name.clone(),
+            reflectance: Rgb::from_array(kd),
+            emission: Rgb::from_array(ke),
+        });
     }
     Ok(out)
 }

@@ -1,6 +1,7 @@
 //! Baked tables on the device solver: closed forms, the static base, buffer sizes, run-time state.
 
 use super::*;
+use radiosity_host::rgb::Rgb;
 
 #[test]
 fn furnace_bake_converges_on_device_to_closed_form() {
@@ -46,8 +47,8 @@ fn furnace_bake_converges_on_device_to_closed_form() {
 #[test]
 fn static_light_is_folded_into_the_base() {
     // The dynamic `lamp` defaults to 0 and `sun` to 0.5: set sun to 0 too, so only the static light is on.
-    let mut scene = lit_scene(4, 40, 0.3, [0.0; 3]);
-    scene.lighting.default_intensity[1] = [0.0; 3];
+    let mut scene = lit_scene(4, 40, 0.3, Rgb::ZERO);
+    scene.lighting.default_intensity[1] = Rgb::ZERO;
     let baked = scene.bake(0.0, FfCodec::FLOAT16);
     assert!(baked.report.base_solved);
     let table = Table::parse(&baked.table).unwrap();
@@ -90,7 +91,7 @@ fn static_light_is_folded_into_the_base() {
 
 #[test]
 fn capacities_size_the_solver_exactly() {
-    let scene = lit_scene(7, 25, 0.4, [1.0; 3]);
+    let scene = lit_scene(7, 25, 0.4, Rgb::ONE);
     let baked = scene.bake(0.01, FfCodec::FLOAT16);
     let cap = &baked.capacities;
     let table = Table::parse(&baked.table).unwrap();
@@ -136,7 +137,7 @@ fn capacities_size_the_solver_exactly() {
 fn reachability_stops_at_black_patches_and_disconnected_parts() {
     // Patches 0..4: 0 is the dynamic light, 0 -> 1 -> 2 (1 is black) and 0 -> 3; 4 is not connected.
     let patches: Vec<Patch> = (0..5).map(|k| patch(k, 1.0, usize::from(k == 1))).collect();
-    let materials = vec![[0.5; 3], [0.0; 3]];
+    let materials = vec![Rgb::splat(0.5), Rgb::ZERO];
     let rows = vec![
         vec![0.0, 0.3, 0.0, 0.3, 0.0],
         vec![0.3, 0.0, 0.3, 0.0, 0.0],
@@ -146,7 +147,7 @@ fn reachability_stops_at_black_patches_and_disconnected_parts() {
     ];
     let mut lighting = dark_lighting(&patches, &materials, 1);
     lighting.group[0] = Some(0);
-    lighting.unit_emission[0] = [1.0; 3];
+    lighting.unit_emission[0] = Rgb::ONE;
     let scene =
         TestScene { patches, materials, lighting, names: vec!["lamp".into()], ff: dense_to_csr(&rows) };
     let reach = reachable_patches(&scene.ff, &scene.lighting.group, &scene.lighting.rho);
@@ -179,7 +180,7 @@ fn reachability_stops_at_black_patches_and_disconnected_parts() {
 #[test]
 fn static_base_is_a_fixed_point_of_shooting_without_reciprocity() {
     use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
-    let mut scene = lit_scene(9, 40, 0.4, [1.0; 3]);
+    let mut scene = lit_scene(9, 40, 0.4, Rgb::ONE);
     // Perturb every entry by up to 5%, as a Monte Carlo estimate would (row sums stay <= 0.9 * 1.05).
     let mut rng = SplitMix64::new(99);
     scene.ff.map_values(|_, _, f| f * (0.95 + 0.1 * rng.unit()));
@@ -198,8 +199,8 @@ fn static_base_is_a_fixed_point_of_shooting_without_reciprocity() {
     };
     // Decoded power Phi'_j = A_j (E'_j + rho'_j G'_j) and its bound against A_j B_j:
     // A_j (2^-11 E_j + 2^-11 rho_j G_j + 2^-17 G_j).
-    let mut phi = vec![[0.0; 3]; n];
-    let mut phi_err = vec![[0.0; 3]; n];
+    let mut phi = vec![Rgb::ZERO; n];
+    let mut phi_err = vec![Rgb::ZERO; n];
     for j in 0..n {
         let (e, gs, rho) = (
             dec(table.base_emission(j as u32).unwrap()),
@@ -212,8 +213,8 @@ fn static_base_is_a_fixed_point_of_shooting_without_reciprocity() {
             phi_err[j][c] = area[j] * (2f64.powi(-11) * (es + r * g[j][c]) + 2f64.powi(-17) * g[j][c]);
         }
     }
-    let mut h = vec![[0.0; 3]; n];
-    let mut h_err = vec![[0.0; 3]; n];
+    let mut h = vec![Rgb::ZERO; n];
+    let mut h_err = vec![Rgb::ZERO; n];
     for j in 0..n as u32 {
         let row_max = baked.sparse.matrix.row(j as usize).map(|(_, f)| f).fold(0.0, f64::max);
         for k in table.row(j).unwrap() {
@@ -333,7 +334,7 @@ fn shipped_furnace_scene_bakes_and_relights_to_closed_form() {
 #[test]
 fn gauss_seidel_and_dense_bakes_agree() {
     use radiosity_host::reference::{GaussSeidelOptions, Method};
-    let scene = lit_scene(10, 60, 0.3, [1.0; 3]);
+    let scene = lit_scene(10, 60, 0.3, Rgb::ONE);
     let run = |method| {
         let options = BakeOptions { threshold: 1e-2, method: Some(method), ..BakeOptions::default() };
         let baked = bake(&scene.input(), &options).unwrap();

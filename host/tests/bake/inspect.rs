@@ -1,10 +1,11 @@
 //! `radiosity inspect` on baked tables: the counts it reports, and named errors for damaged files.
 
 use super::*;
+use radiosity_host::rgb::Rgb;
 
 #[test]
 fn inspect_reports_the_baked_counts() {
-    let scene = lit_scene(5, 30, 0.4, [1.0; 3]);
+    let scene = lit_scene(5, 30, 0.4, Rgb::ONE);
     let baked = scene.bake(0.01, FfCodec::FLOAT8);
     let r = inspect(&baked.table).expect("inspect");
     assert_eq!(r.counts.patches, 30);
@@ -46,7 +47,7 @@ fn inspect_reports_the_baked_counts() {
 
 #[test]
 fn inspect_rejects_truncated_and_corrupted_tables_with_context() {
-    let scene = lit_scene(6, 20, 0.4, [1.0; 3]);
+    let scene = lit_scene(6, 20, 0.4, Rgb::ONE);
     let baked = scene.bake(0.0, FfCodec::FLOAT16);
     let len = baked.table.len();
     let err = inspect(&baked.table[..len - 10]).unwrap_err();

@@ -22,6 +22,7 @@ use radiosity_host::evaluate::{evaluate, BakeErrors, BakeSummary, EvaluateOption
 use radiosity_host::inspect::{inspect, inspect_file, InspectError};
 use radiosity_host::lighting::PatchLighting;
 use radiosity_host::patch::{FormFactorMatrix, Patch};
+use radiosity_host::rgb::Rgb;
 use radiosity_host::rng::SplitMix64;
 
 const EPS32: f64 = f32::EPSILON as f64;
@@ -41,7 +42,7 @@ fn dense_to_csr(rows: &[Vec<f64>]) -> FormFactorMatrix {
 /// A scene: patches, per-material reflectance, lighting and group names, and its form factors.
 struct TestScene {
     patches: Vec<Patch>,
-    materials: Vec<[f64; 3]>,
+    materials: Vec<Rgb>,
     lighting: PatchLighting,
     names: Vec<String>,
     ff: FormFactorMatrix,
@@ -76,15 +77,15 @@ impl TestScene {
 }
 
 /// Lighting with no emission; patches take their material's reflectance.
-fn dark_lighting(patches: &[Patch], materials: &[[f64; 3]], groups: usize) -> PatchLighting {
+fn dark_lighting(patches: &[Patch], materials: &[Rgb], groups: usize) -> PatchLighting {
     let n = patches.len();
     PatchLighting {
         rho: patches.iter().map(|p| materials[p.material]).collect(),
-        static_emission: vec![[0.0; 3]; n],
-        unit_emission: vec![[0.0; 3]; n],
+        static_emission: vec![Rgb::ZERO; n],
+        unit_emission: vec![Rgb::ZERO; n],
         group: vec![None; n],
         dynamic_groups: (0..groups).collect(),
-        default_intensity: vec![[1.0; 3]; groups],
+        default_intensity: vec![Rgb::ONE; groups],
     }
 }
 
@@ -93,12 +94,12 @@ fn dark_lighting(patches: &[Patch], materials: &[[f64; 3]], groups: usize) -> Pa
 /// light group at default intensity 1, reflectance `rho`. Exact answer `B = e / (1 - rho)`.
 fn furnace(n: usize, rho: f64, e: f64) -> TestScene {
     let patches: Vec<Patch> = (0..n).map(|k| patch(k, 1.0, 0)).collect();
-    let materials = vec![[rho; 3]];
+    let materials = vec![Rgb::splat(rho)];
     let f = 1.0 / (n - 1) as f64;
     let rows: Vec<Vec<f64>> =
         (0..n).map(|i| (0..n).map(|j| if i == j { 0.0 } else { f }).collect()).collect();
     let mut lighting = dark_lighting(&patches, &materials, 1);
-    lighting.unit_emission = vec![[e; 3]; n];
+    lighting.unit_emission = vec![Rgb::splat(e); n];
     lighting.group = vec![Some(0); n];
     TestScene { patches, materials, lighting, names: vec!["sky".into()], ff: dense_to_csr(&rows) }
 }
@@ -107,8 +108,9 @@ fn furnace(n: usize, rho: f64, e: f64) -> TestScene {
 /// `density`, `F_ij = w_ij / A_i` scaled so the largest row sum is 0.9 (so `A_i F_ij = A_j F_ji`).
 fn random_scene(seed: u64, n: usize, density: f64) -> TestScene {
     let mut rng = SplitMix64::new(seed);
-    let materials: Vec<[f64; 3]> =
-        (0..4).map(|_| [0.2 + 0.6 * rng.unit(), 0.2 + 0.6 * rng.unit(), 0.2 + 0.6 * rng.unit()]).collect();
+    let materials: Vec<Rgb> = (0..4)
+        .map(|_| Rgb::new(0.2 + 0.6 * rng.unit(), 0.2 + 0.6 * rng.unit(), 0.2 + 0.6 * rng.unit()))
+        .collect();
     let area: Vec<f64> = (0..n).map(|_| 0.5 + 1.5 * rng.unit()).collect();
     let mut w = vec![vec![0.0; n]; n];
     for i in 0..n {
@@ -130,13 +132,14 @@ fn random_scene(seed: u64, n: usize, density: f64) -> TestScene {
 }
 
 /// `random_scene` with patch 0 a static light, patches 1 and 2 dynamic group `lamp`, patch 3 group `sun`.
-fn lit_scene(seed: u64, n: usize, density: f64, lamp_intensity: [f64; 3]) -> TestScene {
+fn lit_scene(seed: u64, n: usize, density: f64, lamp_intensity: Rgb) -> TestScene {
     let mut s = random_scene(seed, n, density);
-    s.lighting.static_emission[0] = [40.0, 30.0, 20.0];
+    s.lighting.static_emission[0] = Rgb::new(40.0, 30.0, 20.0);
     s.lighting.dynamic_groups = vec![0, 1];
-    s.lighting.default_intensity = vec![lamp_intensity, [0.5, 0.5, 0.5]];
+    s.lighting.default_intensity = vec![lamp_intensity, Rgb::splat(0.5)];
     s.names = vec!["lamp".into(), "sun".into()];
-    for (k, g, e) in [(1, 0, [100.0, 90.0, 80.0]), (2, 0, [100.0, 90.0, 80.0]), (3, 1, [10.0, 20.0, 30.0])] {
+    let (lamp, sun) = (Rgb::new(100.0, 90.0, 80.0), Rgb::new(10.0, 20.0, 30.0));
+    for (k, g, e) in [(1, 0, lamp), (2, 0, lamp), (3, 1, sun)] {
         s.lighting.group[k] = Some(g);
         s.lighting.unit_emission[k] = e;
     }

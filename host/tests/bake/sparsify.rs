@@ -2,6 +2,7 @@
 //! and the inputs the bake refuses.
 
 use super::*;
+use radiosity_host::rgb::Rgb;
 
 #[test]
 fn threshold_zero_drops_nothing() {
@@ -22,7 +23,7 @@ fn threshold_zero_drops_nothing() {
 
 #[test]
 fn energy_dropped_is_the_sum_of_dropped_form_factors() {
-    let scene = lit_scene(2, 60, 0.4, [1.0; 3]);
+    let scene = lit_scene(2, 60, 0.4, Rgb::ONE);
     let n = scene.ff.n();
     let area: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
     let t = 0.05;
@@ -92,7 +93,7 @@ fn energy_dropped_is_the_sum_of_dropped_form_factors() {
 
 #[test]
 fn eight_bit_error_exceeds_sixteen_bit() {
-    let scene = lit_scene(3, 50, 0.3, [1.0; 3]);
+    let scene = lit_scene(3, 50, 0.3, Rgb::ONE);
     let b16 = scene.bake(0.0, codec_for_bits(16).unwrap());
     let b8 = scene.bake(0.0, codec_for_bits(8).unwrap());
     let (e16, e8) = (&scene.errors(&b16).sparsify_quantize, &scene.errors(&b8).sparsify_quantize);
@@ -106,7 +107,7 @@ fn eight_bit_error_exceeds_sixteen_bit() {
 
 #[test]
 fn bad_inputs_are_named() {
-    let scene = lit_scene(8, 10, 0.5, [1.0; 3]);
+    let scene = lit_scene(8, 10, 0.5, Rgb::ONE);
     let options = BakeOptions { threshold: 1.0, ..BakeOptions::default() };
     let err = bake(&scene.input(), &options).unwrap_err();
     assert_eq!(err.to_string(), "sparsification threshold 1 not in [0, 1)");
@@ -115,7 +116,7 @@ fn bad_inputs_are_named() {
     let err = bake(&input, &BakeOptions::default()).unwrap_err().to_string();
     assert!(err.contains("2 dynamic light groups but 2 default intensities and 1 names"), "{err}");
     let mut input = scene.input();
-    input.materials[0] = [0.1; 3];
+    input.materials[0] = Rgb::splat(0.1);
     let err = bake(&input, &BakeOptions::default()).unwrap_err().to_string();
     assert!(err.contains("patch 0: lighting reflectance"), "{err}");
 }
@@ -124,7 +125,7 @@ fn bad_inputs_are_named() {
 /// summary line per setting (`cargo test -p radiosity-host --test bake error_grows -- --nocapture`).
 #[test]
 fn error_grows_with_threshold_and_fewer_bits() {
-    let scene = lit_scene(2, 60, 0.4, [1.0; 3]);
+    let scene = lit_scene(2, 60, 0.4, Rgb::ONE);
     let mut previous: Option<(f64, f64)> = None;
     for t in [0.0, 1e-3, 1e-2, 5e-2] {
         let (b16, b8) = (scene.bake(t, FfCodec::FLOAT16), scene.bake(t, FfCodec::FLOAT8));
@@ -183,10 +184,10 @@ fn coarse_codec_is_refused_on_a_synthetic_sliver() {
         // Reciprocity: A_0 F_0i = A_i F_i0.
         rows[0][i] = rows[i][0] / sliver;
     }
-    let materials = vec![[0.5; 3]];
+    let materials = vec![Rgb::splat(0.5)];
     let mut lighting = dark_lighting(&patches, &materials, 1);
     lighting.group[1] = Some(0);
-    lighting.unit_emission[1] = [1.0; 3];
+    lighting.unit_emission[1] = Rgb::ONE;
     let scene =
         TestScene { patches, materials, lighting, names: vec!["lamp".into()], ff: dense_to_csr(&rows) };
     let options = |codec| BakeOptions { threshold: 0.0, codec, ..BakeOptions::default() };

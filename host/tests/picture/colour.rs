@@ -2,11 +2,12 @@
 
 use radiosity_host::picture::colormap::{lab_to_linear_srgb, patch_colour, ramp, ramp_lab, ErrorScale};
 use radiosity_host::picture::encode_png;
+use radiosity_host::rgb::Rgb;
 
 use super::decode_png;
 
 /// CIE L* of a linear sRGB colour (IEC 61966-2-1 Y row, CIE 15 lightness).
-fn lightness(rgb: [f64; 3]) -> f64 {
+fn lightness(rgb: Rgb) -> f64 {
     let y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
     let d: f64 = 6.0 / 29.0;
     let f = if y > d * d * d { y.cbrt() } else { y / (3.0 * d * d) + 4.0 / 29.0 };
@@ -19,7 +20,10 @@ fn false_colour_ramp_is_in_gamut_and_lightness_increases() {
     for i in 0..=1024 {
         let t = f64::from(i) / 1024.0;
         let raw = lab_to_linear_srgb(ramp_lab(t));
-        assert!(raw.iter().all(|c| (-1e-9..=1.0 + 1e-9).contains(c)), "t = {t}: out of gamut {raw:?}");
+        assert!(
+            raw.to_array().iter().all(|c| (-1e-9..=1.0 + 1e-9).contains(c)),
+            "t = {t}: out of gamut {raw:?}"
+        );
         let l = lightness(ramp(t));
         // L* rises by 70 over the ramp, 70 / 1024 ~ 0.068 per step; require at least a quarter of that.
         assert!(l > previous + 0.017, "t = {t}: L* {l} after {previous}");
@@ -36,7 +40,7 @@ fn patch_colours_are_in_gamut_and_distinct_for_neighbours() {
         let h = (i as f64 * 2.399_963_229_728_653) % std::f64::consts::TAU;
         let l = [55.0, 65.0, 75.0][i % 3];
         let raw = lab_to_linear_srgb([l, 30.0 * h.cos(), 30.0 * h.sin()]);
-        assert!(raw.iter().all(|c| (0.0..=1.0).contains(c)), "patch {i}: out of gamut {raw:?}");
+        assert!(raw.to_array().iter().all(|c| (0.0..=1.0).contains(c)), "patch {i}: out of gamut {raw:?}");
         let (a, b) = (patch_colour(i), patch_colour(i + 1));
         let distance: i32 = (0..3).map(|k| (i32::from(a[k]) - i32::from(b[k])).abs()).sum();
         assert!(distance > 30, "patches {i} and {} look alike: {a:?} {b:?}", i + 1);

@@ -3,8 +3,10 @@
 use radiosity_host::picture::hdr::{
     decode_hdr, decode_pfm, encode_hdr, encode_pfm, memory_path, rgbe_decode, rgbe_encode, LinearImage,
 };
-use radiosity_host::picture::tonemap::{luminance, srgb_decode, srgb_encode, srgb_encode_u8};
+use radiosity_host::picture::tonemap::{srgb_decode, srgb_encode, srgb_encode_u8};
 use radiosity_host::picture::{encode_png, PictureError, RgbImage, ToneMap};
+use radiosity_host::rgb::luminance;
+use radiosity_host::rgb::Rgb;
 
 use super::{assert_close, decode_png};
 
@@ -38,43 +40,49 @@ fn srgb_encodes_known_values() {
 #[test]
 fn tone_map_is_monotone_and_finite_from_0_to_1e6() {
     let tone = ToneMap::new(1.0 / 50.0, 4.0).unwrap();
-    let mut previous = [-1.0; 3];
+    let mut previous = Rgb::splat(-1.0);
     let mut previous_y = -1.0;
     // 0, then 1e-6 .. 1e6 logarithmically (4 samples per decade of 12 decades... 100 per decade).
     let values = std::iter::once(0.0).chain((0..=1200).map(|i| 10f64.powf(-6.0 + f64::from(i) / 100.0)));
     for v in values {
-        for colour in [[v, v, v], [v, 0.5 * v, 0.1 * v], [0.0, v, 0.0]] {
+        for colour in [Rgb::new(v, v, v), Rgb::new(v, 0.5 * v, 0.1 * v), Rgb::new(0.0, v, 0.0)] {
             let out = tone.map_linear(colour).unwrap();
-            assert!(out.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)), "{colour:?} -> {out:?}");
+            assert!(
+                out.to_array().iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)),
+                "{colour:?} -> {out:?}"
+            );
         }
-        let grey = tone.map_linear([v, v, v]).unwrap();
+        let grey = tone.map_linear(Rgb::new(v, v, v)).unwrap();
         for ch in 0..3 {
             assert!(grey[ch] >= previous[ch], "not monotone at {v}: {grey:?} after {previous:?}");
         }
-        let y = luminance(tone.map_linear([v, 0.5 * v, 0.1 * v]).unwrap());
+        let y = luminance(tone.map_linear(Rgb::new(v, 0.5 * v, 0.1 * v)).unwrap());
         assert!(y >= previous_y, "coloured luminance not monotone at {v}");
         previous = grey;
         previous_y = y;
     }
     // The white point maps to exactly white: exposed luminance 4 -> L_d = 4 (1 + 4 / 16) / 5 = 1.
-    let white = tone.map_linear([200.0; 3]).unwrap();
-    assert_close(white, [1.0; 3], 1e-12, "white point");
-    assert_eq!(tone.map_srgb8([200.0; 3]).unwrap(), [255; 3]);
-    assert_eq!(tone.map_srgb8([0.0; 3]).unwrap(), [0; 3]);
+    let white = tone.map_linear(Rgb::splat(200.0)).unwrap();
+    assert_close(white, Rgb::ONE, 1e-12, "white point");
+    assert_eq!(tone.map_srgb8(Rgb::splat(200.0)).unwrap(), [255; 3]);
+    assert_eq!(tone.map_srgb8(Rgb::ZERO).unwrap(), [0; 3]);
     // Hue is kept below saturation: channel ratios survive.
-    let c = tone.map_linear([10.0, 5.0, 1.0]).unwrap();
+    let c = tone.map_linear(Rgb::new(10.0, 5.0, 1.0)).unwrap();
     assert!((c[1] / c[0] - 0.5).abs() < 1e-12 && (c[2] / c[0] - 0.1).abs() < 1e-12, "{c:?}");
 }
 
 #[test]
 fn tone_map_refuses_nan_and_infinity() {
     let tone = ToneMap::new(1.0, 4.0).unwrap();
-    assert!(matches!(tone.map_linear([0.0, f64::NAN, 1.0]), Err(PictureError::NonFinite { index: 1, .. })));
     assert!(matches!(
-        tone.map_linear([f64::INFINITY, 0.0, 1.0]),
+        tone.map_linear(Rgb::new(0.0, f64::NAN, 1.0)),
+        Err(PictureError::NonFinite { index: 1, .. })
+    ));
+    assert!(matches!(
+        tone.map_linear(Rgb::new(f64::INFINITY, 0.0, 1.0)),
         Err(PictureError::NonFinite { index: 0, .. })
     ));
-    let mut image = vec![[1.0; 3]; 6];
+    let mut image = vec![Rgb::ONE; 6];
     image[4][2] = f64::NAN;
     let err = tone.map_image(&image, 3, 2).unwrap_err();
     assert!(matches!(err, PictureError::NonFinite { what: "pixel", index: 4, .. }), "{err}");
@@ -94,9 +102,14 @@ fn percentile_exposure_puts_the_percentile_on_exposed_luminance_one() {
     let tone = ToneMap::from_percentile(&lums, 0.95, 4.0).unwrap();
     assert!((tone.scale - 1.0 / 95.0).abs() < 1e-15, "scale {}", tone.scale);
     // Exposed luminance 1 displays as (1 + 1 / 16) / 2; four times the percentile is white.
-    assert_close(tone.map_linear([95.0; 3]).unwrap(), [17.0 / 32.0; 3], 1e-12, "95th percentile");
-    assert_close(tone.map_linear([4.0 * 95.0; 3]).unwrap(), [1.0; 3], 1e-12, "4x the 95th percentile");
-    assert!(tone.map_linear([4.0 * 94.0; 3]).unwrap()[0] < 1.0);
+    assert_close(
+        tone.map_linear(Rgb::splat(95.0)).unwrap(),
+        Rgb::splat(17.0 / 32.0),
+        1e-12,
+        "95th percentile",
+    );
+    assert_close(tone.map_linear(Rgb::splat(4.0 * 95.0)).unwrap(), Rgb::ONE, 1e-12, "4x the 95th percentile");
+    assert!(tone.map_linear(Rgb::splat(4.0 * 94.0)).unwrap()[0] < 1.0);
     // An unlit scene has all zeros: scale 1, nothing fails.
     assert_eq!(ToneMap::from_percentile(&[0.0; 5], 0.95, 4.0).unwrap().scale, 1.0);
 }

@@ -4,6 +4,7 @@ use glam::DVec3;
 use radiosity_host::patch::Patch;
 use radiosity_host::picture::lightmap::{bake_light_map, LightMapOptions};
 use radiosity_host::picture::shading::{ShadingOptions, SmoothShader};
+use radiosity_host::rgb::Rgb;
 
 use super::{assert_close, decode_png, linear_field, polygon, scratch_dir, Plane};
 
@@ -58,7 +59,7 @@ fn light_map_maps_every_face_without_overlap() {
         let inward = DVec3::new(2.0, 1.5, 1.0) - p.centroid;
         assert!(p.normal.dot(inward) > 0.0, "test box: face {} normal points outward", p.face);
     }
-    let radiosity: Vec<[f64; 3]> = patches.iter().map(|p| linear_field(p.centroid)).collect();
+    let radiosity: Vec<Rgb> = patches.iter().map(|p| linear_field(p.centroid)).collect();
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     let options = LightMapOptions { texel_size: Some(0.25), padding: 2, ..Default::default() };
     let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
@@ -91,9 +92,8 @@ fn light_map_maps_every_face_without_overlap() {
     assert_eq!(dims, [12, 16]);
     // Texels hold the shaded field at their centres: check via the JSON frame of every face.
     for r in &map.rects {
-        let (u, v, o) =
-            (DVec3::from_array(r.u_axis), DVec3::from_array(r.v_axis), DVec3::from_array(r.origin));
-        assert!(u.dot(v).abs() < 1e-12 && (u.cross(v) + DVec3::from_array(r.normal)).length() < 1e-12);
+        let (u, v, o) = (r.u_axis, r.v_axis, r.origin);
+        assert!(u.dot(v).abs() < 1e-12 && (u.cross(v) + r.normal).length() < 1e-12);
         for (i, j) in [(0, 0), (r.width - 1, r.height - 1), (r.width / 2, r.height / 3)] {
             let centre =
                 o + u * ((f64::from(i) + 0.5) * r.texel_size) + v * ((f64::from(j) + 0.5) * r.texel_size);
@@ -111,7 +111,12 @@ fn light_map_maps_every_face_without_overlap() {
                 let k = patches.iter().position(|p| p.face == r.face).unwrap();
                 radiosity[k]
             };
-            assert_close(texel.map(f64::from), expected, 1e-6, &format!("face {} texel ({i}, {j})", r.face));
+            assert_close(
+                Rgb::from_array(texel.map(f64::from)),
+                expected,
+                1e-6,
+                &format!("face {} texel ({i}, {j})", r.face),
+            );
         }
     }
     // Files: the PNG has the atlas size, the HDR reads back, the JSON parses.
@@ -131,7 +136,7 @@ fn light_map_maps_every_face_without_overlap() {
 fn light_map_refuses_a_face_without_patches() {
     let mut patches = box_patches();
     patches.retain(|p| p.face != 3);
-    let radiosity = vec![[1.0; 3]; patches.len()];
+    let radiosity = vec![Rgb::ONE; patches.len()];
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     let err = bake_light_map(&patches, &shader, &radiosity, &LightMapOptions::default()).unwrap_err();
     assert!(err.to_string().contains("face 3 has no patch"), "{err}");
@@ -145,7 +150,7 @@ fn light_map_of_a_triangle_fills_the_uncovered_texels_from_the_nearest_patch() {
     let (ab, bc, ca) = ((a + b) / 2.0, (b + c) / 2.0, (c + a) / 2.0);
     let tris = [[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]];
     let patches: Vec<Patch> = tris.iter().map(|t| polygon(0, 0, t.to_vec())).collect();
-    let radiosity: Vec<[f64; 3]> = patches.iter().map(|p| linear_field(p.centroid)).collect();
+    let radiosity: Vec<Rgb> = patches.iter().map(|p| linear_field(p.centroid)).collect();
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     let options = LightMapOptions { texel_size: Some(0.125), padding: 3, ..Default::default() };
     let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
@@ -156,12 +161,10 @@ fn light_map_of_a_triangle_fills_the_uncovered_texels_from_the_nearest_patch() {
     for j in 0..r.height + 2 * map.padding {
         for i in 0..r.width + 2 * map.padding {
             let (x, y) = (r.x + i - map.padding, r.y + j - map.padding);
-            let texel = map.atlas.pixels[(y * map.atlas.width + x) as usize].map(f64::from);
+            let texel = Rgb::from_array(map.atlas.pixels[(y * map.atlas.width + x) as usize].map(f64::from));
             let (fi, fj) =
                 (f64::from(i) - f64::from(map.padding) + 0.5, f64::from(j) - f64::from(map.padding) + 0.5);
-            let centre = DVec3::from_array(r.origin)
-                + DVec3::from_array(r.u_axis) * (fi * r.texel_size)
-                + DVec3::from_array(r.v_axis) * (fj * r.texel_size);
+            let centre = r.origin + r.u_axis * (fi * r.texel_size) + r.v_axis * (fj * r.texel_size);
             if (0..4).any(|k| shader.distance_in_plane(k, centre) == 0.0) {
                 // Covered texels: the field itself (f32 atlas: values ~10, rounding 6e-7).
                 assert_close(texel, linear_field(centre), 1e-6, &format!("texel ({i}, {j})"));

@@ -13,6 +13,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 use radiosity_host::patch::Patch;
+use radiosity_host::rgb::Rgb;
 
 /// A patch from a counter-clockwise convex polygon (normal, area and centroid computed here).
 fn polygon(face: usize, material: usize, vertices: Vec<DVec3>) -> Patch {
@@ -72,15 +73,15 @@ impl Plane {
 }
 
 /// A linear field, different per channel.
-fn linear_field(p: DVec3) -> [f64; 3] {
-    [
+fn linear_field(p: DVec3) -> Rgb {
+    Rgb::new(
         5.0 + 0.3 * p.x - 0.2 * p.y + 0.1 * p.z,
         9.0 - 0.1 * p.x + 0.4 * p.y + 0.05 * p.z,
         7.0 + 0.2 * p.x + 0.1 * p.y - 0.3 * p.z,
-    ]
+    )
 }
 
-fn assert_close(actual: [f64; 3], expected: [f64; 3], tol: f64, what: &str) {
+fn assert_close(actual: Rgb, expected: Rgb, tol: f64, what: &str) {
     for ch in 0..3 {
         assert!(
             (actual[ch] - expected[ch]).abs() <= tol,

@@ -4,6 +4,7 @@ use glam::DVec3;
 use radiosity_host::patch::Patch;
 use radiosity_host::picture::shading::{ShadingOptions, SmoothShader};
 use radiosity_host::picture::PictureError;
+use radiosity_host::rgb::Rgb;
 
 use super::{assert_close, linear_field, polygon, sample_points, Plane};
 
@@ -72,8 +73,8 @@ fn smooth_shading_reproduces_a_linear_field_on_a_pentagon_fan() {
 
 /// Smooth shading of `patches` given the linear field at their centroids reproduces the field at every sample
 /// point; returns the centroid values.
-fn assert_reproduces_linear_field(patches: &[Patch]) -> Vec<[f64; 3]> {
-    let radiosity: Vec<[f64; 3]> = patches.iter().map(|p| linear_field(p.centroid)).collect();
+fn assert_reproduces_linear_field(patches: &[Patch]) -> Vec<Rgb> {
+    let radiosity: Vec<Rgb> = patches.iter().map(|p| linear_field(p.centroid)).collect();
     let shader = SmoothShader::new(patches, &ShadingOptions::default()).unwrap();
     for (k, p) in patches.iter().enumerate() {
         for point in sample_points(p) {
@@ -95,7 +96,7 @@ fn side_by_side(material_right: usize) -> Vec<Patch> {
 
 #[test]
 fn smooth_shading_does_not_blend_across_a_material_boundary() {
-    let radiosity = [[1.0, 2.0, 3.0], [10.0, 20.0, 30.0]];
+    let radiosity = [Rgb::new(1.0, 2.0, 3.0), Rgb::new(10.0, 20.0, 30.0)];
     let shared = [DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 0.5, 0.0), DVec3::new(1.0, 1.0, 0.0)];
     let apart = SmoothShader::new(&side_by_side(1), &ShadingOptions::default()).unwrap();
     for &p in &shared {
@@ -115,7 +116,7 @@ fn smooth_shading_does_not_blend_across_a_material_boundary() {
     // Control: with one material the shared vertices take the area-weighted mean (1 * 1 + 3 * 10) / 4 = 7.75
     // (two neighbours in a row do not span the plane, so the fit falls back to the mean).
     let joined = SmoothShader::new(&side_by_side(0), &ShadingOptions::default()).unwrap();
-    let mean = [7.75, 15.5, 23.25];
+    let mean = Rgb::new(7.75, 15.5, 23.25);
     for &p in &shared {
         assert_close(joined.shade(&radiosity, 0, p).unwrap(), mean, 1e-12, "left patch, same material");
         assert_close(joined.shade(&radiosity, 1, p).unwrap(), mean, 1e-12, "right patch, same material");
@@ -133,18 +134,23 @@ fn smooth_shading_does_not_blend_across_a_90_degree_crease() {
     assert!(
         (patches[0].normal - DVec3::Z).length() < 1e-12 && (patches[1].normal - DVec3::X).length() < 1e-12
     );
-    let radiosity = [[1.0; 3], [10.0; 3]];
+    let radiosity = [Rgb::ONE, Rgb::splat(10.0)];
     let edge = [v(0.0, 0.0, 0.0), v(0.0, 0.5, 0.0), v(0.0, 1.0, 0.0)];
     let sharp = SmoothShader::new(&patches, &ShadingOptions { crease_angle_deg: 30.0, ..Default::default() })
         .unwrap();
     for &p in &edge {
-        assert_close(sharp.shade(&radiosity, 0, p).unwrap(), [1.0; 3], 1e-12, "floor at the crease");
-        assert_close(sharp.shade(&radiosity, 1, p).unwrap(), [10.0; 3], 1e-12, "wall at the crease");
+        assert_close(sharp.shade(&radiosity, 0, p).unwrap(), Rgb::ONE, 1e-12, "floor at the crease");
+        assert_close(sharp.shade(&radiosity, 1, p).unwrap(), Rgb::splat(10.0), 1e-12, "wall at the crease");
     }
     // Control: a crease angle above 90 degrees lets them blend (equal areas: mean 5.5).
     let soft = SmoothShader::new(&patches, &ShadingOptions { crease_angle_deg: 120.0, ..Default::default() })
         .unwrap();
-    assert_close(soft.shade(&radiosity, 0, edge[1]).unwrap(), [5.5; 3], 1e-12, "floor, crease allowed");
+    assert_close(
+        soft.shade(&radiosity, 0, edge[1]).unwrap(),
+        Rgb::splat(5.5),
+        1e-12,
+        "floor, crease allowed",
+    );
 }
 
 #[test]
@@ -154,7 +160,7 @@ fn smooth_shading_welds_vertices_within_the_tolerance_only() {
     for vtx in patches[1].vertices.iter_mut().filter(|p| p.x == 1.0) {
         vtx.x += 1e-9;
     }
-    let radiosity = [[1.0; 3], [10.0; 3]];
+    let radiosity = [Rgb::ONE, Rgb::splat(10.0)];
     let welded = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     let p = DVec3::new(1.0, 0.0, 0.0);
     assert!((welded.shade(&radiosity, 0, p).unwrap()[0] - 7.75).abs() < 1e-6);
@@ -165,16 +171,17 @@ fn smooth_shading_welds_vertices_within_the_tolerance_only() {
     }
     let apart = vec![apart[0].clone(), polygon(1, 0, apart[1].vertices.clone())];
     let separate = SmoothShader::new(&apart, &ShadingOptions::default()).unwrap();
-    assert_close(separate.shade(&radiosity, 0, p).unwrap(), [1.0; 3], 1e-12, "not welded");
+    assert_close(separate.shade(&radiosity, 0, p).unwrap(), Rgb::ONE, 1e-12, "not welded");
 }
 
 #[test]
 fn smooth_shading_rejects_bad_input() {
     let patches = side_by_side(0);
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
-    assert!(matches!(shader.shade(&[[1.0; 3]], 0, DVec3::ZERO), Err(PictureError::Invalid { .. })));
-    assert!(matches!(shader.shade(&[[1.0; 3]; 2], 2, DVec3::ZERO), Err(PictureError::Invalid { .. })));
-    let err = shader.shade(&[[1.0; 3], [f64::NAN, 0.0, 0.0]], 0, DVec3::new(1.0, 0.0, 0.0)).unwrap_err();
+    assert!(matches!(shader.shade(&[Rgb::ONE], 0, DVec3::ZERO), Err(PictureError::Invalid { .. })));
+    assert!(matches!(shader.shade(&[Rgb::ONE; 2], 2, DVec3::ZERO), Err(PictureError::Invalid { .. })));
+    let err =
+        shader.shade(&[Rgb::ONE, Rgb::new(f64::NAN, 0.0, 0.0)], 0, DVec3::new(1.0, 0.0, 0.0)).unwrap_err();
     assert!(matches!(err, PictureError::NonFinite { index: 1, .. }), "{err}");
     let mut bad = patches.clone();
     bad[1].vertices.truncate(2);
@@ -191,14 +198,19 @@ fn smooth_shading_joins_slightly_warped_quadrilaterals_at_shared_corners() {
         polygon(0, 0, vec![v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0), v(0.0, 1.0, 1e-3)]),
         polygon(1, 0, vec![v(1.0, 0.0, 0.0), v(2.0, 0.0, 0.0), v(2.0, 1.0, 1e-3), v(1.0, 1.0, 0.0)]),
     ];
-    let radiosity = [[1.0; 3], [3.0; 3]];
+    let radiosity = [Rgb::ONE, Rgb::splat(3.0)];
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     // Equal areas: the shared corners take the mean, 2.
     for p in [v(1.0, 0.0, 0.0), v(1.0, 1.0, 0.0)] {
-        assert_close(shader.shade(&radiosity, 0, p).unwrap(), [2.0; 3], 1e-9, "left quad at a shared corner");
+        assert_close(
+            shader.shade(&radiosity, 0, p).unwrap(),
+            Rgb::splat(2.0),
+            1e-9,
+            "left quad at a shared corner",
+        );
         assert_close(
             shader.shade(&radiosity, 1, p).unwrap(),
-            [2.0; 3],
+            Rgb::splat(2.0),
             1e-9,
             "right quad at a shared corner",
         );

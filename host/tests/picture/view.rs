@@ -4,14 +4,15 @@ use glam::DVec3;
 use radiosity_host::patch::Patch;
 use radiosity_host::picture::render::Hit;
 use radiosity_host::picture::shading::{ShadingOptions, SmoothShader};
-use radiosity_host::picture::tonemap::luminance;
+use radiosity_host::rgb::luminance;
+use radiosity_host::rgb::Rgb;
 
 use super::{decode_png, polygon, scratch_dir};
 
 /// The Cornell box from the published data (shared/data/cornell-box.md) as patches: every quad split into
 /// `n x n` bilinear sub-quads; the ceiling as four quads around the light's opening. Materials: 0 white, 1 red,
 /// 2 green, 3 light. Returns the patches and their reflectances.
-fn cornell_box(n: usize) -> (Vec<Patch>, Vec<[f64; 3]>) {
+fn cornell_box(n: usize) -> (Vec<Patch>, Vec<Rgb>) {
     let v = DVec3::new;
     let white = (0, [0.725, 0.71, 0.68]);
     let red = (1, [0.63, 0.065, 0.05]);
@@ -62,7 +63,7 @@ fn cornell_box(n: usize) -> (Vec<Patch>, Vec<[f64; 3]>) {
                 let (s0, s1) = (i as f64 / m as f64, (i + 1) as f64 / m as f64);
                 let (t0, t1) = (j as f64 / m as f64, (j + 1) as f64 / m as f64);
                 patches.push(polygon(face, *material, vec![at(s0, t0), at(s1, t0), at(s1, t1), at(s0, t1)]));
-                rho.push(*reflectance);
+                rho.push(Rgb::from_array(*reflectance));
             }
         }
     }
@@ -98,7 +99,7 @@ fn closest_hit(patches: &[Patch], origin: DVec3, dir: DVec3) -> Option<Hit> {
 
 /// A radiosity-like proxy for view tests (not a solution): emission on the light, then direct light from the
 /// light's centre with cosines, inverse square and shadow rays, plus a small ambient term, times reflectance.
-fn proxy_radiosity(patches: &[Patch], rho: &[[f64; 3]]) -> Vec<[f64; 3]> {
+fn proxy_radiosity(patches: &[Patch], rho: &[Rgb]) -> Vec<Rgb> {
     let light: Vec<usize> = (0..patches.len()).filter(|&k| patches[k].material == 3).collect();
     let centre = patches[light[0]].centroid;
     let light_normal = patches[light[0]].normal;
@@ -109,7 +110,7 @@ fn proxy_radiosity(patches: &[Patch], rho: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .enumerate()
         .map(|(k, p)| {
             if p.material == 3 {
-                return [emission; 3];
+                return Rgb::splat(emission);
             }
             let d = centre - p.centroid;
             let r2 = d.length_squared();
@@ -143,7 +144,7 @@ fn cornell_box_view_looks_right() {
     let (mut red_cols, mut green_cols, mut floor_under, mut ceiling_far) =
         (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for k in 0..w * h {
-        assert!(view.linear[k].iter().all(|c| c.is_finite()), "pixel {k} not finite");
+        assert!(view.linear[k].is_finite(), "pixel {k} not finite");
         let Some(p) = view.patch[k] else { continue };
         let (patch, c) = (&patches[p as usize], pixel(k));
         // No black pixel where a surface is visible: the proxy's ambient term lights every surface.
@@ -233,7 +234,7 @@ fn frame_sequence_shares_one_exposure() {
     let frame = Frame { camera: Camera::cornell_box(), width: 40, height: 30 };
     let hits = trace_view(&frame, &|o, d| closest_hit(&patches, o, d)).unwrap();
     // A device converging: frame k has (k + 1) / 4 of the converged radiosity.
-    let frames: Vec<Vec<[f64; 3]>> =
+    let frames: Vec<Vec<Rgb>> =
         (0..4).map(|k| converged.iter().map(|b| b.map(|c| c * f64::from(k + 1) / 4.0)).collect()).collect();
     let dir = scratch_dir("frames");
     let (paths, tone) = write_frame_sequence(&hits, &shader, &frames, None, &dir, "relight").unwrap();

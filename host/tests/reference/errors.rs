@@ -5,6 +5,7 @@ use radiosity_host::reference::{
     gauss_seidel, transfer_vectors, DenseLu, GaussSeidelOptions, LightGroupEmission, Method, RadiositySystem,
     ReferenceError,
 };
+use radiosity_host::rgb::Rgb;
 
 use super::csr;
 
@@ -12,22 +13,22 @@ use super::csr;
 fn bad_inputs_are_refused_with_clear_errors() {
     let dense = vec![vec![0.0, 0.5], vec![0.5, 0.0]];
     let ff = csr(&dense);
-    let good = [[0.5; 3]; 2];
+    let good = [Rgb::splat(0.5); 2];
 
-    let short = [[0.5; 3]; 1];
+    let short = [Rgb::splat(0.5); 1];
     assert_eq!(
         RadiositySystem::new(&short, &ff).unwrap_err(),
         ReferenceError::Input(InputError::LengthMismatch { what: "reflectance", expected: 2, found: 1 })
     );
-    let err = RadiositySystem::new(&[[0.5; 3], [0.5, 1.0, 0.5]], &ff).unwrap_err();
+    let err = RadiositySystem::new(&[Rgb::splat(0.5), Rgb::new(0.5, 1.0, 0.5)], &ff).unwrap_err();
     assert_eq!(err, ReferenceError::ReflectanceOutOfRange { patch: 1, channel: 1, value: 1.0 });
     assert_eq!(err.to_string(), "reflectance of patch 1, channel 1 is 1, outside [0, 1)");
     assert!(matches!(
-        RadiositySystem::new(&[[-0.1, 0.5, 0.5], [0.5; 3]], &ff).unwrap_err(),
+        RadiositySystem::new(&[Rgb::new(-0.1, 0.5, 0.5), Rgb::splat(0.5)], &ff).unwrap_err(),
         ReferenceError::ReflectanceOutOfRange { patch: 0, channel: 0, .. }
     ));
     assert!(matches!(
-        RadiositySystem::new(&[[0.5; 3], [0.5, 0.5, f64::NAN]], &ff).unwrap_err(),
+        RadiositySystem::new(&[Rgb::splat(0.5), Rgb::new(0.5, 0.5, f64::NAN)], &ff).unwrap_err(),
         ReferenceError::Input(InputError::NonFinite { what: "reflectance", patch: 1, channel: 2, .. })
     ));
 
@@ -45,7 +46,7 @@ fn bad_inputs_are_refused_with_clear_errors() {
     ));
     // ... unless the caller allows that much slack; then rho * row sum must still stay below 1.
     RadiositySystem::with_row_sum_tolerance(&good, &over, 1e-5).unwrap();
-    let rho_high = [[1.0 - 1e-7; 3], [0.5; 3]];
+    let rho_high = [Rgb::splat(1.0 - 1e-7), Rgb::splat(0.5)];
     assert!(matches!(
         RadiositySystem::with_row_sum_tolerance(&rho_high, &over, 1e-5).unwrap_err(),
         ReferenceError::NotContractive { patch: 0, .. }
@@ -55,10 +56,10 @@ fn bad_inputs_are_refused_with_clear_errors() {
     let system = RadiositySystem::new(&good, &ff).unwrap();
     let lu = DenseLu::factor(system).unwrap();
     assert!(matches!(
-        lu.solve(&[[1.0; 3]]).unwrap_err(),
+        lu.solve(&[Rgb::ONE]).unwrap_err(),
         ReferenceError::Input(InputError::LengthMismatch { what: "emission", .. })
     ));
-    let nan_e = [[1.0; 3], [0.0, f64::NAN, 0.0]];
+    let nan_e = [Rgb::ONE, Rgb::new(0.0, f64::NAN, 0.0)];
     assert!(matches!(
         lu.solve(&nan_e).unwrap_err(),
         ReferenceError::Input(InputError::NonFinite { what: "emission", patch: 1, channel: 1, .. })
@@ -75,7 +76,7 @@ fn bad_inputs_are_refused_with_clear_errors() {
     );
 
     // Gauss-Seidel: a cap that is too small is an error carrying the residual reached, not a result.
-    let e = [[1.0; 3], [0.0; 3]];
+    let e = [Rgb::ONE, Rgb::ZERO];
     let err =
         gauss_seidel(&system, &e, &GaussSeidelOptions { tolerance: 1e-12, max_sweeps: Some(2) }).unwrap_err();
     match err {
@@ -90,8 +91,8 @@ fn bad_inputs_are_refused_with_clear_errors() {
     );
 
     // Light groups: out-of-range group, emission in no group, wrong intensity count.
-    let unit = [[1.0; 3], [0.0; 3]];
-    let zero = [[0.0; 3]; 2];
+    let unit = [Rgb::ONE, Rgb::ZERO];
+    let zero = [Rgb::ZERO; 2];
     let lights = LightGroupEmission {
         static_emission: &zero,
         unit_emission: &unit,
@@ -124,7 +125,7 @@ fn bad_inputs_are_refused_with_clear_errors() {
         ReferenceError::Input(InputError::LengthMismatch { what: "intensity", .. })
     ));
     assert!(matches!(
-        tv.relight(&[[0.0, f64::INFINITY, 0.0]]).unwrap_err(),
+        tv.relight(&[Rgb::new(0.0, f64::INFINITY, 0.0)]).unwrap_err(),
         ReferenceError::NonFiniteIntensity { group: 0, channel: 1, .. }
     ));
 }

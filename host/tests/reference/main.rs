@@ -18,6 +18,7 @@ mod solvers;
 
 use radiosity_host::patch::FormFactorMatrix;
 use radiosity_host::reference::RadiositySystem;
+use radiosity_host::rgb::Rgb;
 use radiosity_host::rng::SplitMix64;
 
 const EPS: f64 = f64::EPSILON;
@@ -52,9 +53,9 @@ fn csr(dense: &[Vec<f64>]) -> FormFactorMatrix {
 
 /// The test's own residual, independent of the library: `||E - (I - R F) B||_inf / ||E||_inf` per channel,
 /// from the dense matrix.
-fn dense_relative_residual(dense: &[Vec<f64>], rho: &[[f64; 3]], b: &[[f64; 3]], e: &[[f64; 3]]) -> [f64; 3] {
-    let mut out = [0.0; 3];
-    for (c, out) in out.iter_mut().enumerate() {
+fn dense_relative_residual(dense: &[Vec<f64>], rho: &[Rgb], b: &[Rgb], e: &[Rgb]) -> Rgb {
+    let mut out = Rgb::ZERO;
+    for c in 0..3 {
         let mut res: f64 = 0.0;
         let mut scale: f64 = 0.0;
         for i in 0..dense.len() {
@@ -62,23 +63,23 @@ fn dense_relative_residual(dense: &[Vec<f64>], rho: &[[f64; 3]], b: &[[f64; 3]],
             res = res.max((e[i][c] - b[i][c] + rho[i][c] * gathered).abs());
             scale = scale.max(e[i][c].abs());
         }
-        *out = res / scale;
+        out[c] = res / scale;
     }
     out
 }
 
 /// Max-norm relative difference per channel, `||x - y||_inf / ||y||_inf`.
-fn relative_diff(x: &[[f64; 3]], y: &[[f64; 3]]) -> [f64; 3] {
-    [0, 1, 2].map(|c| {
+fn relative_diff(x: &[Rgb], y: &[Rgb]) -> Rgb {
+    Rgb::from_array([0, 1, 2].map(|c| {
         let num = x.iter().zip(y).map(|(x, y)| (x[c] - y[c]).abs()).fold(0.0, f64::max);
         let den = y.iter().map(|y| y[c].abs()).fold(0.0, f64::max);
         num / den
-    })
+    }))
 }
 
 /// Asserts `actual <= allowed` per channel, printing both and what was compared.
 #[track_caller]
-fn assert_within(what: &str, actual: [f64; 3], allowed: [f64; 3]) {
+fn assert_within(what: &str, actual: Rgb, allowed: Rgb) {
     for c in 0..3 {
         assert!(
             actual[c] <= allowed[c],
@@ -91,7 +92,7 @@ fn assert_within(what: &str, actual: [f64; 3], allowed: [f64; 3]) {
 
 /// `8 n eps kappa` per channel: the LU bound from the module docs (with `n >= 4` for the closed forms' own
 /// roundings).
-fn lu_tolerance(system: &RadiositySystem<'_>) -> [f64; 3] {
+fn lu_tolerance(system: &RadiositySystem<'_>) -> Rgb {
     let n = system.len().max(4) as f64;
     system.condition_bound().map(|kappa| 8.0 * n * EPS * kappa)
 }

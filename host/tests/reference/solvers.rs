@@ -6,6 +6,7 @@ use radiosity_host::reference::{
     gauss_seidel, gauss_seidel_sweep_bound, solve_many, transfer_vectors, DenseLu, GaussSeidelOptions,
     LightGroupEmission, Method, RadiositySystem, DEFAULT_TOLERANCE,
 };
+use radiosity_host::rgb::{max_channel, Rgb};
 
 use super::{
     assert_within, csr, dense_relative_residual, lu_tolerance, relative_diff, Dense, Draw, SplitMix64, EPS,
@@ -13,7 +14,7 @@ use super::{
 
 /// A seeded random sparse system: about `per_row` entries per row, row sums uniform in `[0.3, 1]` (a few rows
 /// exactly 1 up to rounding), reflectances in `[0, 0.95)`, emission on about a quarter of the patches.
-fn random_system(n: usize, per_row: usize, seed: u64) -> (Dense, Vec<[f64; 3]>, Vec<[f64; 3]>) {
+fn random_system(n: usize, per_row: usize, seed: u64) -> (Dense, Vec<Rgb>, Vec<Rgb>) {
     let mut rng = SplitMix64::new(seed);
     let mut dense = vec![vec![0.0; n]; n];
     for (i, row) in dense.iter_mut().enumerate() {
@@ -31,13 +32,14 @@ fn random_system(n: usize, per_row: usize, seed: u64) -> (Dense, Vec<[f64; 3]>, 
             row.iter_mut().for_each(|f| *f *= scale);
         }
     }
-    let rho = (0..n).map(|_| [rng.range(0.0, 0.95), rng.range(0.0, 0.95), rng.range(0.0, 0.95)]).collect();
+    let rho =
+        (0..n).map(|_| Rgb::new(rng.range(0.0, 0.95), rng.range(0.0, 0.95), rng.range(0.0, 0.95))).collect();
     let e = (0..n)
         .map(|_| {
             if rng.uniform() < 0.25 {
-                [rng.range(0.0, 100.0), rng.range(0.0, 100.0), 1.0]
+                Rgb::new(rng.range(0.0, 100.0), rng.range(0.0, 100.0), 1.0)
             } else {
-                [0.0; 3]
+                Rgb::ZERO
             }
         })
         .collect();
@@ -48,7 +50,7 @@ fn random_system(n: usize, per_row: usize, seed: u64) -> (Dense, Vec<[f64; 3]>, 
 fn lu_and_gauss_seidel_agree_on_random_sparse_systems() {
     for (n, per_row, seed) in [(5, 3, 1), (40, 8, 2), (200, 12, 3), (600, 20, 4)] {
         let (dense, rho, mut e) = random_system(n, per_row, seed);
-        e[0] = [1.0, 1.0, 1.0]; // at least one light per channel
+        e[0] = Rgb::ONE; // at least one light per channel
         let ff = csr(&dense);
         let system = RadiositySystem::new(&rho, &ff).unwrap();
         let tol = lu_tolerance(&system);
@@ -59,17 +61,17 @@ fn lu_and_gauss_seidel_agree_on_random_sparse_systems() {
         assert_within(
             &format!("n={n}: Gauss-Seidel residual"),
             dense_relative_residual(&dense, &rho, &gs.b, &e),
-            [DEFAULT_TOLERANCE + tol[0]; 3],
+            Rgb::splat(DEFAULT_TOLERANCE + tol[0]),
         );
         // Both are within their bounds of the exact answer, so within the sum of the bounds of each other.
-        let allowed = [0, 1, 2].map(|c| system.condition_bound()[c] * DEFAULT_TOLERANCE + 2.0 * tol[c]);
+        let allowed = system.condition_bound() * DEFAULT_TOLERANCE + 2.0 * tol;
         assert_within(&format!("n={n}: LU vs Gauss-Seidel"), relative_diff(&gs.b, &lu.b), allowed);
         println!(
             "n={n} nnz={}: q={:.3?}, Gauss-Seidel {} sweeps, LU-GS {:.2e}",
             ff.nonzeros(),
-            system.contraction(),
+            system.contraction().to_array(),
             gs.sweeps,
-            relative_diff(&gs.b, &lu.b).iter().copied().fold(0.0, f64::max)
+            max_channel(relative_diff(&gs.b, &lu.b))
         );
     }
 }
@@ -82,12 +84,12 @@ fn lu_and_gauss_seidel_agree_on_random_sparse_systems() {
 fn gauss_seidel_skips_residual_passes_without_stopping_late() {
     for (n, per_row, seed) in [(40, 8, 2), (200, 12, 3), (600, 20, 4)] {
         let (dense, rho, mut e) = random_system(n, per_row, seed);
-        e[0] = [1.0, 1.0, 1.0];
+        e[0] = Rgb::ONE;
         let ff = csr(&dense);
         let system = RadiositySystem::new(&rho, &ff).unwrap();
         for tolerance in [1e-4, 1e-8, DEFAULT_TOLERANCE] {
             let gs = gauss_seidel(&system, &e, &GaussSeidelOptions { tolerance, max_sweeps: None }).unwrap();
-            assert!(gs.residual.iter().all(|&r| r <= tolerance), "n={n}: residual {:?}", gs.residual);
+            assert!(gs.residual.cmple(Rgb::splat(tolerance)).all(), "n={n}: residual {}", gs.residual);
             let first = (1..=gs.sweeps)
                 .find(|&k| {
                     let capped = GaussSeidelOptions { tolerance, max_sweeps: Some(k) };
@@ -108,7 +110,7 @@ fn method_choice_and_solve_many_reuse_one_factorization() {
     let (dense, rho, e) = random_system(30, 6, 11);
     let ff = csr(&dense);
     let system = RadiositySystem::new(&rho, &ff).unwrap();
-    let e2: Vec<[f64; 3]> = e.iter().map(|e| e.map(|v| 2.0 * v + 1.0)).collect();
+    let e2: Vec<Rgb> = e.iter().map(|e| e.map(|v| 2.0 * v + 1.0)).collect();
     let lu = DenseLu::factor(system).unwrap();
     assert_eq!(lu.factorization_count(), 3, "three different reflectance channels");
     let many = lu.solve_many(&[&e, &e2]).unwrap();
@@ -116,11 +118,11 @@ fn method_choice_and_solve_many_reuse_one_factorization() {
     let tol = lu_tolerance(&system);
     // One column at a time or together, faer may pick different (blocked) triangular-solve kernels, so the bits
     // can differ; each is within the LU bound of the exact answer, so within twice it of each other.
-    let twice = tol.map(|t| 2.0 * t);
+    let twice = 2.0 * tol;
     assert_within("solve_many vs solve, rhs 1", relative_diff(&many[0].b, &one[0].b), twice);
     assert_within("solve_many vs solve, rhs 2", relative_diff(&many[1].b, &one[1].b), twice);
     let gs = solve_many(system, &[&e, &e2], &Method::GaussSeidel(GaussSeidelOptions::default())).unwrap();
-    let allowed = [0, 1, 2].map(|c| system.condition_bound()[c] * DEFAULT_TOLERANCE + 2.0 * tol[c]);
+    let allowed = system.condition_bound() * DEFAULT_TOLERANCE + 2.0 * tol;
     assert_within("solve_many LU vs GS, rhs 2", relative_diff(&gs[1].b, &many[1].b), allowed);
     assert_eq!(Method::for_size(10), Method::default());
     assert!(matches!(Method::for_size(1 << 20), Method::GaussSeidel(_)));
@@ -135,34 +137,32 @@ fn transfer_vectors_are_linear() {
     let mut rng = SplitMix64::new(5);
     let group_count = 3;
     let mut group = vec![None; n];
-    let mut unit = vec![[0.0; 3]; n];
-    let mut static_emission = vec![[0.0; 3]; n];
+    let mut unit = vec![Rgb::ZERO; n];
+    let mut static_emission = vec![Rgb::ZERO; n];
     for i in 0..n {
         match i % 8 {
             0..=2 => {
                 group[i] = Some(i % 8);
-                unit[i] = [rng.range(0.5, 2.0), rng.range(0.5, 2.0), rng.range(0.5, 2.0)];
+                unit[i] = Rgb::new(rng.range(0.5, 2.0), rng.range(0.5, 2.0), rng.range(0.5, 2.0));
             }
-            3 => static_emission[i] = [0.3, 0.2, 0.1],
+            3 => static_emission[i] = Rgb::new(0.3, 0.2, 0.1),
             _ => {}
         }
     }
     // One patch is both static and in a dynamic group.
-    static_emission[0] = [1.0, 0.0, 0.5];
+    static_emission[0] = Rgb::new(1.0, 0.0, 0.5);
     let lights = LightGroupEmission {
         static_emission: &static_emission,
         unit_emission: &unit,
         group: &group,
         group_count,
     };
-    let intensity = [[2.0, 0.5, 0.0], [0.0, 0.0, 0.0], [10.0, 3.0, 1.5]];
-    let combined: Vec<[f64; 3]> = (0..n)
+    let intensity = [Rgb::new(2.0, 0.5, 0.0), Rgb::ZERO, Rgb::new(10.0, 3.0, 1.5)];
+    let combined: Vec<Rgb> = (0..n)
         .map(|i| {
             let mut e = static_emission[i];
             if let Some(g) = group[i] {
-                for c in 0..3 {
-                    e[c] += intensity[g][c] * unit[i][c];
-                }
+                e += intensity[g] * unit[i];
             }
             e
         })
@@ -181,24 +181,22 @@ fn transfer_vectors_are_linear() {
                 system.condition_bound().map(|k| k * o.tolerance + lu_tolerance(&system)[0])
             }
         };
-        let inf = |v: &[[f64; 3]], c: usize| v.iter().map(|b| b[c].abs()).fold(0.0, f64::max);
-        let allowed = [0, 1, 2].map(|c| {
+        let inf = |v: &[Rgb], c: usize| v.iter().map(|b| b[c].abs()).fold(0.0, f64::max);
+        let allowed = Rgb::from_array([0, 1, 2].map(|c| {
             let parts = inf(&tv.b_static, c)
                 + tv.t.iter().zip(&intensity).map(|(t, i)| i[c].abs() * inf(t, c)).sum::<f64>();
             err[c] * (parts / inf(&direct.b, c) + 1.0)
-        });
+        }));
         assert_within(&format!("{method:?}: relight vs direct"), relative_diff(&relit, &direct.b), allowed);
         // Group 1 at zero intensity contributes nothing, but its transfer vector is not zero.
         assert!(tv.t[1].iter().any(|t| t[0] > 0.0));
         // Unit intensity everywhere and static: B = B_static + sum_g T_g.
-        let all_on = tv.relight(&[[1.0; 3]; 3]).unwrap();
+        let all_on = tv.relight(&[Rgb::ONE; 3]).unwrap();
         // Multiplying by 1 is exact; adding in the same order (static first, then group by group) gives the
         // same bits.
-        let sum: Vec<[f64; 3]> = (0..n)
-            .map(|i| [0, 1, 2].map(|c| tv.t.iter().fold(tv.b_static[i][c], |acc, t| acc + t[i][c])))
-            .collect();
+        let sum: Vec<Rgb> = (0..n).map(|i| tv.t.iter().fold(tv.b_static[i], |acc, t| acc + t[i])).collect();
         assert_eq!(all_on, sum);
-        assert!(tv.residual <= err.iter().copied().fold(DEFAULT_TOLERANCE, f64::max));
+        assert!(tv.residual <= DEFAULT_TOLERANCE.max(max_channel(err)));
     }
 }
 
@@ -215,7 +213,7 @@ fn empty_system_solves_to_nothing() {
     let ff = FormFactorMatrix::default();
     let system = RadiositySystem::new(&[], &ff).unwrap();
     assert!(system.is_empty());
-    assert_eq!(DenseLu::factor(system).unwrap().solve(&[]).unwrap().b, Vec::<[f64; 3]>::new());
+    assert_eq!(DenseLu::factor(system).unwrap().solve(&[]).unwrap().b, Vec::<Rgb>::new());
     let gs = gauss_seidel(&system, &[], &GaussSeidelOptions::default()).unwrap();
-    assert_eq!((gs.b.len(), gs.sweeps, gs.residual), (0, 0, [0.0; 3]));
+    assert_eq!((gs.b.len(), gs.sweeps, gs.residual), (0, 0, Rgb::ZERO));
 }

@@ -18,6 +18,7 @@ use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
+use radiosity_host::rgb::Rgb;
 use radiosity_host::view;
 
 fn main() -> ExitCode {
@@ -122,12 +123,10 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 Format::Csv => write_patch_csv(&mut out, &p.patches, &l.rho, &e, &b)?,
                 Format::Text | Format::Json => {
                     let area: f64 = p.patches.iter().map(|q| q.area).sum();
-                    let mean = |v: &[[f64; 3]]| -> [f64; 3] {
-                        let mut m = [0.0; 3];
-                        for (q, x) in p.patches.iter().zip(v) {
-                            for c in 0..3 {
-                                m[c] += q.area * x[c] / area;
-                            }
+                    let mean = |v: &[Rgb]| -> Rgb {
+                        let mut m = Rgb::ZERO;
+                        for (q, &x) in p.patches.iter().zip(v) {
+                            m += q.area * x / area;
                         }
                         m
                     };
@@ -170,7 +169,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 RenderModeArg::Error => {
                     let bytes = table_bytes(&p, table.as_deref())?;
                     let intensity: Vec<[f32; 3]> =
-                        p.lighting.default_intensity.iter().map(|v| v.map(|x| x as f32)).collect();
+                        p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
                     let b = relight::device_answer(&bytes, &intensity)?;
                     (b, view::RenderMode::Error { reference: &exact })
                 }
@@ -419,7 +418,8 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
         writeln!(out, "{}", path.display())?;
     }
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
-    let intensity: Vec<[f32; 3]> = p.lighting.default_intensity.iter().map(|v| v.map(|x| x as f32)).collect();
+    let intensity: Vec<[f32; 3]> =
+        p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
     let device = relight::device_answer(&bytes, &intensity)?;
     let image = view::render_scene(
         &p,
