@@ -12,7 +12,7 @@
 //! |---|---|---|---|
 //! | 0. checksum | [`crc`] | CRC-32 | |
 //! | 1. codecs | [`codec`] (`ff`, `radiometric`, [`codec::transfer`]) | form-factor, reflectance, emission and transfer-response codes, their error bounds, the writer's row rounding | a new code or quantizer |
-//! | 2. format | [`format`] (`layout`, `error`, `parse`, `view`, [`format::write`]) | the byte layout (`docs/format.md`), [`Table::parse`] (the one checked constructor: after it succeeds no accessor panics), read views ([`Row`]), [`write_table`] | a new section or field (and a version bump) |
+//! | 2. format | [`format`](mod@format) (`layout`, `error`, `parse`, `view`, [`format::write`]) | the byte layout (`docs/format.md`), [`Table::parse`] (the one checked constructor: after it succeeds no accessor panics), read views ([`Row`]), [`write_table`] | a new section or field (and a version bump) |
 //! | 3. arithmetic | [`scalar`] | [`Scalar`] (sealed): `f32` and [`Fixed`] | a new number type |
 //! | 4. static base | [`base`] | [`static_radiosity`]: `E_s + rho G_s`, for the solver and the transfer relight | |
 //! | 5. solver | [`solver`] (`buffers`, `config`, state in `mod`, `selection`, `shoot`, `sweep`, `relight`) | [`Solver`] holding its [`Table`], buffers sized by [`BufferSizes::of`] (`OwnedBuffers` on a host, `std` feature, [`StaticBuffers`] on a device), bounded steps ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]) reporting an [`Outcome`], relighting ([`Solver::set_light`], [`Solver::set_reflectance`]) | a new step, selection rule or state |
@@ -85,7 +85,7 @@
 //! [`Solver::set_reflectance`], or with many groups (the section grows as `patches x groups`), shoot.
 //!
 //! # Table layout
-//! The byte layout (format version 3) is specified in `docs/format.md`, rendered in [`format`]'s docs.
+//! The byte layout (format version 3) is specified in `docs/format.md`, rendered in [`format`](mod@format)'s docs.
 //!
 //! # Cost model: work units
 //! A work unit is one of: one form-factor entry applied (decode, three multiply-adds into power, unshot and
