@@ -126,13 +126,19 @@ fn proxy_radiosity(patches: &[Patch], rho: &[Rgb]) -> Vec<Rgb> {
         .collect()
 }
 
+/// [`cornell_box`] with `n x n` sub-quads, its proxy radiosity and a smooth shader over its patches.
+fn lit_cornell_box(n: usize) -> (Vec<Patch>, Vec<Rgb>, SmoothShader) {
+    let (patches, rho) = cornell_box(n);
+    let radiosity = proxy_radiosity(&patches, &rho);
+    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    (patches, radiosity, shader)
+}
+
 #[test]
 fn cornell_box_view_looks_right() {
     use radiosity_host::picture::camera::Camera;
     use radiosity_host::picture::render::{render, Colouring, Frame};
-    let (patches, rho) = cornell_box(4);
-    let radiosity = proxy_radiosity(&patches, &rho);
-    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let (patches, radiosity, shader) = lit_cornell_box(4);
     let frame = Frame { camera: Camera::cornell_box(), width: 96, height: 96 };
     let trace = |o: DVec3, d: DVec3| closest_hit(&patches, o, d);
     let view = render(&frame, &trace, &shader, &radiosity, Colouring::Shaded, None).unwrap();
@@ -228,9 +234,7 @@ fn cornell_box_view_looks_right() {
 fn frame_sequence_shares_one_exposure() {
     use radiosity_host::picture::camera::Camera;
     use radiosity_host::picture::render::{colour_view, trace_view, write_frame_sequence, Colouring, Frame};
-    let (patches, rho) = cornell_box(2);
-    let converged = proxy_radiosity(&patches, &rho);
-    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let (patches, converged, shader) = lit_cornell_box(2);
     let frame = Frame { camera: Camera::cornell_box(), width: 40, height: 30 };
     let hits = trace_view(&frame, &|o, d| closest_hit(&patches, o, d)).unwrap();
     // A device converging: frame k has (k + 1) / 4 of the converged radiosity.
