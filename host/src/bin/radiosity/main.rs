@@ -383,8 +383,8 @@ fn cornell_box_path() -> PathBuf {
     }
 }
 
-/// Patch budget of the demo's device table: with 16-bit codes its table (~0.27 MB) plus the firmware's code
-/// fit the 512 KiB flash of the emulated Cortex-M4 board.
+/// Patch budget of the demo's device table: with 16-bit codes its table plus the firmware's code fit the 512 KiB
+/// flash of the emulated Cortex-M4 board (`make demo` prints both sizes).
 const DEVICE_PATCH_BUDGET: usize = 400;
 
 /// The main job on the Cornell box: prepare, bake, validate the table with the device's parser.
@@ -444,9 +444,9 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let (svg, png) = histogram.write(&dir.join("cornell-box-mesh"), 800, 500)?;
     writeln!(out, "{}\n{}", svg.display(), png.display())?;
 
-    // The default mesh (about 1,000 patches) gives a table of ~1.6 MB: the pictures' quality, not a Cortex-M4's
-    // flash. The device gets its own bake of the same scene within a patch budget whose table plus firmware code
-    // fit the 512 KiB of flash of the emulated board (mps2-an386).
+    // The default mesh is sized for the pictures' quality, not for a Cortex-M4's flash (the bake above prints
+    // its table size). The device gets its own bake of the same scene within a patch budget whose table plus
+    // firmware code fit the 512 KiB of flash of the emulated board (mps2-an386; the QEMU run prints the flash).
     writeln!(
         out,
         "\n== device table: the same scene within {DEVICE_PATCH_BUDGET} patches, for a Cortex-M4 with 512 KiB \
