@@ -29,7 +29,7 @@
 //! A scene where nothing is occluded gives the same form factors at every seed, so `s = 0` and only the floor
 //! is left; yet its components are not smooth in the form factors: sparsification and the codec's rounding make
 //! discrete choices (which entry to drop, which code to bump), and in a symmetric scene many entries tie. A
-//! rounding-level change of the estimator (a relative change of a few machine epsilons) flips some of them
+//! rounding-level change of the estimator (a different summation order, a different thread count) flips some of them
 //! and moves a component by percent, far above `8 n eps`. So where every seed gave the same value, [`update`]
 //! measures the component again at `S` jitters ([`JITTER`]: every pair's `A_i F_ij` scaled by `1 + JITTER u`,
 //! `u` uniform in `(-1, 1)`, the same for both directions so the matrix stays reciprocal) and takes as the noise
