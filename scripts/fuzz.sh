@@ -1,12 +1,15 @@
 #!/usr/bin/env bash
 # `make fuzz`: fuzzes the table parser past the CRC (core/fuzz, target parse_crc) from a corpus seeded with real
-# tables, then tallies which TableError kinds the corpus reaches. Not part of `make test` (CI does not fuzz).
+# tables, then tallies which TableError kinds the corpus reaches; then the relight-script parser and the scene
+# loader (host/fuzz, targets script and scene) from the bundled scripts and scenes. Not part of `make test`.
 #
 # Needs a nightly toolchain and cargo-fuzz; installs cargo-fuzz from crates.io if missing, and nightly through
-# rustup if missing. FUZZ_RUNS (default 10,000,000) executions; the corpus grows under out/fuzz/ (not committed).
+# rustup if missing. FUZZ_RUNS (default 10,000,000) executions of the table target, FUZZ_AUX_RUNS (default
+# 1,000,000) of each of the other two; the corpora grow under out/fuzz/ (not committed).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs="${FUZZ_RUNS:-10000000}"
+aux_runs="${FUZZ_AUX_RUNS:-1000000}"
 step() { printf '\n==> fuzz: %s\n' "$1"; }
 
 if ! rustup toolchain list | grep -q '^nightly'; then
@@ -47,3 +50,29 @@ step "fuzz parse_crc: $runs executions"
 
 step "what the corpus reaches (tally)"
 (cd core/fuzz && cargo +nightly run --release -q --bin tally -- "../../$corpus" "../../$seeds")
+
+step "seed scripts and scenes"
+mkdir -p out/fuzz/script-seeds out/fuzz/script out/fuzz/scene-seeds out/fuzz/scene
+cp scenes/*.relight.toml out/fuzz/script-seeds/
+# A scene input is OBJ, MTL and TOML joined by the target's separator line; the OBJ's mtllib names scene.mtl.
+for obj in scenes/*.obj; do
+    stem=${obj%.obj}
+    mtl=$(sed -n 's/^mtllib \(.*\)$/\1/p' "$obj" | head -n 1)
+    {
+        sed 's/^mtllib .*$/mtllib scene.mtl/' "$obj"
+        printf '\n%%%%%%%%\n'
+        [ -n "$mtl" ] && cat "scenes/$mtl"
+        if [ -f "$stem.toml" ]; then
+            printf '\n%%%%%%%%\n'
+            cat "$stem.toml"
+        fi
+    } > "out/fuzz/scene-seeds/$(basename "$stem")"
+done
+
+step "fuzz the relight-script parser: $aux_runs executions"
+(cd host/fuzz && cargo +nightly fuzz run script ../../out/fuzz/script ../../out/fuzz/script-seeds -- \
+    -runs="$aux_runs" -max_len=16384 -print_final_stats=1)
+
+step "fuzz the scene loader: $aux_runs executions"
+(cd host/fuzz && cargo +nightly fuzz run scene ../../out/fuzz/scene ../../out/fuzz/scene-seeds -- \
+    -runs="$aux_runs" -max_len=65536 -print_final_stats=1)
