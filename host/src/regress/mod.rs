@@ -64,8 +64,8 @@ use crate::evaluate::{QUANTIZATION, SPARSIFICATION};
 pub const TRACKED: [&str; 4] = [SPARSIFICATION, QUANTIZATION, "arithmetic (f32)", "arithmetic (fixed)"];
 
 /// Relative size of the form-factor jitter that measures the noise of deterministic components (module docs,
-/// "Scenes without Monte Carlo noise"): `2^-30`, about 9.3e-10, the largest relative change seen from a
-/// rounding-level estimator change (3.0e-9 on the slab) within a factor of a few.
+/// "Scenes without Monte Carlo noise"): `2^-30`, within a factor of a few of the relative change a
+/// rounding-level change of the estimator makes.
 pub const JITTER: f64 = 1.0 / (1u64 << 30) as f64;
 
 /// Seeds measured by [`update`] unless told otherwise.
