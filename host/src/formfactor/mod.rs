@@ -96,8 +96,11 @@
 //! # Files
 //! `options` (settings) -> `kernel` (Lambert's contour sum, `edge_angle`) -> `quadrature` (Gauss-Legendre
 //! rules, stratified points) -> `nearfield` (far-, near-field and sliver rules) -> `rows` (the row passes and
-//! escape rays, over any [`RayCaster`]) -> this module (checks, assembly, closure, statistics).
+//! escape rays, over any [`RayCaster`]; the per-pair functions `unoccluded_pair` and `visible_fraction`) ->
+//! `element` (the same per-pair estimates for elements made on the fly, for the hierarchy) -> this module
+//! (checks, assembly, closure, statistics).
 
+mod element;
 mod kernel;
 mod nearfield;
 mod options;
@@ -111,6 +114,7 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
+pub use element::{Element, ElementRules};
 pub use kernel::point_to_polygon;
 pub use nearfield::{far_field_order, FAR_FIELD_GAP, NEAR_FIELD_DEPTH, NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH};
 pub use options::{ClosureMode, FormFactorOptions, ESCAPE_RAYS_PER_PATCH};

@@ -94,71 +94,28 @@ impl<C: RayCaster + ?Sized> RowContext<'_, C> {
     /// `U_ij` for every `j` that `i` can see, sorted by `j`, and the kernel evaluations that took.
     pub(super) fn unoccluded_row(&self, i: usize) -> (Vec<(u32, f64)>, u64) {
         let patch_i = &self.patches[i];
-        let mut clipped = Vec::new();
-        let mut front = Vec::new();
-        let mut strips = Vec::new();
+        let mut scratch = PairScratch::default();
         let mut row = Vec::new();
         let mut kernels = 0u64;
+        let sender = Sender {
+            patch: patch_i,
+            quadrature: &self.quadratures[i],
+            far_quadrature: &self.far_quadratures[i],
+            own: &self.receivers[i],
+        };
         for (j, patch_j) in self.patches.iter().enumerate() {
             if j == i || !may_see(patch_i, patch_j) {
                 continue;
             }
-            let mut kernel = |x: &DVec3| {
-                kernels += 1;
-                point_to_polygon_with(*x, patch_i.normal, &patch_j.vertices, patch_j.normal, &mut clipped)
-            };
-            // If j's plane cuts i, the kernel is zero on the part of i behind it and has a kink along the cut,
-            // which slows the quadrature; integrate over the front part only (exactly clipped) instead.
-            let domain: &[DVec3] = if clip_to_front(&patch_i.vertices, patch_j, &mut front) {
-                &front
-            } else {
-                &patch_i.vertices
-            };
-            let receiver = &self.receivers[j];
-            let is_near = near(domain, receiver.center, receiver.radius);
-            let u: f64 = if is_near && sliver_strips(domain, &mut strips) {
-                // Near field of a sliver sender: the kernel varies on the scale of the sliver's width (its points
-                // are that close to j) along its whole length, and near j's edges along it too; integrate over
-                // short pieces of it.
-                strips
-                    .iter()
-                    .map(|piece| {
-                        near_field_integral(
-                            piece,
-                            receiver,
-                            self.rule,
-                            patch_i.normal,
-                            0,
-                            SLIVER_DEPTH,
-                            &mut kernel,
-                        )
-                    })
-                    .sum::<f64>()
-                    / patch_i.area
-            } else if is_near {
-                // Near field: j is closer to (part of) i than i's own size, so the kernel varies on a scale the
-                // fixed rule cannot resolve; split the domain towards j.
-                near_field_integral(
-                    domain,
-                    receiver,
-                    self.rule,
-                    patch_i.normal,
-                    NEAR_FIELD_MAX_DEPTH,
-                    SLIVER_DEPTH,
-                    &mut kernel,
-                ) / patch_i.area
-            } else if domain.len() == patch_i.vertices.len() && std::ptr::eq(domain, &patch_i.vertices[..]) {
-                let own = &self.receivers[i];
-                let gap = own.center.distance(receiver.center) - own.radius - receiver.radius;
-                let far = self.options.far_field && gap >= FAR_FIELD_GAP * 2.0 * own.radius;
-                let Quadrature { points, weights } =
-                    if far { &self.far_quadratures[i] } else { &self.quadratures[i] };
-                points.iter().zip(weights).map(|(x, w)| w * kernel(x)).sum()
-            } else {
-                let part = Quadrature::new(domain, self.rule);
-                let fraction = polygon_area(domain) / patch_i.area;
-                fraction * part.points.iter().zip(&part.weights).map(|(x, w)| w * kernel(x)).sum::<f64>()
-            };
+            let u = unoccluded_pair(
+                &sender,
+                patch_j,
+                &self.receivers[j],
+                self.rule,
+                self.options.far_field,
+                &mut scratch,
+                &mut kernels,
+            );
             if u > 0.0 {
                 row.push((j as u32, u));
             }
@@ -183,45 +140,23 @@ impl<C: RayCaster + ?Sized> RowContext<'_, C> {
         let rays_per_pair = self.options.rays_per_pair;
         let mut result =
             Visibility { fractions: Vec::with_capacity(needed.len()), rays: 0, pairs_assumed_visible: 0 };
-        let (mut origins, mut targets) = (Vec::new(), Vec::new());
-        let (mut rays, mut weights, mut occluded) = (Vec::new(), Vec::new(), Vec::new());
+        let mut buffers = RayBuffers::default();
         for j in needed {
             let patch_j = &self.patches[j as usize];
-            // Stratified points on i paired with stratified points on j through random permutations of both (the
-            // pairs are stratified in each patch and random across them).
             let mut rng = SplitMix64::for_stream(self.options.seed, i as u64, u64::from(j));
-            self.samplers[i].stratified(rays_per_pair, &mut rng, &mut origins);
-            self.samplers[j as usize].stratified(rays_per_pair, &mut rng, &mut targets);
-            rng.shuffle(&mut origins);
-            rng.shuffle(&mut targets);
-            rays.clear();
-            weights.clear();
-            for (x, y) in origins.iter().zip(&targets).take(rays_per_pair) {
-                let d = *y - *x;
-                let r2 = d.length_squared();
-                // cos θ_x cos θ_y / r² (π cancels in the ratio); zero where either point is behind the other's
-                // plane, where the integrand vanishes.
-                let w = (patch_i.normal.dot(d) * -patch_j.normal.dot(d)).max(0.0) / (r2 * r2);
-                if w > 0.0 && w.is_finite() {
-                    rays.push(segment(*x, *y, offset));
-                    weights.push(w);
-                }
-            }
-            occluded.clear();
-            occluded.resize(rays.len(), false);
-            self.scene.occluded_many(&rays, &mut occluded);
-            result.rays += rays.len() as u64;
-            let total: f64 = weights.iter().sum();
-            let visible: f64 =
-                weights.iter().zip(&occluded).filter(|(_, &blocked)| !blocked).map(|(w, _)| w).sum();
-            let fraction = if total > 0.0 {
-                visible / total
-            } else {
-                // Every ray fell where the kernel vanishes (j mostly behind i's horizon): no evidence either way;
-                // NaN marks it, and the pair is taken as visible.
+            let (fraction, rays) = visible_fraction(
+                self.scene,
+                (patch_i, &self.samplers[i]),
+                (patch_j, &self.samplers[j as usize]),
+                &mut rng,
+                rays_per_pair,
+                offset,
+                &mut buffers,
+            );
+            result.rays += rays;
+            if fraction.is_nan() {
                 result.pairs_assumed_visible += 1;
-                f64::NAN
-            };
+            }
             result.fractions.push((j, fraction));
         }
         self.progress.inc(1);
@@ -285,4 +220,131 @@ pub(super) fn segment(x: DVec3, y: DVec3, offset: f64) -> Ray {
     let cut = if length > 0.0 { offset / length } else { 1.0 };
     let from: Vec3 = x.as_vec3();
     Ray::new(from, y.as_vec3() - from, cut as f32, (1.0 - cut) as f32)
+}
+
+/// Buffers of the per-pair kernel integral, reused across pairs.
+#[derive(Default)]
+pub(super) struct PairScratch {
+    clipped: Vec<DVec3>,
+    front: Vec<DVec3>,
+    strips: Vec<Vec<DVec3>>,
+}
+
+/// The sending side of [`unoccluded_pair`] (the patch integrated over): its polygon, its full and far-field
+/// rules, and itself as a near-field receiver (for its bounding sphere).
+pub(super) struct Sender<'a> {
+    pub(super) patch: &'a Patch,
+    pub(super) quadrature: &'a Quadrature,
+    pub(super) far_quadrature: &'a Quadrature,
+    pub(super) own: &'a Receiver<'a>,
+}
+
+/// `U_ij`: the unoccluded form factor from `i` (integrated over with the rule its distance to `j` calls for) to
+/// `j` (the exact point-to-polygon kernel), for a pair that passed [`may_see`]; counts kernel evaluations.
+pub(super) fn unoccluded_pair(
+    sender: &Sender,
+    patch_j: &Patch,
+    receiver: &Receiver,
+    rule: &[(f64, f64)],
+    far_field: bool,
+    scratch: &mut PairScratch,
+    kernels: &mut u64,
+) -> f64 {
+    let patch_i = sender.patch;
+    let PairScratch { clipped, front, strips } = scratch;
+    let mut kernel = |x: &DVec3| {
+        *kernels += 1;
+        point_to_polygon_with(*x, patch_i.normal, &patch_j.vertices, patch_j.normal, clipped)
+    };
+    // If j's plane cuts i, the kernel is zero on the part of i behind it and has a kink along the cut, which slows
+    // the quadrature; integrate over the front part only (exactly clipped) instead.
+    let domain: &[DVec3] =
+        if clip_to_front(&patch_i.vertices, patch_j, front) { front } else { &patch_i.vertices };
+    let is_near = near(domain, receiver.center, receiver.radius);
+    if is_near && sliver_strips(domain, strips) {
+        // Near field of a sliver sender: the kernel varies on the scale of the sliver's width (its points are that
+        // close to j) along its whole length, and near j's edges along it too; integrate over short pieces of it.
+        strips
+            .iter()
+            .map(|piece| {
+                near_field_integral(piece, receiver, rule, patch_i.normal, 0, SLIVER_DEPTH, &mut kernel)
+            })
+            .sum::<f64>()
+            / patch_i.area
+    } else if is_near {
+        // Near field: j is closer to (part of) i than i's own size, so the kernel varies on a scale the fixed rule
+        // cannot resolve; split the domain towards j.
+        near_field_integral(
+            domain,
+            receiver,
+            rule,
+            patch_i.normal,
+            NEAR_FIELD_MAX_DEPTH,
+            SLIVER_DEPTH,
+            &mut kernel,
+        ) / patch_i.area
+    } else if domain.len() == patch_i.vertices.len() && std::ptr::eq(domain, &patch_i.vertices[..]) {
+        let own = sender.own;
+        let gap = own.center.distance(receiver.center) - own.radius - receiver.radius;
+        let far = far_field && gap >= FAR_FIELD_GAP * 2.0 * own.radius;
+        let Quadrature { points, weights } = if far { sender.far_quadrature } else { sender.quadrature };
+        points.iter().zip(weights).map(|(x, w)| w * kernel(x)).sum()
+    } else {
+        let part = Quadrature::new(domain, rule);
+        let fraction = polygon_area(domain) / patch_i.area;
+        fraction * part.points.iter().zip(&part.weights).map(|(x, w)| w * kernel(x)).sum::<f64>()
+    }
+}
+
+/// Buffers of [`visible_fraction`], reused across pairs.
+#[derive(Default)]
+pub(super) struct RayBuffers {
+    origins: Vec<DVec3>,
+    targets: Vec<DVec3>,
+    rays: Vec<Ray>,
+    weights: Vec<f64>,
+    occluded: Vec<bool>,
+}
+
+/// The kernel-weighted visible fraction of the pair `(i, j)` from `rays_per_pair` rays (see the module docs of
+/// `formfactor`), and the rays cast; NaN when every ray fell where the kernel vanishes (no evidence either way).
+pub(super) fn visible_fraction<C: RayCaster + ?Sized>(
+    caster: &C,
+    (patch_i, sampler_i): (&Patch, &PolygonSampler),
+    (patch_j, sampler_j): (&Patch, &PolygonSampler),
+    rng: &mut SplitMix64,
+    rays_per_pair: usize,
+    offset: f64,
+    buffers: &mut RayBuffers,
+) -> (f64, u64) {
+    let RayBuffers { origins, targets, rays, weights, occluded } = buffers;
+    // Stratified points on i paired with stratified points on j through random permutations of both (the pairs
+    // are stratified in each patch and random across them).
+    sampler_i.stratified(rays_per_pair, rng, origins);
+    sampler_j.stratified(rays_per_pair, rng, targets);
+    rng.shuffle(origins);
+    rng.shuffle(targets);
+    rays.clear();
+    weights.clear();
+    for (x, y) in origins.iter().zip(targets.iter()).take(rays_per_pair) {
+        let d = *y - *x;
+        let r2 = d.length_squared();
+        // cos θ_x cos θ_y / r² (π cancels in the ratio); zero where either point is behind the other's plane,
+        // where the integrand vanishes.
+        let w = (patch_i.normal.dot(d) * -patch_j.normal.dot(d)).max(0.0) / (r2 * r2);
+        if w > 0.0 && w.is_finite() {
+            rays.push(segment(*x, *y, offset));
+            weights.push(w);
+        }
+    }
+    occluded.clear();
+    occluded.resize(rays.len(), false);
+    caster.occluded_many(rays, occluded);
+    let total: f64 = weights.iter().sum();
+    let visible: f64 =
+        weights.iter().zip(occluded.iter()).filter(|(_, &blocked)| !blocked).map(|(w, _)| w).sum();
+    // Every ray fell where the kernel vanishes (j mostly behind i's horizon): NaN marks it, and the caller takes
+    // the pair as visible.
+    let fraction = if total > 0.0 { visible / total } else { f64::NAN };
+    (fraction, rays.len() as u64)
 }
