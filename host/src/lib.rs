@@ -15,6 +15,7 @@
 //! | mesh | [`mesh`], [`patch`] | patches, adaptive refinement, the form-factor matrix type |
 //! | form factors | [`formfactor`], [`raycast`], [`embree`] | the estimator, occlusion rays |
 //! | prepare | [`pipeline`] | the stages above run together for a command |
+//! | hierarchy | [`hierarchy`] (`hierarchy/`: tree, link, solve) | the hierarchical solver with clustering (links instead of a matrix) |
 //! | reference | [`reference`](mod@reference), [`lighting`], [`input`], [`rgb`] | the f64 solves, per-patch lighting, the input checks they share, the colour type |
 //! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
@@ -28,6 +29,7 @@ pub mod check;
 pub mod embree;
 pub mod evaluate;
 pub mod formfactor;
+pub mod hierarchy;
 pub mod input;
 pub mod inspect;
 pub mod lighting;

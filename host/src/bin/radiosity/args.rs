@@ -13,6 +13,15 @@ use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
+/// The solver of `radiosity solve`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SolveMethod {
+    /// The full patch-to-patch form-factor matrix of the adaptive mesh, solved exactly.
+    Flat,
+    /// Hierarchical radiosity with clustering (links refined to `--epsilon`).
+    Hierarchical,
+}
+
 /// Output format of a command.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
@@ -227,14 +236,26 @@ pub enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
-    /// Solve the scene exactly in f64 (dense LU up to 4096 patches, Gauss-Seidel above) and print the patch
-    /// table: `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`.
+    /// Solve the scene in f64 and print the patch table:
+    /// `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. `--method flat` (the
+    /// default) solves the adaptive mesh's full form-factor matrix exactly (dense LU up to 4096 patches,
+    /// Gauss-Seidel above); `--method hierarchical` links clusters and elements where the light needs them,
+    /// refined until every link's estimated error is below `--epsilon` (the patches are then the hierarchy's
+    /// leaves).
     Solve {
         #[command(flatten)]
         scene: SceneArgs,
         /// Output format (`text` prints a summary per light group; `csv` the patch table; `json` both).
         #[arg(long, value_enum, default_value_t = Format::Csv)]
         format: Format,
+        /// Solver: `flat` (a form factor for every pair of patches) or `hierarchical` (links between clusters
+        /// and elements; `--max-patches`, `--max-patch-edge` and `--no-subdivide` do not apply to it).
+        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
+        method: SolveMethod,
+        /// Hierarchical only: error bound per link, relative to the brightest face's emitted power (smaller is
+        /// more accurate and costs more links) [default: 1e-4].
+        #[arg(long, value_name = "E")]
+        epsilon: Option<f64>,
     },
     /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
     /// patch to show the mesh). Prints the output path.

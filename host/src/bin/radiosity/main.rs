@@ -8,17 +8,19 @@ use clap::Parser;
 use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
 use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON};
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::write_patch_csv;
 
 mod args;
-use args::{Cli, Command, Format, RenderModeArg};
+use args::{Cli, Command, Format, RenderModeArg, SolveMethod};
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
 use radiosity_host::rgb::Rgb;
+use radiosity_host::scene::Scene;
 use radiosity_host::view;
 
 fn main() -> ExitCode {
@@ -38,6 +40,63 @@ fn main() -> ExitCode {
 }
 
 type BoxError = Box<dyn std::error::Error>;
+
+/// `radiosity solve --method hierarchical`: the leaves' patch table (CSV), or the statistics and mean radiosity
+/// (text; JSON adds the radiosity per leaf).
+fn solve_hierarchical_command(
+    scene: &args::SceneArgs,
+    format: Format,
+    epsilon: Option<f64>,
+    out: &mut impl Write,
+) -> Result<(), BoxError> {
+    if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
+        return Err("--no-subdivide, --max-patches and --max-patch-edge apply to --method flat only (the \
+                    hierarchy subdivides where --epsilon asks)"
+            .into());
+    }
+    let options = HierarchyOptions {
+        epsilon: epsilon.unwrap_or(DEFAULT_EPSILON),
+        form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
+        progress: !scene.quiet,
+        ..HierarchyOptions::default()
+    };
+    let loaded = Scene::load(&scene.scene)?;
+    if !scene.quiet {
+        for w in &loaded.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    let start = std::time::Instant::now();
+    let solution =
+        solve_hierarchical(&loaded, &options).map_err(|e| format!("{}: {e}", scene.scene.display()))?;
+    if !scene.quiet {
+        eprintln!("{}: {} in {:.2} s", scene.scene.display(), solution.stats, start.elapsed().as_secs_f64());
+    }
+    let area: f64 = solution.leaves.iter().map(|q| q.area).sum();
+    let mean = solution.leaves.iter().zip(&solution.b).fold(Rgb::ZERO, |m, (q, &b)| m + q.area * b / area);
+    match format {
+        Format::Csv => {
+            write_patch_csv(out, &solution.leaves, &solution.rho, &solution.emission, &solution.b)?
+        }
+        Format::Text => {
+            writeln!(out, "{}", solution.stats)?;
+            writeln!(out, "mean radiosity {:.6e} {:.6e} {:.6e} W/m^2", mean.x, mean.y, mean.z)?;
+        }
+        Format::Json => {
+            let doc = serde_json::json!({
+                "method": "hierarchical",
+                "epsilon": options.epsilon,
+                "patches": solution.leaves.len(),
+                "stats": solution.stats,
+                "mean_radiosity": mean,
+                "b": solution.b,
+            });
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
+            writeln!(out)?;
+        }
+    }
+    Ok(())
+}
 
 fn run(cli: Cli) -> Result<(), BoxError> {
     let stdout = io::stdout();
@@ -113,7 +172,13 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
-        Command::Solve { scene, format } => {
+        Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon } => {
+            solve_hierarchical_command(&scene, format, epsilon, &mut out)?;
+        }
+        Command::Solve { scene, format, method: SolveMethod::Flat, epsilon } => {
+            if epsilon.is_some() {
+                return Err("--epsilon applies to --method hierarchical only".into());
+            }
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let l = &p.lighting;
             let tv = exact_transfer(l, &p.form_factors, &Method::for_size(p.patches.len()))?;

@@ -1,0 +1,322 @@
+//! Links and their refinement: the form-factor estimate of a (receiver, sender) pair of nodes with its spread
+//! (how far the point-wise transfer across the receiver may stray from it), the error oracle, and the waves of
+//! refinement that split links until every one is within the error bound.
+
+use std::f64::consts::PI;
+
+use rayon::prelude::*;
+
+use super::tree::{Kind, Tree};
+use super::HierarchyError;
+use crate::formfactor::{point_to_polygon, Element, ElementRules};
+use crate::raycast::{Ray, RayCaster};
+use crate::rgb::{max_channel, Rgb};
+use crate::rng::SplitMix64;
+
+/// Salt of the random streams of cluster links (so they never coincide with surface pairs' visibility streams).
+const CLUSTER_STREAM: u64 = 0x9e37_79b9_7f4a_7c15;
+
+/// How far toward its centroid a receiver's vertex is moved to probe the point-wise form factor there (so that a
+/// probe never lies on a neighbour's edge, where the kernel is singular in its derivatives).
+const PROBE_INSET: f64 = 0.02;
+
+/// One accepted link between two nodes, carrying both directions: `a` gathers `f_ab * B_b` per unit area and `b`
+/// gathers `f_ba * B_a`, with `A_a f_ab = A_b f_ba` (reciprocity, so that the exchange conserves power whatever
+/// the link's level).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Link {
+    /// One end.
+    pub(super) a: u32,
+    /// The other end.
+    pub(super) b: u32,
+    /// The form factor from `a` to `b`, averaged over `a`.
+    pub(super) f_ab: f64,
+    /// The form factor from `b` to `a`, averaged over `b`.
+    pub(super) f_ba: f64,
+    /// Bound on how far the point-wise form factor to `b` across `a` may be from `f_ab`.
+    pub(super) spread_ab: f64,
+    /// The same for `b` to `a`.
+    pub(super) spread_ba: f64,
+}
+
+/// The estimate of one candidate pair: a [`Link`] and the rays it cast.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Estimate {
+    /// The link it would be.
+    link: Link,
+    /// Occlusion rays cast.
+    rays: u64,
+}
+
+/// What the estimates need besides the tree.
+pub(super) struct Estimator<'a, C: ?Sized> {
+    /// The estimator's rules.
+    pub(super) rules: &'a ElementRules,
+    /// Occluders.
+    pub(super) caster: &'a C,
+    /// Point pairs (and rays) of a link with a cluster at one end.
+    pub(super) cluster_samples: usize,
+    /// Seed of the cluster links' streams.
+    pub(super) seed: u64,
+}
+
+/// The range of the point kernel from probes of `r` (its centroid and its vertices moved inward) to `s`, or `None`
+/// if no probe gave a finite value.
+fn kernel_range(r: &Element, s: &Element) -> Option<f64> {
+    let (pr, ps) = (r.patch(), s.patch());
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let probes =
+        std::iter::once(pr.centroid).chain(pr.vertices.iter().map(|&p| p + PROBE_INSET * (pr.centroid - p)));
+    for x in probes {
+        let k = point_to_polygon(x, pr.normal, &ps.vertices, ps.normal);
+        if k.is_finite() {
+            lo = lo.min(k);
+            hi = hi.max(k);
+        }
+    }
+    (hi >= lo).then_some(hi - lo)
+}
+
+impl<C: RayCaster + ?Sized> Estimator<'_, C> {
+    /// The estimate of the pair `(a, b)` (distinct, disjoint nodes).
+    pub(super) fn estimate(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
+        let zero =
+            Estimate { link: Link { a, b, f_ab: 0.0, f_ba: 0.0, spread_ab: 0.0, spread_ba: 0.0 }, rays: 0 };
+        if tree.behind(a, b) || tree.behind(b, a) {
+            return zero;
+        }
+        let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
+        match (&na.kind, &nb.kind) {
+            (Kind::Surface { element: ea, .. }, Kind::Surface { element: eb, .. }) => {
+                self.surface_pair(a, ea, b, eb).unwrap_or(zero)
+            }
+            _ => self.cluster_pair(tree, a, b),
+        }
+    }
+
+    /// Two surfaces: the kernel's unoccluded form factor times the rays' visible fraction (as the patch-to-patch
+    /// estimator computes them); the spread is the point-wise form factor's range over probes of the receiver
+    /// times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a shadow edge
+    /// can cross the receiver) and the fraction's standard error; where it is not, the fraction's resolution
+    /// (one ray in `rays_per_pair`) times the unoccluded factor. `None` if the two cannot exchange light.
+    fn surface_pair(&self, a: u32, ea: &Element, b: u32, eb: &Element) -> Option<Estimate> {
+        // Integrated over the smaller of the two (the kernel is exact over the other), the other direction by
+        // reciprocity: the quadrature then never has to resolve a small neighbour's peak on a large element.
+        let (aa, ab) = (ea.patch().area, eb.patch().area);
+        let (u_ab, u_ba) = if aa <= ab {
+            let u = self.rules.unoccluded(ea, eb);
+            (u, u * aa / ab)
+        } else {
+            let u = self.rules.unoccluded(eb, ea);
+            (u * ab / aa, u)
+        };
+        if !(u_ab > 0.0 && u_ab.is_finite() && u_ba.is_finite()) {
+            return None;
+        }
+        // The stream of the lower index first, so the estimate does not depend on the pair's order.
+        let (v, rays) = if a < b {
+            self.rules.visible_fraction(self.caster, ea, eb, (u64::from(a), u64::from(b)))
+        } else {
+            self.rules.visible_fraction(self.caster, eb, ea, (u64::from(b), u64::from(a)))
+        };
+        let v = if v.is_nan() { 1.0 } else { v };
+        let n = self.rules.rays_per_pair() as f64;
+        let visibility = if v > 0.0 && v < 1.0 { 1.0 + (v * (1.0 - v) / n).sqrt() } else { 1.0 / n };
+        let spread_ab = v * kernel_range(ea, eb).unwrap_or(u_ab) + u_ab * visibility;
+        let spread_ba = v * kernel_range(eb, ea).unwrap_or(u_ba) + u_ba * visibility;
+        Some(Estimate { link: Link { a, b, f_ab: u_ab * v, f_ba: u_ba * v, spread_ab, spread_ba }, rays })
+    }
+
+    /// A cluster at one end (or both): Monte Carlo over area-uniform point pairs with a shadow ray each,
+    /// `F_ab = A_b * mean(cos+ cos+ V / (pi r^2))` (and `F_ba` with `A_a`). The spread is the bound on any point's
+    /// form factor to the other end (`A_b / (pi d^2)` with `d` the gap between the bounding spheres, at most 1; 1
+    /// if they overlap), which bounds the error of giving every point of a cluster the same value (Smits, Arvo,
+    /// Greenberg 1994), plus two standard errors of the mean.
+    fn cluster_pair(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
+        let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
+        let (lo, hi) = (a.min(b), a.max(b));
+        let mut rng = SplitMix64::for_stream(self.seed ^ CLUSTER_STREAM, u64::from(lo), u64::from(hi));
+        let offset = self.caster.offset();
+        let n = self.cluster_samples;
+        let mut values = Vec::with_capacity(n);
+        let mut rays = Vec::with_capacity(n);
+        let mut slots = Vec::with_capacity(n);
+        for _ in 0..n {
+            let (x, nx) = tree.sample(lo, &mut rng);
+            let (y, ny) = tree.sample(hi, &mut rng);
+            let d = y - x;
+            let r2 = d.length_squared();
+            let k = (nx.dot(d) * -ny.dot(d)).max(0.0) / (r2 * r2 * PI);
+            if k > 0.0 && k.is_finite() {
+                slots.push(values.len());
+                rays.push(Ray::segment(x.as_vec3(), y.as_vec3(), offset));
+            }
+            values.push(if k.is_finite() { k } else { 0.0 });
+        }
+        let mut occluded = vec![false; rays.len()];
+        self.caster.occluded_many(&rays, &mut occluded);
+        for (&slot, &blocked) in slots.iter().zip(&occluded) {
+            if blocked {
+                values[slot] = 0.0;
+            }
+        }
+        let mean = values.iter().sum::<f64>() / n as f64;
+        let var = values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n.max(2) - 1) as f64;
+        let se = (var / n as f64).sqrt();
+        let gap = na.center.distance(nb.center) - na.radius - nb.radius;
+        let bound = |area: f64| if gap > 0.0 { (area / (PI * gap * gap)).min(1.0) } else { 1.0 };
+        let link = Link {
+            a,
+            b,
+            f_ab: nb.area * mean,
+            f_ba: na.area * mean,
+            spread_ab: bound(nb.area) + 2.0 * nb.area * se,
+            spread_ba: bound(na.area) + 2.0 * na.area * se,
+        };
+        Estimate { link, rays: rays.len() as u64 }
+    }
+}
+
+/// The error oracle: the power a link may misplace at either end, `A_r * max_c(rho_r,c * Bmax_s,c) * spread_rs`
+/// (brightness-weighted refinement, Hanrahan, Salzman, Aupperle 1991, with the spread in place of `F`), the
+/// larger of the two directions.
+pub(super) fn link_error(tree: &Tree, b_max: &[Rgb], link: &Link) -> f64 {
+    let one = |r: u32, s: u32, spread: f64| {
+        let nr = &tree.nodes[r as usize];
+        nr.area * max_channel(nr.rho_max * b_max[s as usize]) * spread
+    };
+    one(link.a, link.b, link.spread_ab).max(one(link.b, link.a, link.spread_ba))
+}
+
+/// Counters of refinement.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct RefineCounts {
+    /// Pairs estimated.
+    pub(super) estimated: u64,
+    /// Occlusion rays cast.
+    pub(super) rays: u64,
+    /// Links kept although above the bound, both ends at the resolution or node limit.
+    pub(super) at_limit: u64,
+    /// Links split.
+    pub(super) split: u64,
+}
+
+/// Limits of refinement.
+pub(super) struct Limits {
+    /// Error bound per link (W).
+    pub(super) threshold: f64,
+    /// Surfaces below 4 times this area are not split.
+    pub(super) min_area: f64,
+    /// Most nodes.
+    pub(super) max_nodes: usize,
+}
+
+/// Whether `n` may be split: a cluster always, a surface while its children would be at least `min_area` and the
+/// node limit allows them.
+fn splittable(tree: &Tree, limits: &Limits, n: u32) -> bool {
+    let node = &tree.nodes[n as usize];
+    if tree.is_cluster(n) || !node.children.is_empty() {
+        return true;
+    }
+    let vertices = node.element().map_or(4, |e| e.patch().vertices.len());
+    let pieces = if vertices == 3 { 4 } else { vertices.max(4) };
+    node.area / pieces as f64 >= limits.min_area && tree.nodes.len() + pieces <= limits.max_nodes
+}
+
+/// The pairs a self-link of `n` stands for: every unordered pair of distinct children, and the self-links of the
+/// children that are clusters (a planar surface does not see itself).
+pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<(u32, u32)>) {
+    let mut stack = vec![n];
+    while let Some(c) = stack.pop() {
+        if !tree.is_cluster(c) {
+            continue;
+        }
+        let children = &tree.nodes[c as usize].children;
+        for (k, &a) in children.iter().enumerate() {
+            for &b in &children[k + 1..] {
+                candidates.push((a, b));
+            }
+            stack.push(a);
+        }
+    }
+}
+
+/// Estimates `candidates` in waves (in parallel within a wave), accepting each that is within the bound and
+/// replacing each that is not by the pairs of the children of its larger splittable end; appends the accepted
+/// links with a nonzero form factor to `links`.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+pub(super) fn refine<C: RayCaster + ?Sized>(
+    tree: &mut Tree,
+    estimator: &Estimator<'_, C>,
+    b_max: &mut Vec<Rgb>,
+    limits: &Limits,
+    mut candidates: Vec<(u32, u32)>,
+    links: &mut Vec<Link>,
+    counts: &mut RefineCounts,
+) -> Result<(), HierarchyError> {
+    while !candidates.is_empty() {
+        let estimates: Vec<Estimate> = {
+            let tree = &*tree;
+            candidates.par_iter().map(|&(r, s)| estimator.estimate(tree, r, s)).collect()
+        };
+        let mut next = Vec::new();
+        for (&(a, b), est) in candidates.iter().zip(&estimates) {
+            counts.estimated += 1;
+            counts.rays += est.rays;
+            let link = est.link;
+            if link.f_ab == 0.0 && link.spread_ab == 0.0 && link.spread_ba == 0.0 {
+                continue;
+            }
+            if link_error(tree, b_max, &link) <= limits.threshold {
+                if link.f_ab > 0.0 {
+                    links.push(link);
+                }
+                continue;
+            }
+            if split_link(tree, estimator.rules, b_max, limits, a, b, &mut next)? {
+                counts.split += 1;
+            } else {
+                counts.at_limit += 1;
+                links.push(link);
+            }
+        }
+        candidates = next;
+    }
+    Ok(())
+}
+
+/// Replaces the pair `(r, s)` by the pairs of the children of its larger splittable end (by area; `r` on a
+/// tie); returns false if neither end can be split.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+pub(super) fn split_link(
+    tree: &mut Tree,
+    rules: &ElementRules,
+    b_max: &mut Vec<Rgb>,
+    limits: &Limits,
+    r: u32,
+    s: u32,
+    next: &mut Vec<(u32, u32)>,
+) -> Result<bool, HierarchyError> {
+    let (can_r, can_s) = (splittable(tree, limits, r), splittable(tree, limits, s));
+    let split_receiver = match (can_r, can_s) {
+        (false, false) => return Ok(false),
+        (true, false) => true,
+        (false, true) => false,
+        (true, true) => tree.nodes[r as usize].area >= tree.nodes[s as usize].area,
+    };
+    let n = if split_receiver { r } else { s };
+    tree.split(rules, n).map_err(HierarchyError::Mesh)?;
+    // New surface children take their parent's brightness bound until a solve gives them their own.
+    while b_max.len() < tree.nodes.len() {
+        let parent = tree.nodes[b_max.len()].parent;
+        b_max.push(b_max[parent as usize]);
+    }
+    for &c in &tree.nodes[n as usize].children {
+        next.push(if split_receiver { (c, s) } else { (r, c) });
+    }
+    Ok(true)
+}

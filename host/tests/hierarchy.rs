@@ -1,0 +1,96 @@
+//! The hierarchical solver on closed forms and on its own invariants: the first bounce between two squares,
+//! determinism across thread counts, and clear errors for bad options and scenes without light.
+
+use std::path::PathBuf;
+
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchyError, HierarchyOptions};
+use radiosity_host::scene::Scene;
+
+/// Writes `obj` and `mtl` into a fresh folder and loads the scene.
+fn scene(name: &str, obj: &str, mtl: &str) -> Scene {
+    let dir: PathBuf =
+        std::env::temp_dir().join(format!("radiosity-hierarchy-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join(format!("{name}.mtl")), mtl).unwrap();
+    std::fs::write(dir.join(format!("{name}.obj")), format!("mtllib {name}.mtl\n{obj}")).unwrap();
+    let s = Scene::load(dir.join(format!("{name}.obj"))).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    s
+}
+
+/// Unit squares: face 0 at z = 0 (normal +z) emits 1 W/m^2 and reflects nothing, face 1 at z = 1 (normal -z)
+/// reflects 0.5. With nothing reflected back, B on face 1 is exactly 0.5 * F(x) pointwise, so its area average is
+/// 0.5 * F_10 (F_10 = 0.199825, Howell's catalog, directly opposed unit squares at distance 1).
+const FACING: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+                      usemtl light\nf 1 2 3 4\nusemtl grey\nf 5 8 7 6\n";
+const FACING_MTL: &str = "newmtl light\nKd 0 0 0\nKe 1 1 1\nnewmtl grey\nKd 0.5 0.5 0.5\nKe 0 0 0\n";
+
+fn face_average(s: &radiosity_host::hierarchy::HierarchicalSolution, face: usize) -> f64 {
+    let (mut a, mut b) = (0.0, 0.0);
+    for (p, v) in s.leaves.iter().zip(&s.b) {
+        if p.face == face {
+            a += p.area;
+            b += p.area * v.x;
+        }
+    }
+    b / a
+}
+
+#[test]
+fn first_bounce_between_facing_squares_matches_the_closed_form() {
+    let s = scene("facing", FACING, FACING_MTL);
+    for epsilon in [1e-2, 1e-4] {
+        let sol =
+            solve_hierarchical(&s, &HierarchyOptions { epsilon, ..HierarchyOptions::default() }).unwrap();
+        // Every leaf-to-leaf factor is the patch estimator's (kernel integral, accurate to 2e-4 of the closed form
+        // in the form-factor tests), and area averages add, so the face average is that accurate at any epsilon.
+        let exact = 0.5 * 0.199825;
+        let got = face_average(&sol, 1);
+        assert!((got - exact).abs() <= 0.5 * 2e-4, "epsilon {epsilon}: B_1 {got} vs {exact}");
+        // The emitter reflects nothing: its radiosity is its emission.
+        assert!((face_average(&sol, 0) - 1.0).abs() < 1e-12);
+        assert!(sol.stats.leaves >= 2 && sol.stats.surface_links >= 1, "{}", sol.stats);
+    }
+}
+
+#[test]
+fn answers_do_not_depend_on_the_thread_count() {
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let run = |threads| {
+        let mut o = HierarchyOptions { epsilon: 3e-3, ..HierarchyOptions::default() };
+        o.form_factors.threads = Some(threads);
+        solve_hierarchical(&s, &o).unwrap()
+    };
+    let (one, two) = (run(1), run(2));
+    assert_eq!(one.stats, two.stats);
+    assert_eq!(one.b, two.b);
+    assert_eq!(one.leaves, two.leaves);
+    // Clusters take part: the box's faces are far enough apart for some cluster links.
+    assert!(one.stats.clusters > 0);
+}
+
+#[test]
+fn bad_options_and_dark_scenes_are_refused() {
+    let s = scene("facing-bad", FACING, FACING_MTL);
+    for (o, name) in [
+        (HierarchyOptions { epsilon: 0.0, ..HierarchyOptions::default() }, "epsilon"),
+        (HierarchyOptions { epsilon: f64::NAN, ..HierarchyOptions::default() }, "epsilon"),
+        (HierarchyOptions { cluster_samples: 1, ..HierarchyOptions::default() }, "cluster_samples"),
+        (HierarchyOptions { passes: 0, ..HierarchyOptions::default() }, "passes"),
+        (HierarchyOptions { max_nodes: 2, ..HierarchyOptions::default() }, "max_nodes"),
+    ] {
+        match solve_hierarchical(&s, &o) {
+            Err(HierarchyError::InvalidOption { name: got, .. }) => assert_eq!(got, name),
+            other => panic!("{name}: expected InvalidOption, got {other:?}"),
+        }
+    }
+    let dark = scene(
+        "dark",
+        FACING,
+        "newmtl light\nKd 0.5 0.5 0.5\nKe 0 0 0\nnewmtl grey\nKd 0.5 0.5 0.5\nKe 0 0 0\n",
+    );
+    assert!(matches!(
+        solve_hierarchical(&dark, &HierarchyOptions::default()),
+        Err(HierarchyError::NoEmission)
+    ));
+}
