@@ -1,9 +1,12 @@
-//! The hierarchical solver on closed forms and on its own invariants: the first bounce between two squares,
-//! determinism across thread counts, and clear errors for bad options and scenes without light.
+//! The hierarchical solver on closed forms, against the dense solve of its own leaves, and on its own invariants:
+//! the first bounce between two squares, the white furnace, the Cornell box leaf by leaf within the oracle's
+//! claimed bound, determinism across thread counts, and clear errors for bad options and scenes without light.
 
 use std::path::PathBuf;
 
-use radiosity_host::hierarchy::{solve_hierarchical, HierarchyError, HierarchyOptions};
+use radiosity_host::formfactor::{compute_form_factors, FormFactorOptions};
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions};
+use radiosity_host::reference::{solve_many, Method, RadiositySystem};
 use radiosity_host::scene::Scene;
 
 /// Writes `obj` and `mtl` into a fresh folder and loads the scene.
@@ -25,7 +28,7 @@ const FACING: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 
                       usemtl light\nf 1 2 3 4\nusemtl grey\nf 5 8 7 6\n";
 const FACING_MTL: &str = "newmtl light\nKd 0 0 0\nKe 1 1 1\nnewmtl grey\nKd 0.5 0.5 0.5\nKe 0 0 0\n";
 
-fn face_average(s: &radiosity_host::hierarchy::HierarchicalSolution, face: usize) -> f64 {
+fn face_average(s: &HierarchicalSolution, face: usize) -> f64 {
     let (mut a, mut b) = (0.0, 0.0);
     for (p, v) in s.leaves.iter().zip(&s.b) {
         if p.face == face {
@@ -39,7 +42,7 @@ fn face_average(s: &radiosity_host::hierarchy::HierarchicalSolution, face: usize
 #[test]
 fn first_bounce_between_facing_squares_matches_the_closed_form() {
     let s = scene("facing", FACING, FACING_MTL);
-    for epsilon in [1e-2, 1e-4] {
+    for epsilon in [0.3, 0.03] {
         let sol =
             solve_hierarchical(&s, &HierarchyOptions { epsilon, ..HierarchyOptions::default() }).unwrap();
         // Every leaf-to-leaf factor is the patch estimator's (kernel integral, accurate to 2e-4 of the closed form
@@ -53,11 +56,81 @@ fn first_bounce_between_facing_squares_matches_the_closed_form() {
     }
 }
 
+/// The area mean of the claimed error bound over `face`'s leaves.
+fn face_bound(s: &HierarchicalSolution, face: usize) -> f64 {
+    let bound = s.error_bound.as_ref().expect("a finite claimed bound");
+    let (mut a, mut e) = (0.0, 0.0);
+    for (p, b) in s.leaves.iter().zip(bound) {
+        if p.face == face {
+            a += p.area;
+            e += p.area * b;
+        }
+    }
+    e / a
+}
+
+#[test]
+fn white_furnace_is_within_the_claimed_bound() {
+    // Closed unit cube, rho 0.9, E 1 on every face: B = E / (1 - rho) = 10 exactly everywhere. Interreflection
+    // amplifies any error of the leaves' total form factors tenfold, so this is the hierarchy's hardest case.
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/furnace.obj")).unwrap();
+    let sol =
+        solve_hierarchical(&s, &HierarchyOptions { epsilon: 0.3, ..HierarchyOptions::default() }).unwrap();
+    for face in 0..6 {
+        let (got, bound) = (face_average(&sol, face), face_bound(&sol, face));
+        assert!(
+            (got - 10.0).abs() <= bound,
+            "face {face}: B {got} vs 10, claimed bound {bound}\n{}",
+            sol.stats
+        );
+    }
+}
+
+#[test]
+fn cornell_box_leaves_match_the_dense_solve_of_the_same_leaves_within_the_claimed_bound() {
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let sol = solve_hierarchical(&s, &HierarchyOptions::default()).unwrap();
+    // The dense reference: every leaf-to-leaf form factor by the same estimator, solved exactly.
+    let (ff, _) = compute_form_factors(
+        &sol.leaves,
+        &FormFactorOptions { progress: false, ..FormFactorOptions::default() },
+    )
+    .unwrap();
+    // Raw rows may exceed 1 by the quadrature's error (the kernel is within 2e-4 of closed forms per pair, and a
+    // row's excess comes from its few adjacent neighbours); the bake closes rows, this comparison keeps them raw.
+    let system = RadiositySystem::with_row_sum_tolerance(&sol.rho, &ff, 1e-3).unwrap();
+    let dense = solve_many(system, &[&sol.emission], &Method::for_size(sol.leaves.len())).unwrap().remove(0);
+    let bound = sol.error_bound.as_ref().expect("a finite claimed bound");
+    // The claim bounds the hierarchy's own error (its links' approximations and its visibility estimates); the
+    // dense answer's visibility estimates are no noisier (per leaf it casts at least as many rays), so the two
+    // may differ by at most twice the claim.
+    for (k, ((h, d), e)) in sol.b.iter().zip(&dense.b).zip(bound).enumerate() {
+        let diff = (*h - *d).abs().max_element();
+        assert!(
+            diff <= 2.0 * e,
+            "leaf {k} (face {}): hierarchical {h} vs dense {d}, claimed {e}",
+            sol.leaves[k].face
+        );
+    }
+    // The claim is a bound, not a tight estimate; the face averages (what the issue's targets are stated in)
+    // are reported here for a reader of the test log.
+    for face in 0..19 {
+        let (area, h, d) =
+            sol.leaves.iter().zip(&sol.b).zip(&dense.b).filter(|((p, _), _)| p.face == face).fold(
+                (0.0, 0.0, 0.0),
+                |(a, h, d), ((p, hb), db)| {
+                    (a + p.area, h + p.area * hb.max_element(), d + p.area * db.max_element())
+                },
+            );
+        println!("face {face}: hierarchical {:.5} dense {:.5} ({:+.2e})", h / area, d / area, h / d - 1.0);
+    }
+}
+
 #[test]
 fn answers_do_not_depend_on_the_thread_count() {
     let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
     let run = |threads| {
-        let mut o = HierarchyOptions { epsilon: 3e-3, ..HierarchyOptions::default() };
+        let mut o = HierarchyOptions { epsilon: 0.3, ..HierarchyOptions::default() };
         o.form_factors.threads = Some(threads);
         solve_hierarchical(&s, &o).unwrap()
     };
@@ -75,6 +148,7 @@ fn bad_options_and_dark_scenes_are_refused() {
     for (o, name) in [
         (HierarchyOptions { epsilon: 0.0, ..HierarchyOptions::default() }, "epsilon"),
         (HierarchyOptions { epsilon: f64::NAN, ..HierarchyOptions::default() }, "epsilon"),
+        (HierarchyOptions { epsilon: 1.0, ..HierarchyOptions::default() }, "epsilon"),
         (HierarchyOptions { cluster_samples: 1, ..HierarchyOptions::default() }, "cluster_samples"),
         (HierarchyOptions { passes: 0, ..HierarchyOptions::default() }, "passes"),
         (HierarchyOptions { max_nodes: 2, ..HierarchyOptions::default() }, "max_nodes"),

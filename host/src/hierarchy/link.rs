@@ -6,11 +6,12 @@ use std::f64::consts::PI;
 
 use rayon::prelude::*;
 
+use super::solve::Span;
 use super::tree::{Kind, Tree};
 use super::HierarchyError;
 use crate::formfactor::{point_to_polygon, Element, ElementRules};
 use crate::raycast::{Ray, RayCaster};
-use crate::rgb::{max_channel, Rgb};
+use crate::rgb::max_channel;
 use crate::rng::SplitMix64;
 
 /// Salt of the random streams of cluster links (so they never coincide with surface pairs' visibility streams).
@@ -37,13 +38,17 @@ pub(super) struct Link {
     pub(super) spread_ab: f64,
     /// The same for `b` to `a`.
     pub(super) spread_ba: f64,
+    /// The visible fraction of a surface-surface link (1 for a link with a cluster, where `f` includes it).
+    pub(super) visible: f64,
+    /// The unoccluded form factor from `a` to `b` of a surface-surface link (`f_ab` for a link with a cluster).
+    pub(super) unoccluded_ab: f64,
 }
 
 /// The estimate of one candidate pair: a [`Link`] and the rays it cast.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Estimate {
     /// The link it would be.
-    link: Link,
+    pub(super) link: Link,
     /// Occlusion rays cast.
     rays: u64,
 }
@@ -80,8 +85,19 @@ fn kernel_range(r: &Element, s: &Element) -> Option<f64> {
 impl<C: RayCaster + ?Sized> Estimator<'_, C> {
     /// The estimate of the pair `(a, b)` (distinct, disjoint nodes).
     pub(super) fn estimate(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
-        let zero =
-            Estimate { link: Link { a, b, f_ab: 0.0, f_ba: 0.0, spread_ab: 0.0, spread_ba: 0.0 }, rays: 0 };
+        let zero = Estimate {
+            link: Link {
+                a,
+                b,
+                f_ab: 0.0,
+                f_ba: 0.0,
+                spread_ab: 0.0,
+                spread_ba: 0.0,
+                visible: 1.0,
+                unoccluded_ab: 0.0,
+            },
+            rays: 0,
+        };
         if tree.behind(a, b) || tree.behind(b, a) {
             return zero;
         }
@@ -124,7 +140,19 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         let visibility = if v > 0.0 && v < 1.0 { 1.0 + (v * (1.0 - v) / n).sqrt() } else { 1.0 / n };
         let spread_ab = v * kernel_range(ea, eb).unwrap_or(u_ab) + u_ab * visibility;
         let spread_ba = v * kernel_range(eb, ea).unwrap_or(u_ba) + u_ba * visibility;
-        Some(Estimate { link: Link { a, b, f_ab: u_ab * v, f_ba: u_ba * v, spread_ab, spread_ba }, rays })
+        Some(Estimate {
+            link: Link {
+                a,
+                b,
+                f_ab: u_ab * v,
+                f_ba: u_ba * v,
+                spread_ab,
+                spread_ba,
+                visible: v,
+                unoccluded_ab: u_ab,
+            },
+            rays,
+        })
     }
 
     /// A cluster at one end (or both): Monte Carlo over area-uniform point pairs with a shadow ray each,
@@ -172,6 +200,8 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
             f_ba: na.area * mean,
             spread_ab: bound(nb.area) + 2.0 * nb.area * se,
             spread_ba: bound(na.area) + 2.0 * na.area * se,
+            visible: 1.0,
+            unoccluded_ab: nb.area * mean,
         };
         Estimate { link, rays: rays.len() as u64 }
     }
@@ -180,10 +210,10 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
 /// The error oracle: the power a link may misplace at either end, `A_r * max_c(rho_r,c * Bmax_s,c) * spread_rs`
 /// (brightness-weighted refinement, Hanrahan, Salzman, Aupperle 1991, with the spread in place of `F`), the
 /// larger of the two directions.
-pub(super) fn link_error(tree: &Tree, b_max: &[Rgb], link: &Link) -> f64 {
+pub(super) fn link_error(tree: &Tree, spans: &[Span], link: &Link) -> f64 {
     let one = |r: u32, s: u32, spread: f64| {
         let nr = &tree.nodes[r as usize];
-        nr.area * max_channel(nr.rho_max * b_max[s as usize]) * spread
+        nr.area * max_channel(nr.rho_max * spans[s as usize].hi) * spread
     };
     one(link.a, link.b, link.spread_ab).max(one(link.b, link.a, link.spread_ba))
 }
@@ -202,6 +232,7 @@ pub(super) struct RefineCounts {
 }
 
 /// Limits of refinement.
+#[derive(Clone, Copy)]
 pub(super) struct Limits {
     /// Error bound per link (W).
     pub(super) threshold: f64,
@@ -243,14 +274,14 @@ pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<(u32, u32)>)
 
 /// Estimates `candidates` in waves (in parallel within a wave), accepting each that is within the bound and
 /// replacing each that is not by the pairs of the children of its larger splittable end; appends the accepted
-/// links with a nonzero form factor to `links`.
+/// links to `links` (also those whose rays all missed: they carry nothing, but the budgets may refine them).
 ///
 /// # Errors
 /// [`HierarchyError::Mesh`] if a surface cannot be split.
 pub(super) fn refine<C: RayCaster + ?Sized>(
     tree: &mut Tree,
     estimator: &Estimator<'_, C>,
-    b_max: &mut Vec<Rgb>,
+    spans: &mut Vec<Span>,
     limits: &Limits,
     mut candidates: Vec<(u32, u32)>,
     links: &mut Vec<Link>,
@@ -269,13 +300,13 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
             if link.f_ab == 0.0 && link.spread_ab == 0.0 && link.spread_ba == 0.0 {
                 continue;
             }
-            if link_error(tree, b_max, &link) <= limits.threshold {
-                if link.f_ab > 0.0 {
-                    links.push(link);
-                }
+            if link_error(tree, spans, &link) <= limits.threshold {
+                // A pair whose rays all missed may still exchange light somewhere: kept (it carries no transfer)
+                // so that the budgets can refine it.
+                links.push(link);
                 continue;
             }
-            if split_link(tree, estimator.rules, b_max, limits, a, b, &mut next)? {
+            if split_link(tree, estimator.rules, spans, limits, a, b, &mut next)? {
                 counts.split += 1;
             } else {
                 counts.at_limit += 1;
@@ -287,6 +318,11 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
     Ok(())
 }
 
+/// Whether either end of `link` can be split.
+pub(super) fn can_split(tree: &Tree, limits: &Limits, link: &Link) -> bool {
+    splittable(tree, limits, link.a) || splittable(tree, limits, link.b)
+}
+
 /// Replaces the pair `(r, s)` by the pairs of the children of its larger splittable end (by area; `r` on a
 /// tie); returns false if neither end can be split.
 ///
@@ -295,28 +331,45 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
 pub(super) fn split_link(
     tree: &mut Tree,
     rules: &ElementRules,
-    b_max: &mut Vec<Rgb>,
+    spans: &mut Vec<Span>,
     limits: &Limits,
     r: u32,
     s: u32,
     next: &mut Vec<(u32, u32)>,
 ) -> Result<bool, HierarchyError> {
-    let (can_r, can_s) = (splittable(tree, limits, r), splittable(tree, limits, s));
-    let split_receiver = match (can_r, can_s) {
-        (false, false) => return Ok(false),
-        (true, false) => true,
-        (false, true) => false,
-        (true, true) => tree.nodes[r as usize].area >= tree.nodes[s as usize].area,
-    };
-    let n = if split_receiver { r } else { s };
-    tree.split(rules, n).map_err(HierarchyError::Mesh)?;
-    // New surface children take their parent's brightness bound until a solve gives them their own.
-    while b_max.len() < tree.nodes.len() {
-        let parent = tree.nodes[b_max.len()].parent;
-        b_max.push(b_max[parent as usize]);
+    let first = if tree.nodes[r as usize].area >= tree.nodes[s as usize].area { r } else { s };
+    let second = if first == r { s } else { r };
+    Ok(split_end(tree, rules, spans, limits, r, s, first, next)?
+        || split_end(tree, rules, spans, limits, r, s, second, next)?)
+}
+
+/// Replaces the pair `(a, b)` by the pairs of the children of its end `end` (`a` or `b`) with the other end, if
+/// `end` can be split; returns whether it could. New surface children take their parent's brightness range
+/// until a solve gives them their own.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn split_end(
+    tree: &mut Tree,
+    rules: &ElementRules,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    a: u32,
+    b: u32,
+    end: u32,
+    next: &mut Vec<(u32, u32)>,
+) -> Result<bool, HierarchyError> {
+    if !splittable(tree, limits, end) {
+        return Ok(false);
     }
-    for &c in &tree.nodes[n as usize].children {
-        next.push(if split_receiver { (c, s) } else { (r, c) });
+    tree.split(rules, end).map_err(HierarchyError::Mesh)?;
+    while spans.len() < tree.nodes.len() {
+        let parent = tree.nodes[spans.len()].parent;
+        spans.push(spans[parent as usize]);
+    }
+    for &c in &tree.nodes[end as usize].children {
+        next.push(if end == a { (c, b) } else { (a, c) });
     }
     Ok(true)
 }

@@ -12,28 +12,37 @@
 //!   integral times the visible fraction from occlusion rays (`formfactor::ElementRules`). With a cluster at
 //!   either end, `F` is a Monte Carlo estimate over area-uniform point pairs with shadow rays, and the cluster
 //!   receives isotropically: every surface in it gets the same irradiance.
-//! - **Oracle**. Each link has a spread: a bound on how far the form factor of a point of the receiver may be
-//!   from `F` (the range of the point kernel over probe points, the partial-visibility and ray-count terms for
-//!   surfaces; `A_s / (pi d^2)` plus two standard errors for clusters, Smits et al.'s bound). Its error is the
-//!   power it may misplace, `A_r * max_c(rho_r * Bmax_s) * spread` (brightness-weighted refinement, Hanrahan,
-//!   Salzman, Aupperle, "A rapid hierarchical radiosity algorithm", SIGGRAPH 1991, with the spread for `F`). A
-//!   link above `epsilon` times the brightest face polygon's emitted power is split at its larger end (by area);
-//!   one whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) or the node limit
-//!   is kept and counted.
-//! - **Passes**. Refinement starts from the top cluster's self-link, with `Bmax` from emission alone (only links
-//!   from emitters are refined). Each pass then solves (`solve`: Jacobi with push-pull), re-checks every link with
-//!   the solved `Bmax`, and refines the ones now above the bound, until none is or the passes run out.
+//! - **Oracle** (`link`, `budget`). Each link has a spread: a bound on how far the form factor of a point of the
+//!   receiver may be from `F` (the range of the point kernel over probe points, the partial-visibility and
+//!   ray-count terms for surfaces; `A_s / (pi d^2)` plus two standard errors for clusters, Smits et al.'s bound).
+//!   Refinement runs in two stages:
+//!   1. **Direct light** (pass 1): from the top cluster's self-link, with the brightness of emission alone, a link
+//!      whose power error `A_r * max_c(rho_r * Bmax_s) * spread` exceeds `epsilon * LINK_SHARE` times the
+//!      brightest face polygon's emitted power is split at its larger end (brightness-weighted refinement,
+//!      Hanrahan, Salzman, Aupperle, "A rapid hierarchical radiosity algorithm", SIGGRAPH 1991, with the spread
+//!      for `F`). This makes the elements: fine where direct light and its shadows change fast.
+//!   2. **Budgets** (each later pass, after a solve): every leaf is charged with what the links on its chain (its
+//!      own and its ancestors') may get wrong there, receiver-side (an average pushed down) and sender-side (an
+//!      average `B` sent where the sender's bright parts see more); chains above `epsilon` times the leaf's
+//!      reflected radiosity are refined at their largest charges (`budget` has the terms and why both matter).
+//!
+//!   A link whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) or the node
+//!   limit is kept and counted.
+//! - **Solve** (`solve`): Jacobi sweeps with push-pull. Passes alternate solve and budget refinement until no
+//!   link is split or the passes run out.
+//! - **Claimed error**. After the last solve, each leaf's chain charge `c` (what it may gather wrongly per bounce)
+//!   is propagated through the same operator, `e = c + rho H e`: the oracle's claimed bound on each leaf's
+//!   radiosity error ([`HierarchicalSolution::error_bound`]), against which the tests judge the answer.
 //!
 //! # Status
-//! Experimental, not the default of any command: the per-link bound controls the power each link may misplace,
-//! not the error of a leaf, which gathers through the links of all its ancestors (their averages pushed down);
-//! on strongly interreflecting scenes (the white furnace at rho 0.9) the leaves' total form factors then range
-//! well away from 1 and the error falls slowly with `epsilon`. The issue's notes hold the measurements.
-//!
-//! # Files
-//! `tree` (nodes, clusters, splits, sampling) -> `link` (estimates, oracle, refinement) -> `solve` (push-pull
-//! iteration) -> this module (options, the driver, results).
+//! Not yet the default of any command: `solve --method hierarchical` only, at default light intensities.
 
+//! # Files
+//! `tree` (nodes, clusters, splits, sampling) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve`
+//! (push-pull iteration, error propagation) -> `budget` (per-leaf charges, budget refinement) -> this module
+//! (options, the driver, results).
+
+mod budget;
 mod link;
 mod solve;
 mod tree;
@@ -48,11 +57,14 @@ use crate::raycast::RayCaster;
 use crate::rgb::{max_channel, Rgb};
 use crate::scene::Scene;
 
-use link::{expand_self, link_error, refine, split_link, Estimator, Limits, RefineCounts};
+use link::{expand_self, refine, Estimator, Limits, RefineCounts};
 use tree::{Kind, Tree};
 
-/// Default error bound per link, relative to the brightest face polygon's emitted power.
-pub const DEFAULT_EPSILON: f64 = 1e-4;
+/// Default error budget per element, relative to its reflected radiosity.
+pub const DEFAULT_EPSILON: f64 = 0.1;
+/// The direct-light stage's error bound per link, as a share of `epsilon` times the brightest face polygon's
+/// emitted power.
+pub const LINK_SHARE: f64 = 0.01;
 /// Default smallest element area, relative to the scene's total surface area.
 pub const DEFAULT_MIN_AREA_FRACTION: f64 = 1e-5;
 /// Default limit on tree nodes.
@@ -69,7 +81,8 @@ pub const MAX_SWEEPS: usize = 100_000;
 /// Settings of the hierarchical solver.
 #[derive(Clone, Debug)]
 pub struct HierarchyOptions {
-    /// Error bound per link, relative to the brightest face polygon's emitted power (`--epsilon`).
+    /// Error budget per element, relative to its reflected radiosity (`--epsilon`); the direct-light stage's
+    /// bound per link is `epsilon * LINK_SHARE` times the brightest face polygon's emitted power.
     pub epsilon: f64,
     /// Surfaces are not split below this fraction of the scene's surface area.
     pub min_area_fraction: f64,
@@ -172,13 +185,14 @@ pub struct HierarchyStats {
     pub estimated: u64,
     /// One entry per pass.
     pub passes: Vec<PassStats>,
-    /// Error bound per link (W): `epsilon` times `brightest_power`.
+    /// The direct-light stage's error bound per link (W): `epsilon * LINK_SHARE * brightest_power`.
     pub threshold: f64,
     /// The brightest face polygon's emitted power, `A * max_c E` (W).
     pub brightest_power: f64,
-    /// The links' error estimates summed with the final radiosity bounds, over the scene's reflected power
-    /// `sum A (B - E)` (largest channel): the oracle's estimate of the relative error of the reflected light.
-    pub relative_error_estimate: f64,
+    /// The oracle's claimed error, relative: the leaves' propagated error bounds over their radiosity
+    /// (`sum A e / sum A max_c B`); `None` if the bound diverges (a leaf's `rho` times its total form factor
+    /// reaches 1).
+    pub claimed_error: Option<f64>,
     /// Push-pull sweeps of the last solve.
     pub sweeps: usize,
     /// Smallest and largest total form factor a leaf gathers through (its links and its ancestors'): the
@@ -191,7 +205,7 @@ impl fmt::Display for HierarchyStats {
         write!(
             f,
             "{} polygons -> {} leaves ({} clusters, {} surface nodes), {} links ({} surface-surface, {} with a \
-             cluster), {} pairs estimated, {} rays, {} passes, row sums {:.5} .. {:.5}, estimated relative error {:.2e}",
+             cluster), {} pairs estimated, {} rays, {} passes, row sums {:.5} .. {:.5}, claimed error {}",
             self.polygons,
             self.leaves,
             self.clusters,
@@ -204,7 +218,7 @@ impl fmt::Display for HierarchyStats {
             self.passes.len(),
             self.row_sums.0,
             self.row_sums.1,
-            self.relative_error_estimate
+            self.claimed_error.map_or_else(|| "unbounded".to_owned(), |e| format!("{e:.2e}"))
         )?;
         if self.at_limit > 0 {
             write!(f, "; {} links above the bound at the resolution or node limit", self.at_limit)?;
@@ -224,6 +238,14 @@ pub struct HierarchicalSolution {
     pub emission: Vec<Rgb>,
     /// Radiosity per leaf (W/m^2).
     pub b: Vec<Rgb>,
+    /// The oracle's claimed bound on each leaf's radiosity error (W/m^2, largest channel), or `None` if it
+    /// diverges.
+    pub error_bound: Option<Vec<f64>>,
+    /// The part of [`Self::error_bound`] that does not average out over an area: the sender-side and random
+    /// charges propagated alone. A link's receiver-side deviations sum to zero over its receiver (its form
+    /// factor is their area average), so to first order an area average of radiosity (a face's, say) is off by
+    /// at most the area average of this (W/m^2, largest channel).
+    pub average_error_bound: Option<Vec<f64>>,
     /// What it took.
     pub stats: HierarchyStats,
 }
@@ -245,8 +267,8 @@ pub fn solve_hierarchical(
 
 fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
     let bad = |name, problem: &str| Err(HierarchyError::InvalidOption { name, problem: problem.to_owned() });
-    if !(options.epsilon > 0.0 && options.epsilon.is_finite()) {
-        return bad("epsilon", "must be positive and finite");
+    if !(options.epsilon > 0.0 && options.epsilon < 1.0) {
+        return bad("epsilon", "must be in (0, 1): a relative error budget per element");
     }
     if !(options.min_area_fraction >= 0.0 && options.min_area_fraction < 1.0) {
         return bad("min_area_fraction", "must be in [0, 1)");
@@ -319,7 +341,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let mut tree = Tree::new(&rules, roots, rho, emission);
     let total_area: f64 = roots.iter().map(|p| p.area).sum();
     let limits = Limits {
-        threshold: options.epsilon * brightest_power,
+        threshold: options.epsilon * LINK_SHARE * brightest_power,
         min_area: options.min_area_fraction * total_area,
         max_nodes: options.max_nodes,
     };
@@ -329,7 +351,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         cluster_samples: options.cluster_samples,
         seed: options.form_factors.seed,
     };
-    let mut b_max = solve::emission_bound(&tree);
+    let mut spans = solve::emission_bound(&tree);
     let mut links = Vec::new();
     let mut candidates = Vec::new();
     expand_self(&tree, 0, &mut candidates);
@@ -338,7 +360,27 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let mut solution;
     loop {
         let before = counts;
-        refine(&mut tree, &estimator, &mut b_max, &limits, candidates, &mut links, &mut counts)?;
+        if passes.is_empty() {
+            refine(
+                &mut tree,
+                &estimator,
+                &mut spans,
+                &limits,
+                std::mem::take(&mut candidates),
+                &mut links,
+                &mut counts,
+            )?;
+        } else {
+            budget::refine_budgets(
+                &mut tree,
+                &estimator,
+                &mut spans,
+                &limits,
+                options.epsilon,
+                &mut links,
+                &mut counts,
+            )?;
+        }
         solution = solve::solve(&tree, &links, options.solve_tolerance, MAX_SWEEPS);
         if solution.change > options.solve_tolerance {
             return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });
@@ -354,8 +396,9 @@ fn solve_checked<C: RayCaster + ?Sized>(
         });
         if let (true, Some(p)) = (options.progress, passes.last()) {
             eprintln!(
-                "hierarchy pass {}: {} pairs estimated, {} split, {} rays -> {} leaves, {} links",
+                "hierarchy pass {} ({}): {} pairs estimated, {} split, {} rays -> {} leaves, {} links",
                 passes.len(),
+                if passes.len() == 1 { "direct light" } else { "budgets" },
                 p.estimated,
                 p.split,
                 p.rays,
@@ -363,28 +406,17 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 p.links
             );
         }
-        b_max = solution.b_max.clone();
-        if passes.len() == options.passes {
-            break;
-        }
-        // Re-check every link against the solved brightness; split those now above the bound.
-        candidates = Vec::new();
-        let mut kept = Vec::with_capacity(links.len());
-        for link in std::mem::take(&mut links) {
-            if link_error(&tree, &b_max, &link) <= limits.threshold
-                || !split_link(&mut tree, &rules, &mut b_max, &limits, link.a, link.b, &mut candidates)?
-            {
-                kept.push(link);
-            } else {
-                counts.split += 1;
-            }
-        }
-        links = kept;
-        if candidates.is_empty() {
+        spans = solution.spans.clone();
+        // The budget passes end when one splits nothing (its solve then only confirmed the last).
+        if passes.len() == options.passes || (passes.len() > 1 && counts.split == before.split) {
             break;
         }
     }
-    Ok(finish(&tree, &links, &solution, counts, passes, &limits, brightest_power, roots.len()))
+    let rays = rules.rays_per_pair() as f64;
+    let (charges, persistent) = budget::leaf_charges(&tree, &spans, &limits, &links, rays, options.epsilon);
+    let bound = solve::propagate(&tree, &links, &charges, options.solve_tolerance, MAX_SWEEPS)
+        .zip(solve::propagate(&tree, &links, &persistent, options.solve_tolerance, MAX_SWEEPS));
+    Ok(finish(&tree, &links, &solution, bound, counts, passes, &limits, brightest_power, roots.len()))
 }
 
 /// The smallest and largest total form factor over the leaves (pushed down like irradiance).
@@ -414,6 +446,7 @@ fn finish(
     tree: &Tree,
     links: &[link::Link],
     solution: &solve::NodeRadiosity,
+    bound: Option<(Vec<f64>, Vec<f64>)>,
     counts: RefineCounts,
     passes: Vec<PassStats>,
     limits: &Limits,
@@ -434,30 +467,39 @@ fn finish(
         }
     }
     leaves.sort_unstable();
+    let (surface_links, cluster_links) = links.iter().fold((0, 0), |(s, c), l| {
+        if tree.is_cluster(l.a) || tree.is_cluster(l.b) {
+            (s, c + 1)
+        } else {
+            (s + 1, c)
+        }
+    });
     let mut out = HierarchicalSolution {
         leaves: Vec::with_capacity(leaves.len()),
         rho: Vec::with_capacity(leaves.len()),
         emission: Vec::with_capacity(leaves.len()),
         b: Vec::with_capacity(leaves.len()),
+        error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
+        average_error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
         stats: HierarchyStats {
             polygons,
             clusters,
             surfaces,
             leaves: leaves.len(),
-            surface_links: 0,
-            cluster_links: 0,
+            surface_links,
+            cluster_links,
             at_limit: counts.at_limit,
             rays: counts.rays,
             estimated: counts.estimated,
             passes,
             threshold: limits.threshold,
             brightest_power,
-            relative_error_estimate: 0.0,
+            claimed_error: None,
             sweeps: solution.sweeps,
             row_sums: row_sums(tree, links),
         },
     };
-    let mut reflected = 0.0;
+    let (mut radiosity, mut claimed) = (0.0, 0.0);
     for &(_, k) in &leaves {
         let node = &tree.nodes[k];
         if let Kind::Surface { element, rho, emission } = &node.kind {
@@ -465,18 +507,18 @@ fn finish(
             out.rho.push(*rho);
             out.emission.push(*emission);
             out.b.push(solution.b[k]);
-            reflected += node.area * max_channel(solution.b[k] - *emission);
+            radiosity += node.area * max_channel(solution.b[k]);
+            if let (Some((all, lasting)), Some(mine), Some(average)) =
+                (&bound, &mut out.error_bound, &mut out.average_error_bound)
+            {
+                mine.push(all[k]);
+                average.push(lasting[k]);
+                claimed += node.area * all[k];
+            }
         }
     }
-    let mut error = 0.0;
-    for l in links {
-        if tree.is_cluster(l.a) || tree.is_cluster(l.b) {
-            out.stats.cluster_links += 1;
-        } else {
-            out.stats.surface_links += 1;
-        }
-        error += link_error(tree, &solution.b_max, l);
+    if bound.is_some() {
+        out.stats.claimed_error = Some(if radiosity > 0.0 { claimed / radiosity } else { 0.0 });
     }
-    out.stats.relative_error_estimate = if reflected > 0.0 { error / reflected } else { 0.0 };
     out
 }

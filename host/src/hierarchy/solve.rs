@@ -5,14 +5,40 @@
 
 use super::link::Link;
 use super::tree::{Kind, Tree, NONE};
-use crate::rgb::{channel_max, max_channel, Rgb};
+use crate::rgb::{channel_max, channel_min, max_channel, Rgb};
+
+/// The brightness of the leaves below a node (per channel): range, area means and spread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Span {
+    /// Largest.
+    pub(super) hi: Rgb,
+    /// Smallest.
+    pub(super) lo: Rgb,
+    /// Area-mean reflected radiosity `B - E`.
+    pub(super) reflected: Rgb,
+    /// Area-mean radiosity.
+    pub(super) mean: Rgb,
+    /// Area-mean square of the leaves' radiosity.
+    pub(super) square: Rgb,
+}
+
+impl Span {
+    /// Every value zero.
+    pub(super) const ZERO: Span =
+        Span { hi: Rgb::ZERO, lo: Rgb::ZERO, reflected: Rgb::ZERO, mean: Rgb::ZERO, square: Rgb::ZERO };
+
+    /// The area-weighted standard deviation of the leaves' radiosity.
+    pub(super) fn deviation(&self) -> Rgb {
+        (self.square - self.mean * self.mean).max(Rgb::ZERO).powf(0.5)
+    }
+}
 
 /// The solved radiosity of every node, with its largest value over the leaves below.
 pub(super) struct NodeRadiosity {
     /// Area-weighted mean radiosity per node (W/m^2).
     pub(super) b: Vec<Rgb>,
-    /// Largest leaf radiosity per channel below each node.
-    pub(super) b_max: Vec<Rgb>,
+    /// The brightness of the leaves below each node.
+    pub(super) spans: Vec<Span>,
     /// Sweeps run.
     pub(super) sweeps: usize,
     /// Relative change of the last sweep: `sum A |dB|` over `sum A B` (largest channel).
@@ -31,30 +57,35 @@ fn emission(tree: &Tree) -> Vec<Rgb> {
 }
 
 /// Area-weighted means and maxima from the leaves' values in `b`, in reverse index order.
-fn pull(tree: &Tree, b: &mut [Rgb], b_max: &mut [Rgb]) {
+fn pull(tree: &Tree, b: &mut [Rgb], e: &[Rgb], spans: &mut [Span]) {
     for n in (0..tree.nodes.len()).rev() {
         let node = &tree.nodes[n];
         if node.children.is_empty() {
-            b_max[n] = b[n];
+            spans[n] = Span { hi: b[n], lo: b[n], reflected: b[n] - e[n], mean: b[n], square: b[n] * b[n] };
             continue;
         }
-        let (mut sum, mut hi) = (Rgb::ZERO, Rgb::splat(f64::NEG_INFINITY));
+        let (mut sum, mut hi, mut lo) = (Rgb::ZERO, Rgb::splat(f64::NEG_INFINITY), Rgb::splat(f64::INFINITY));
+        let (mut refl, mut square) = (Rgb::ZERO, Rgb::ZERO);
         for &c in &node.children {
             let c = c as usize;
             sum += tree.nodes[c].area * b[c];
-            hi = channel_max(hi, b_max[c]);
+            square += tree.nodes[c].area * spans[c].square;
+            refl += tree.nodes[c].area * spans[c].reflected;
+            hi = channel_max(hi, spans[c].hi);
+            lo = channel_min(lo, spans[c].lo);
         }
         b[n] = sum / node.area;
-        b_max[n] = hi;
+        spans[n] = Span { hi, lo, reflected: refl / node.area, mean: b[n], square: square / node.area };
     }
 }
 
-/// The brightness bound of pass 1: each node's largest emission below it.
-pub(super) fn emission_bound(tree: &Tree) -> Vec<Rgb> {
-    let mut b = emission(tree);
-    let mut b_max = vec![Rgb::ZERO; b.len()];
-    pull(tree, &mut b, &mut b_max);
-    b_max
+/// The brightness of pass 1: the emission alone.
+pub(super) fn emission_bound(tree: &Tree) -> Vec<Span> {
+    let e = emission(tree);
+    let mut b = e.clone();
+    let mut spans = vec![Span::ZERO; b.len()];
+    pull(tree, &mut b, &e, &mut spans);
+    spans
 }
 
 /// Jacobi sweeps until the relative change is at most `tolerance` or `max_sweeps` ran.
@@ -70,8 +101,8 @@ pub(super) fn solve(tree: &Tree, links: &[Link], tolerance: f64, max_sweeps: usi
         })
         .collect();
     let mut b = e.clone();
-    let mut b_max = vec![Rgb::ZERO; n];
-    pull(tree, &mut b, &mut b_max);
+    let mut spans = vec![Span::ZERO; n];
+    pull(tree, &mut b, &e, &mut spans);
     let mut gathered = vec![Rgb::ZERO; n];
     let mut sweeps = 0;
     let mut change = f64::INFINITY;
@@ -96,9 +127,69 @@ pub(super) fn solve(tree: &Tree, links: &[Link], tolerance: f64, max_sweeps: usi
                 b[k] = new;
             }
         }
-        pull(tree, &mut b, &mut b_max);
+        pull(tree, &mut b, &e, &mut spans);
         change = if total > 0.0 { moved / total } else { 0.0 };
         sweeps += 1;
     }
-    NodeRadiosity { b, b_max, sweeps, change }
+    NodeRadiosity { b, spans, sweeps, change }
+}
+
+/// The propagated error bound: the solution of `e = c + rho H e` on the leaves (`c` per leaf from `source`, `H`
+/// the links with push-pull, `rho` the largest channel), by the same Jacobi sweeps as [`solve`]. An error of at
+/// most `c` in what each leaf gathers per bounce becomes at most `e` in its radiosity. `None` if the sweeps do
+/// not settle to `tolerance` (the bound diverges: `rho` times a leaf's total form factor reaches 1).
+pub(super) fn propagate(
+    tree: &Tree,
+    links: &[Link],
+    source: &[f64],
+    tolerance: f64,
+    max_sweeps: usize,
+) -> Option<Vec<f64>> {
+    let n = tree.nodes.len();
+    let rho: Vec<f64> = tree
+        .nodes
+        .iter()
+        .map(|n| match &n.kind {
+            Kind::Surface { rho, .. } => max_channel(*rho),
+            Kind::Cluster { .. } => 0.0,
+        })
+        .collect();
+    let mut e = source.to_vec();
+    let mut gathered = vec![0.0; n];
+    for _ in 0..max_sweeps {
+        // Area means up the tree, so that links read a sender's average error.
+        for k in (0..n).rev() {
+            let node = &tree.nodes[k];
+            if !node.children.is_empty() {
+                e[k] =
+                    node.children.iter().map(|&c| tree.nodes[c as usize].area * e[c as usize]).sum::<f64>()
+                        / node.area;
+            }
+        }
+        gathered.iter_mut().for_each(|g| *g = 0.0);
+        for link in links {
+            gathered[link.a as usize] += link.f_ab * e[link.b as usize];
+            gathered[link.b as usize] += link.f_ba * e[link.a as usize];
+        }
+        let (mut moved, mut total) = (0.0, 0.0);
+        for k in 0..n {
+            let node = &tree.nodes[k];
+            if node.parent != NONE {
+                gathered[k] += gathered[node.parent as usize];
+            }
+            if node.children.is_empty() {
+                let new = source[k] + rho[k] * gathered[k];
+                moved += node.area * (new - e[k]).abs();
+                total += node.area * new;
+                e[k] = new;
+            }
+        }
+        if !total.is_finite() {
+            return None;
+        }
+        if total == 0.0 || moved <= tolerance * total {
+            return Some(e);
+        }
+    }
+    None
 }

@@ -240,8 +240,8 @@ pub enum Command {
     /// `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. `--method flat` (the
     /// default) solves the adaptive mesh's full form-factor matrix exactly (dense LU up to 4096 patches,
     /// Gauss-Seidel above); `--method hierarchical` links clusters and elements where the light needs them,
-    /// refined until every link's estimated error is below `--epsilon` (the patches are then the hierarchy's
-    /// leaves).
+    /// refined until what every element may gather wrongly is within `--epsilon` of its reflected light (the
+    /// patches are then the hierarchy's leaves).
     Solve {
         #[command(flatten)]
         scene: SceneArgs,
@@ -252,8 +252,9 @@ pub enum Command {
         /// and elements; `--max-patches`, `--max-patch-edge` and `--no-subdivide` do not apply to it).
         #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
         method: SolveMethod,
-        /// Hierarchical only: error bound per link, relative to the brightest face's emitted power (smaller is
-        /// more accurate and costs more links) [default: 1e-4].
+        /// Hierarchical only: error budget per element, relative to the light it reflects, in (0, 1) (smaller
+        /// is more accurate and costs more elements and links; the direct-light refinement uses 1% of it
+        /// times the brightest face's emitted power per link) [default: 0.1].
         #[arg(long, value_name = "E")]
         epsilon: Option<f64>,
     },

@@ -90,6 +90,7 @@ fn solve_hierarchical_command(
                 "stats": solution.stats,
                 "mean_radiosity": mean,
                 "b": solution.b,
+                "error_bound": solution.error_bound,
             });
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)?;
