@@ -61,7 +61,7 @@ use link::{expand_self, refine, Estimator, Limits, RefineCounts};
 use tree::{Kind, Tree};
 
 /// Default error budget per element, relative to its reflected radiosity.
-pub const DEFAULT_EPSILON: f64 = 0.1;
+pub const DEFAULT_EPSILON: f64 = 0.03;
 /// The direct-light stage's error bound per link, as a share of `epsilon` times the brightest face polygon's
 /// emitted power.
 pub const LINK_SHARE: f64 = 0.01;

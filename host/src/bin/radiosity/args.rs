@@ -254,7 +254,7 @@ pub enum Command {
         method: SolveMethod,
         /// Hierarchical only: error budget per element, relative to the light it reflects, in (0, 1) (smaller
         /// is more accurate and costs more elements and links; the direct-light refinement uses 1% of it
-        /// times the brightest face's emitted power per link) [default: 0.1].
+        /// times the brightest face's emitted power per link) [default: 0.03].
         #[arg(long, value_name = "E")]
         epsilon: Option<f64>,
     },
