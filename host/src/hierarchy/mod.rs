@@ -35,7 +35,11 @@
 //!   radiosity error ([`HierarchicalSolution::error_bound`]), against which the tests judge the answer.
 //!
 //! # Status
-//! Not yet the default of any command: `solve --method hierarchical` only, at default light intensities.
+//! Not yet the default of any command: `solve --method hierarchical` only, at default light intensities. Scenes
+//! with many small, nearly touching surfaces (`scenes/make_office.py`) are not solved yet: the resolution limit
+//! is relative to the whole scene, so small faces cannot be split, and the cluster links' Monte Carlo estimates
+//! between nearly touching surfaces are heavy-tailed; the iteration then diverges, which is reported as
+//! [`HierarchyError::NotConverged`].
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve`
@@ -382,7 +386,8 @@ fn solve_checked<C: RayCaster + ?Sized>(
             )?;
         }
         solution = solve::solve(&tree, &links, options.solve_tolerance, MAX_SWEEPS);
-        if solution.change > options.solve_tolerance {
+        // NaN or infinity (a diverging iteration: some leaf gathers more than it can reflect away) fails too.
+        if !(solution.change <= options.solve_tolerance) {
             return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });
         }
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
