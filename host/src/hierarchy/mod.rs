@@ -387,7 +387,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         }
         solution = solve::solve(&tree, &links, options.solve_tolerance, MAX_SWEEPS);
         // NaN or infinity (a diverging iteration: some leaf gathers more than it can reflect away) fails too.
-        if !(solution.change <= options.solve_tolerance) {
+        if solution.change.is_nan() || solution.change > options.solve_tolerance {
             return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });
         }
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
