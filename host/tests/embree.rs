@@ -411,3 +411,60 @@ fn form_factors_agree_with_both_casters() {
     assert!(differ * 1000 <= embree.nonzeros(), "{differ} of {} entries differ", embree.nonzeros());
     assert!(worst <= 0.5, "worst relative difference {worst}");
 }
+
+/// The closed Cornell box meshed coarsely (walls in about 6 x 6 patches), with every length times `k`.
+fn closed_cornell_scaled(k: f64) -> Vec<radiosity_host::patch::Patch> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box-closed.obj");
+    let scene = radiosity_host::scene::Scene::load(path).expect("load");
+    let mut options = radiosity_host::mesh::MeshOptions::for_scene(&scene);
+    options.max_patch_edge = 140.0;
+    let mut patches = radiosity_host::mesh::mesh(&scene, &options).expect("mesh").patches;
+    for p in &mut patches {
+        p.vertices.iter_mut().for_each(|v| *v *= k);
+        p.centroid *= k;
+        p.area *= k * k;
+    }
+    patches
+}
+
+/// Form factors do not depend on the scene's unit: Embree sees every scene scaled to unit size by a power of two,
+/// and the f64 kernels' tolerances are relative, so the closed Cornell box scaled by a power of two (here up to
+/// 2^100 ~ 1.3e30 and down to 2^-50 ~ 8.9e-16) gives the same matrix bit for bit, closed as at scale 1; scaled by
+/// 1e12 or 1e-15 (inexact in binary) it stays closed, with every entry within a few rays' weight. Without the
+/// scaling, Embree's f32 triangle tests overflowed or flushed to zero at these sizes: occlusion was lost and the
+/// closed box looked open.
+#[test]
+fn form_factors_do_not_depend_on_the_scene_unit() {
+    use radiosity_host::formfactor::{compute_form_factors, FormFactorOptions};
+    let options =
+        FormFactorOptions { samples_per_patch: 4, rays_per_pair: 8, progress: false, ..Default::default() };
+    let (reference, stats) = compute_form_factors(&closed_cornell_scaled(1.0), &options).unwrap();
+    assert!(
+        stats.closure.is_some() && stats.escaped_rays == 0,
+        "the closed box at scale 1 is closed: {stats:?}"
+    );
+    for exponent in [100, 40, -50] {
+        let k = 2f64.powi(exponent);
+        let (m, s) = compute_form_factors(&closed_cornell_scaled(k), &options).unwrap();
+        assert_eq!(
+            s.escaped_rays, 0,
+            "2^{exponent}: {} of {} escape rays escaped",
+            s.escaped_rays, s.escape_rays
+        );
+        assert_eq!(m, reference, "2^{exponent}: the matrix differs from scale 1");
+    }
+    for k in [1e12, 1e-15] {
+        let (m, s) = compute_form_factors(&closed_cornell_scaled(k), &options).unwrap();
+        assert_eq!(s.escaped_rays, 0, "{k:e}: {} of {} escape rays escaped", s.escaped_rays, s.escape_rays);
+        assert!(s.closure.is_some(), "{k:e}: not closed");
+        let mut worst = 0.0f64;
+        for (i, j, f) in reference.entries() {
+            worst = worst.max((m.get(i, j) - f).abs());
+        }
+        // One ray of 8 flipping by rounding moves a pair's visible fraction by about 1/8 of its entry; the largest
+        // entries are below 0.5.
+        assert!(worst < 0.07, "{k:e}: largest entry difference from scale 1 {worst:.3e}");
+        // Rows without a partly visible entry are left as estimated: off by their quadrature error only.
+        assert!((s.row_sum_max - 1.0).abs() < 1e-3 && (s.row_sum_min - 1.0).abs() < 1e-3, "{k:e}: {s:?}");
+    }
+}
