@@ -143,13 +143,13 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         mesh(&scene, &mesh_options).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
     if options.verbose {
         eprintln!(
-            "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {:.4})",
+            "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {})",
             path.display(),
             scene.faces.len(),
             scene.materials.len(),
             scene.light_groups.len(),
             meshed.patches.len(),
-            meshed.max_patch_edge
+            crate::scene::length(meshed.max_patch_edge)
         );
     }
     let refine_options = if options.no_subdivide {
