@@ -468,3 +468,29 @@ fn form_factors_do_not_depend_on_the_scene_unit() {
         assert!((s.row_sum_max - 1.0).abs() < 1e-3 && (s.row_sum_min - 1.0).abs() < 1e-3, "{k:e}: {s:?}");
     }
 }
+
+/// A row that sums to well above 1 is an error, not visibility noise: with occlusion lost (a caster that holds
+/// no occluders, as Embree was at extreme scales), the rows of patches that see the Cornell box's blocks and
+/// what lies behind them sum to more than 1 by more than their sampling noise allows, and `rows_over_noise`
+/// names them with their faces; the same estimate with the scene's occluders has no such row.
+#[test]
+fn rows_above_one_beyond_sampling_noise_are_named() {
+    use radiosity_host::formfactor::FormFactorOptions;
+    use radiosity_host::formfactor::{compute_form_factors, compute_form_factors_with, rows_over_noise};
+    use radiosity_host::raycast::TriangleBvh;
+    let patches = closed_cornell_scaled(1.0);
+    let options =
+        FormFactorOptions { samples_per_patch: 4, rays_per_pair: 8, progress: false, ..Default::default() };
+    let (good, stats) = compute_form_factors(&patches, &options).unwrap();
+    assert_eq!(rows_over_noise(&good, &stats.row_excess_allowed, &patches), []);
+    let nothing = TriangleBvh::new(&[], &[]).unwrap();
+    let (lost, stats) = compute_form_factors_with(&nothing, &patches, &options).unwrap();
+    let over = rows_over_noise(&lost, &stats.row_excess_allowed, &patches);
+    assert!(over.len() > 10, "{} rows over their noise", over.len());
+    let worst = over[0];
+    assert!(worst.sum - 1.0 > 2.0 * worst.allowed, "{worst:?}");
+    assert_eq!(worst.face, patches[worst.patch].face);
+    assert!(over.windows(2).all(|w| w[0].sum - w[0].allowed >= w[1].sum - w[1].allowed), "worst first");
+    let text = worst.to_string();
+    assert!(text.contains(&format!("patch {} (face {})", worst.patch, worst.face)), "{text}");
+}
