@@ -123,6 +123,26 @@ impl fmt::Display for ErrorCode {
     }
 }
 
+// Embree 4.3 and later export `rtcGetDeviceLastErrorMessage`, which `embree4-sys`'s bindings predate; the wheel
+// `make deps` installs (4.4) has it. With a null device it returns the message of the failed `rtcNewDevice` on
+// this thread: the only way to get Embree's own words when no device exists to carry an error callback.
+extern "C" {
+    fn rtcGetDeviceLastErrorMessage(device: sys::RTCDevice) -> *const c_char;
+}
+
+/// Embree's message for the last error of `rtcNewDevice` on this thread (empty if it gave none).
+fn device_creation_message() -> String {
+    // SAFETY: with a null device, Embree reads this thread's last device-creation error; the result is null or a
+    // NUL-terminated string that Embree keeps valid until the next API call on this thread, and it is copied at
+    // once.
+    let message = unsafe { rtcGetDeviceLastErrorMessage(std::ptr::null_mut()) };
+    if message.is_null() {
+        return String::new();
+    }
+    // SAFETY: non-null, NUL-terminated (see above).
+    unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
+}
+
 /// Where Embree's error callback leaves the first error it reports, until this module collects it.
 #[derive(Default)]
 struct ErrorSink {
@@ -224,14 +244,17 @@ impl Device {
         // SAFETY: `config` is a valid NUL-terminated string that outlives the call.
         let raw = unsafe { sys::rtcNewDevice(config.as_ptr()) };
         if raw.is_null() {
+            // Embree's message first: reading the error code clears the thread's error.
+            let embree = device_creation_message();
             // SAFETY: with a null device, `rtcGetDeviceError` returns the error of the failed `rtcNewDevice` on
             // this thread (documented behaviour of `rtcGetDeviceError`).
             let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
+            let embree = if embree.is_empty() { "no message".to_owned() } else { embree };
             return Err(EmbreeError::Device {
                 code: ErrorCode::from_raw(code).unwrap_or(ErrorCode::Unknown),
                 operation: "rtcNewDevice",
                 message: format!(
-                    "Embree could not create a device with configuration {:?}",
+                    "Embree could not create a device with configuration {:?}: {embree}",
                     config.to_string_lossy()
                 ),
             });

@@ -237,9 +237,11 @@ fn bad_input_and_embree_errors_are_reported() {
         )
         .unwrap_err();
     assert!(matches!(err, EmbreeError::Input(MeshInputError::NonFiniteVertex { index: 1, .. })), "{err}");
-    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config.
+    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config,
+    // and passes on Embree's own message (there is no device yet to carry an error callback).
     let err = Device::with_config("threads=abc").unwrap_err();
     assert!(err.to_string().contains("RTC_ERROR_") && err.to_string().contains("threads=abc"), "{err}");
+    assert!(err.to_string().contains("integer expected"), "Embree's message is lost: {err}");
     // An empty scene is valid and occludes nothing.
     let empty = device.triangle_scene(&[], &[], Default::default()).unwrap();
     assert!(!empty.occluded(&Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)));
