@@ -427,7 +427,11 @@ fn toml_errors() {
             "material 'lamp' is in two light groups ('g' and 'h')",
         ),
         ("[meshing]\nmax_patch_edge = -1.0\n".to_owned(), "max_patch_edge = -1 must be finite and positive"),
-        ("[meshing]\npatch_budget = 0\n".to_owned(), "patch_budget = 0 must be at least 1"),
+        ("[meshing]\npatch_budget = 0\n".to_owned(), "patch_budget = 0 must be between 1 and 16384"),
+        (
+            "[meshing]\npatch_budget = 100000\n".to_owned(),
+            "patch_budget = 100000 must be between 1 and 16384",
+        ),
         ("[meshing]\nrefine_passes = 7\n".to_owned(), "refine_passes = 7 must be between 0 and 6"),
         ("[meshing]\nrefine_passes = -1\n".to_owned(), "refine_passes = -1 must be between 0 and 6"),
         (
