@@ -28,6 +28,12 @@
 //! - The ray `mask` is set to all ones (`0xFFFF_FFFF`); Embree skips geometry whose mask does not intersect it.
 //! - Occlusion queries report a blocked ray by setting its `tfar` to `-inf`; this module turns that into `bool`s.
 //! - Embree works in `f32`; callers in `f64` convert at the boundary.
+//! - Embree's triangle tests multiply up to three coordinates and its traversal flushes denormals to zero, so
+//!   scenes far from unit size lose hits (at 1e12 the products overflow `f32`, at 1e-15 they flush to zero).
+//!   [`TriangleScene`] therefore hands Embree the scene scaled by a power of two ([`unit_factor`]) that brings
+//!   its size ([`crate::raycast::scene_scale`]) into `[1, 2)`, and scales every ray's origin and direction by the
+//!   same factor. Multiplying by a power of two is exact in floating point, and a ray's parameter `t` does not
+//!   change, so callers keep working in their own units and results do not depend on the scene's unit.
 //!
 //! These are the semantics of [`crate::raycast`], whose [`Ray`] this module takes; [`TriangleScene`] is the
 //! production [`RayCaster`], and [`crate::raycast::TriangleBvh`] the pure-Rust one it is tested against.
@@ -41,7 +47,7 @@ use embree4_sys as sys;
 use glam::Vec3;
 
 pub use crate::raycast::Ray;
-use crate::raycast::{check_mesh, scene_scale, MeshInputError, RayCaster, RELATIVE_OFFSET};
+use crate::raycast::{check_mesh, scene_scale, unit_factor, MeshInputError, RayCaster, RELATIVE_OFFSET};
 
 /// An error reported by Embree, or bad input caught before it reaches Embree.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -115,6 +121,26 @@ impl fmt::Display for ErrorCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
+}
+
+// Embree 4.3 and later export `rtcGetDeviceLastErrorMessage`, which `embree4-sys`'s bindings predate; the wheel
+// `make deps` installs (4.4) has it. With a null device it returns the message of the failed `rtcNewDevice` on
+// this thread: the only way to get Embree's own words when no device exists to carry an error callback.
+extern "C" {
+    fn rtcGetDeviceLastErrorMessage(device: sys::RTCDevice) -> *const c_char;
+}
+
+/// Embree's message for the last error of `rtcNewDevice` on this thread (empty if it gave none).
+fn device_creation_message() -> String {
+    // SAFETY: with a null device, Embree reads this thread's last device-creation error; the result is null or a
+    // NUL-terminated string that Embree keeps valid until the next API call on this thread, and it is copied at
+    // once.
+    let message = unsafe { rtcGetDeviceLastErrorMessage(std::ptr::null_mut()) };
+    if message.is_null() {
+        return String::new();
+    }
+    // SAFETY: non-null, NUL-terminated (see above).
+    unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
 }
 
 /// Where Embree's error callback leaves the first error it reports, until this module collects it.
@@ -218,14 +244,17 @@ impl Device {
         // SAFETY: `config` is a valid NUL-terminated string that outlives the call.
         let raw = unsafe { sys::rtcNewDevice(config.as_ptr()) };
         if raw.is_null() {
+            // Embree's message first: reading the error code clears the thread's error.
+            let embree = device_creation_message();
             // SAFETY: with a null device, `rtcGetDeviceError` returns the error of the failed `rtcNewDevice` on
             // this thread (documented behaviour of `rtcGetDeviceError`).
             let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
+            let embree = if embree.is_empty() { "no message".to_owned() } else { embree };
             return Err(EmbreeError::Device {
                 code: ErrorCode::from_raw(code).unwrap_or(ErrorCode::Unknown),
                 operation: "rtcNewDevice",
                 message: format!(
-                    "Embree could not create a device with configuration {:?}",
+                    "Embree could not create a device with configuration {:?}: {embree}",
                     config.to_string_lossy()
                 ),
             });
@@ -242,6 +271,8 @@ impl Device {
     /// Builds and commits a scene holding one triangle mesh (geometry id 0).
     ///
     /// Triangles refer to `vertices` by index. An empty mesh gives an empty scene in which nothing is occluded.
+    /// Embree sees the vertices scaled by [`unit_factor`] (see the module docs); queries take and return
+    /// values in the caller's units.
     ///
     /// # Errors
     /// [`EmbreeError::Input`] for bad input (checked before Embree
@@ -258,11 +289,13 @@ impl Device {
         let raw = unsafe { sys::rtcNewScene(device.raw) };
         device.check("rtcNewScene")?;
         // From here on `scene` releases `raw` on every path, including errors.
+        let scale = scene_scale(vertices);
         let scene = TriangleScene {
             raw,
             _device: Arc::clone(device),
             triangle_count: triangles.len(),
-            scale: scene_scale(vertices),
+            scale,
+            factor: unit_factor(scale),
         };
         let flags = if options.robust { sys::RTCSceneFlags::ROBUST } else { sys::RTCSceneFlags::NONE };
         // SAFETY: `raw` is a live, uncommitted scene owned by this thread; setting flags and build quality before
@@ -273,7 +306,7 @@ impl Device {
         }
         device.check("rtcSetSceneFlags")?;
         if !triangles.is_empty() {
-            attach_mesh(device, raw, vertices, triangles)?;
+            attach_mesh(device, raw, vertices, triangles, scene.factor)?;
         }
         // SAFETY: `raw` is live and no other thread can see it yet, so the commit cannot race with queries.
         unsafe { sys::rtcCommitScene(raw) };
@@ -289,11 +322,12 @@ fn attach_mesh(
     scene: sys::RTCScene,
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
+    factor: f32,
 ) -> Result<(), EmbreeError> {
     // SAFETY: `device.raw` is a live device.
     let geometry = unsafe { sys::rtcNewGeometry(device.raw, sys::RTCGeometryType::TRIANGLE) };
     device.check("rtcNewGeometry")?;
-    let result = fill_and_attach(device, scene, geometry, vertices, triangles);
+    let result = fill_and_attach(device, scene, geometry, vertices, triangles, factor);
     // SAFETY: `geometry` came from `rtcNewGeometry` and this is the only release of our reference; if it was
     // attached, the scene holds its own reference.
     unsafe { sys::rtcReleaseGeometry(geometry) };
@@ -306,8 +340,9 @@ fn fill_and_attach(
     geometry: sys::RTCGeometry,
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
+    factor: f32,
 ) -> Result<(), EmbreeError> {
-    fill_buffer(device, geometry, vertices.iter().map(|v| v.to_array()))?;
+    fill_buffer(device, geometry, vertices.iter().map(|v| (*v * factor).to_array()))?;
     fill_buffer(device, geometry, triangles.iter().copied())?;
     // SAFETY: `geometry` is live with both buffers filled; `scene` is live and not yet committed or shared.
     unsafe {
@@ -378,16 +413,17 @@ pub struct SceneOptions {
     pub robust: bool,
 }
 
-/// The Embree form of `ray` (a negative `tnear` raised to 0, all mask bits set).
-fn to_raw(ray: &Ray) -> sys::RTCRay {
+/// The Embree form of `ray` in the scene scaled by `factor` (a negative `tnear` raised to 0, all mask bits set).
+fn to_raw(ray: &Ray, factor: f32) -> sys::RTCRay {
+    let (origin, direction) = (ray.origin * factor, ray.direction * factor);
     sys::RTCRay {
-        org_x: ray.origin.x,
-        org_y: ray.origin.y,
-        org_z: ray.origin.z,
+        org_x: origin.x,
+        org_y: origin.y,
+        org_z: origin.z,
         tnear: ray.tnear.max(0.0),
-        dir_x: ray.direction.x,
-        dir_y: ray.direction.y,
-        dir_z: ray.direction.z,
+        dir_x: direction.x,
+        dir_y: direction.y,
+        dir_z: direction.z,
         time: 0.0,
         tfar: ray.tfar,
         mask: u32::MAX,
@@ -419,6 +455,8 @@ pub struct TriangleScene {
     _device: Arc<DeviceInner>,
     triangle_count: usize,
     scale: f32,
+    /// [`unit_factor`] of `scale`: Embree holds the vertices times this, and every ray is scaled by it too.
+    factor: f32,
 }
 
 // SAFETY: a committed scene is never modified through this type (no method takes `&mut self` or changes the scene),
@@ -435,6 +473,7 @@ impl fmt::Debug for TriangleScene {
         f.debug_struct("TriangleScene")
             .field("triangle_count", &self.triangle_count)
             .field("scale", &self.scale)
+            .field("factor", &self.factor)
             .finish_non_exhaustive()
     }
 }
@@ -482,7 +521,7 @@ impl TriangleScene {
         if ray.is_empty() {
             return false;
         }
-        let mut raw = to_raw(ray);
+        let mut raw = to_raw(ray, self.factor);
         let mut args = occluded_args();
         // SAFETY: `self.raw` is a committed scene (see the `Sync` impl); `raw` and `args` are valid, properly
         // aligned (`RTCRay` is `repr(align(16))`) locals that outlive the call.
@@ -517,7 +556,7 @@ impl TriangleScene {
             if ray.is_empty() {
                 continue;
             }
-            let r = to_raw(ray);
+            let r = to_raw(ray, self.factor);
             packet.org_x[k] = r.org_x;
             packet.org_y[k] = r.org_y;
             packet.org_z[k] = r.org_z;
@@ -567,7 +606,7 @@ impl TriangleScene {
             return None;
         }
         let mut rayhit = sys::RTCRayHit {
-            ray: to_raw(ray),
+            ray: to_raw(ray, self.factor),
             hit: sys::RTCHit {
                 Ng_x: 0.0,
                 Ng_y: 0.0,

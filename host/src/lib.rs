@@ -21,6 +21,7 @@
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
 //! | check, regress | [`check`], [`regress`] | the device run against f64 (frames through `firmware_sim::device::run_frame`, the one device loop), the quantization baseline |
 //! | reports | [`inspect`], [`metrics`], [`relight`], [`view`], [`picture`], [`bench`](mod@bench), [`output`] | what is printed or drawn |
+//! | files, limits | [`files`], [`limits`] | where outputs may go and how they are written (atomically); the limit of every size a user gives |
 //! | command line | `src/bin/radiosity/` (`args.rs` every flag and its `--help`, `main.rs` runs the commands) | a flag or subcommand (the library takes plain options) |
 
 pub mod bake;
@@ -28,11 +29,13 @@ pub mod bench;
 pub mod check;
 pub mod embree;
 pub mod evaluate;
+pub mod files;
 pub mod formfactor;
 pub mod hierarchy;
 pub mod input;
 pub mod inspect;
 pub mod lighting;
+pub mod limits;
 pub mod mesh;
 pub mod metrics;
 pub mod output;

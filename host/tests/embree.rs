@@ -237,9 +237,11 @@ fn bad_input_and_embree_errors_are_reported() {
         )
         .unwrap_err();
     assert!(matches!(err, EmbreeError::Input(MeshInputError::NonFiniteVertex { index: 1, .. })), "{err}");
-    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config.
+    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config,
+    // and passes on Embree's own message (there is no device yet to carry an error callback).
     let err = Device::with_config("threads=abc").unwrap_err();
     assert!(err.to_string().contains("RTC_ERROR_") && err.to_string().contains("threads=abc"), "{err}");
+    assert!(err.to_string().contains("integer expected"), "Embree's message is lost: {err}");
     // An empty scene is valid and occludes nothing.
     let empty = device.triangle_scene(&[], &[], Default::default()).unwrap();
     assert!(!empty.occluded(&Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)));
@@ -410,4 +412,87 @@ fn form_factors_agree_with_both_casters() {
     println!("{} entries, {differ} differ, worst relative difference {worst:.2e}", embree.nonzeros());
     assert!(differ * 1000 <= embree.nonzeros(), "{differ} of {} entries differ", embree.nonzeros());
     assert!(worst <= 0.5, "worst relative difference {worst}");
+}
+
+/// The closed Cornell box meshed coarsely (walls in about 6 x 6 patches), with every length times `k`.
+fn closed_cornell_scaled(k: f64) -> Vec<radiosity_host::patch::Patch> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box-closed.obj");
+    let scene = radiosity_host::scene::Scene::load(path).expect("load");
+    let mut options = radiosity_host::mesh::MeshOptions::for_scene(&scene);
+    options.max_patch_edge = 140.0;
+    let mut patches = radiosity_host::mesh::mesh(&scene, &options).expect("mesh").patches;
+    for p in &mut patches {
+        p.vertices.iter_mut().for_each(|v| *v *= k);
+        p.centroid *= k;
+        p.area *= k * k;
+    }
+    patches
+}
+
+/// Form factors do not depend on the scene's unit: Embree sees every scene scaled to unit size by a power of two,
+/// and the f64 kernels' tolerances are relative, so the closed Cornell box scaled by a power of two (here up to
+/// 2^100 ~ 1.3e30 and down to 2^-50 ~ 8.9e-16) gives the same matrix bit for bit, closed as at scale 1; scaled by
+/// 1e12 or 1e-15 (inexact in binary) it stays closed, with every entry within a few rays' weight. Without the
+/// scaling, Embree's f32 triangle tests overflowed or flushed to zero at these sizes: occlusion was lost and the
+/// closed box looked open.
+#[test]
+fn form_factors_do_not_depend_on_the_scene_unit() {
+    use radiosity_host::formfactor::{compute_form_factors, FormFactorOptions};
+    let options =
+        FormFactorOptions { samples_per_patch: 4, rays_per_pair: 8, progress: false, ..Default::default() };
+    let (reference, stats) = compute_form_factors(&closed_cornell_scaled(1.0), &options).unwrap();
+    assert!(
+        stats.closure.is_some() && stats.escaped_rays == 0,
+        "the closed box at scale 1 is closed: {stats:?}"
+    );
+    for exponent in [100, 40, -50] {
+        let k = 2f64.powi(exponent);
+        let (m, s) = compute_form_factors(&closed_cornell_scaled(k), &options).unwrap();
+        assert_eq!(
+            s.escaped_rays, 0,
+            "2^{exponent}: {} of {} escape rays escaped",
+            s.escaped_rays, s.escape_rays
+        );
+        assert_eq!(m, reference, "2^{exponent}: the matrix differs from scale 1");
+    }
+    for k in [1e12, 1e-15] {
+        let (m, s) = compute_form_factors(&closed_cornell_scaled(k), &options).unwrap();
+        assert_eq!(s.escaped_rays, 0, "{k:e}: {} of {} escape rays escaped", s.escaped_rays, s.escape_rays);
+        assert!(s.closure.is_some(), "{k:e}: not closed");
+        let mut worst = 0.0f64;
+        for (i, j, f) in reference.entries() {
+            worst = worst.max((m.get(i, j) - f).abs());
+        }
+        // One ray of 8 flipping by rounding moves a pair's visible fraction by about 1/8 of its entry; the largest
+        // entries are below 0.5.
+        assert!(worst < 0.07, "{k:e}: largest entry difference from scale 1 {worst:.3e}");
+        // Rows without a partly visible entry are left as estimated: off by their quadrature error only.
+        assert!((s.row_sum_max - 1.0).abs() < 1e-3 && (s.row_sum_min - 1.0).abs() < 1e-3, "{k:e}: {s:?}");
+    }
+}
+
+/// A row that sums to well above 1 is an error, not visibility noise: with occlusion lost (a caster that holds
+/// no occluders, as Embree was at extreme scales), the rows of patches that see the Cornell box's blocks and
+/// what lies behind them sum to more than 1 by more than their sampling noise allows, and `rows_over_noise`
+/// names them with their faces; the same estimate with the scene's occluders has no such row.
+#[test]
+fn rows_above_one_beyond_sampling_noise_are_named() {
+    use radiosity_host::formfactor::FormFactorOptions;
+    use radiosity_host::formfactor::{compute_form_factors, compute_form_factors_with, rows_over_noise};
+    use radiosity_host::raycast::TriangleBvh;
+    let patches = closed_cornell_scaled(1.0);
+    let options =
+        FormFactorOptions { samples_per_patch: 4, rays_per_pair: 8, progress: false, ..Default::default() };
+    let (good, stats) = compute_form_factors(&patches, &options).unwrap();
+    assert_eq!(rows_over_noise(&good, &stats.row_excess_allowed, &patches), []);
+    let nothing = TriangleBvh::new(&[], &[]).unwrap();
+    let (lost, stats) = compute_form_factors_with(&nothing, &patches, &options).unwrap();
+    let over = rows_over_noise(&lost, &stats.row_excess_allowed, &patches);
+    assert!(over.len() > 10, "{} rows over their noise", over.len());
+    let worst = over[0];
+    assert!(worst.sum - 1.0 > 2.0 * worst.allowed, "{worst:?}");
+    assert_eq!(worst.face, patches[worst.patch].face);
+    assert!(over.windows(2).all(|w| w[0].sum - w[0].allowed >= w[1].sum - w[1].allowed), "worst first");
+    let text = worst.to_string();
+    assert!(text.contains(&format!("patch {} (face {})", worst.patch, worst.face)), "{text}");
 }

@@ -172,11 +172,40 @@ pub fn check_scene(
     prepare_options: &PrepareOptions,
     options: &CheckOptions,
 ) -> Result<CheckReport, CheckError> {
+    check_options(options)?;
     let p = prepare(path, prepare_options)?;
     check(&p, prepare_options, options)
 }
 
-fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
+/// Checks every option that needs no computation (`check_scene` and `check_table_file` call it before they
+/// prepare the scene, so a bad option is reported at once).
+pub(crate) fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
+    if options.codec.is_none() {
+        codec_for_bits(options.bits)?;
+    }
+    if !(0.0..1.0).contains(&options.threshold) {
+        return Err(BakeError::BadThreshold(options.threshold).into());
+    }
+    if options.frames.is_some_and(|f| f > MAX_FRAMES) {
+        return Err(CheckError::Options(format!(
+            "--frames {} is more than {MAX_FRAMES}",
+            options.frames.unwrap_or(0)
+        )));
+    }
+    crate::limits::check_count(
+        "--ff-factor",
+        options.ff_factor,
+        crate::limits::MAX_FF_FACTOR,
+        "the reference \
+        matrix costs that many times the samples and rays",
+    )
+    .map_err(|e| CheckError::Options(e.to_string()))?;
+    if !(options.row_sum_tolerance.is_finite() && options.row_sum_tolerance >= 0.0) {
+        return Err(CheckError::Options(format!(
+            "--row-sum-tolerance {} must be finite and >= 0",
+            options.row_sum_tolerance
+        )));
+    }
     if options.budget == 0 {
         return Err(CheckError::Options("--budget must be at least 1 work unit".into()));
     }

@@ -22,6 +22,7 @@ pub fn check_table_file(
     prepare_options: &PrepareOptions,
     options: &CheckOptions,
 ) -> Result<CheckReport, CheckError> {
+    check_options(options)?;
     let bytes = std::fs::read(table_path)
         .map_err(|e| CheckError::ReadTable { path: table_path.into(), message: e.to_string() })?;
     // Parse first: a damaged table is reported before the (slower) scene preparation.

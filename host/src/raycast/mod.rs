@@ -58,7 +58,8 @@ impl Ray {
     #[must_use]
     pub fn segment(from: Vec3, to: Vec3, offset: f32) -> Self {
         let direction = to - from;
-        let length = direction.length();
+        // In f64, so that the squares of large or tiny coordinates neither overflow nor underflow.
+        let length = direction.as_dvec3().length() as f32;
         let cut = if length > 0.0 { offset / length } else { 1.0 };
         Self { origin: from, direction, tnear: cut, tfar: 1.0 - cut }
     }
@@ -88,7 +89,9 @@ pub const RELATIVE_OFFSET: f32 = 1.0 / 8192.0;
 pub fn scene_scale(vertices: &[Vec3]) -> f32 {
     let Some(first) = vertices.first() else { return 1.0 };
     let (lo, hi) = vertices.iter().fold((*first, *first), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    let diagonal = (hi - lo).length();
+    // In f64: the squares of f32 coordinates above about 1e19 overflow f32 (the offset would become infinite and
+    // every ray empty), and those below about 1e-19 underflow it.
+    let diagonal = (hi.as_dvec3() - lo.as_dvec3()).length() as f32;
     let magnitude = lo.abs().max(hi.abs()).max_element();
     let scale = diagonal.max(magnitude);
     if scale > 0.0 {
@@ -96,6 +99,22 @@ pub fn scene_scale(vertices: &[Vec3]) -> f32 {
     } else {
         1.0
     }
+}
+
+/// The power of two that brings a length `scale` into `[1, 2)`: `2^-e` with `2^e <= scale < 2^(e + 1)` (`e`
+/// limited to the exponents of normal `f32` numbers; 1 for a non-finite or non-positive `scale`). Multiplying by it
+/// is exact, so a scene and its rays scaled by it give the same hits; [`crate::embree::TriangleScene`] hands Embree
+/// every scene and ray scaled by the `unit_factor` of its [`scene_scale`].
+#[must_use]
+pub fn unit_factor(scale: f32) -> f32 {
+    if !(scale.is_finite() && scale > 0.0) {
+        return 1.0;
+    }
+    let exponent = scale.log2().floor() as i32;
+    // Correct `log2`'s rounding next to powers of two, so that the result depends on the exponent only.
+    let exponent = if 2f32.powi(exponent) > scale { exponent - 1 } else { exponent };
+    let exponent = if 2f32.powi(exponent + 1) <= scale { exponent + 1 } else { exponent };
+    2f32.powi(-exponent.clamp(-126, 126))
 }
 
 /// The absolute offset (scene units) to cut from both ends of a segment between two surface points of a scene

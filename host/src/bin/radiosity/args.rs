@@ -46,7 +46,7 @@ pub struct CheckArgs {
     /// Work units per frame.
     #[arg(long, value_name = "UNITS", default_value_t = CheckOptions::default().budget)]
     pub budget: u32,
-    /// Frames per light setting (default: run each setting to convergence).
+    /// Frames per light setting, at most 100000 (default: run each setting to convergence).
     #[arg(long, value_name = "N")]
     pub frames: Option<usize>,
     /// Arithmetic paths of the device solver.
@@ -58,7 +58,8 @@ pub struct CheckArgs {
     /// Solver tolerance as a fraction of the largest per-channel emitted power.
     #[arg(long, default_value_t = CheckOptions::default().tolerance)]
     pub tolerance: f64,
-    /// The form-factor component's reference matrix uses this many times the samples and rays (1: skip).
+    /// The form-factor component's reference matrix uses this many times the samples and rays (1: skip; at
+    /// most 64).
     #[arg(long, value_name = "K", default_value_t = CheckOptions::default().ff_factor)]
     pub ff_factor: usize,
     /// Slack on row sums of the shooting form `A_j F_ji / A_i` above 1 in the f64 solves (estimated form factors
@@ -148,10 +149,10 @@ pub struct BenchArgs {
     /// Small scenes and one repetition: checks that the report is produced (seconds, not minutes).
     #[arg(long)]
     pub quick: bool,
-    /// Output folder for REPORT.md, the CSV files and the plots.
+    /// Output folder for REPORT.md, the CSV files and the plots (created, with its parents, if missing).
     #[arg(long, default_value = "bench")]
     pub out: PathBuf,
-    /// Repetitions of every timed run (default: 3, or 1 with --quick).
+    /// Repetitions of every timed run, 1 to 100 (default: 3, or 1 with --quick).
     #[arg(long, value_name = "N")]
     pub reps: Option<usize>,
 }
@@ -200,7 +201,8 @@ pub enum Command {
     Bake {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output table file (.rft).
+        /// Output table file (.rft); its folder must exist. Written atomically, as every output file (a
+        /// temporary file beside it, renamed over it when complete).
         #[arg(short, long, value_name = "TABLE")]
         output: PathBuf,
         /// Bits per form-factor code: 16 (small float, relative error < 2^-12) or 8 (< 2^-5).
@@ -232,7 +234,7 @@ pub enum Command {
     /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
     /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
     Demo {
-        /// Folder for the outputs.
+        /// Folder for the outputs (created, with its parents, if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
@@ -266,19 +268,19 @@ pub enum Command {
         /// Default: the published Cornell camera for scenes named cornell-box*, else a view of the bounding box.
         #[arg(long, allow_hyphen_values = true)]
         camera: Option<String>,
-        /// Image width in pixels.
+        /// Image width in pixels (at most 16384, and 4096 x 4096 pixels in all).
         #[arg(long, default_value_t = 512)]
         width: u32,
-        /// Image height in pixels.
+        /// Image height in pixels (at most 16384, and 4096 x 4096 pixels in all).
         #[arg(long, default_value_t = 512)]
         height: u32,
         /// What the picture shows.
         #[arg(long, value_enum, default_value_t = RenderModeArg::Shaded)]
         mode: RenderModeArg,
-        /// Table for `--mode error` (baked from SCENE with the same meshing options; default: bake one).
+        /// Table for `--mode error` only (baked from SCENE with the same meshing options; default: bake one).
         #[arg(long, value_name = "TABLE")]
         table: Option<PathBuf>,
-        /// Output PNG file.
+        /// Output PNG file; its folder must exist.
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -304,16 +306,19 @@ pub enum Command {
         /// Also build the Cortex-M4 firmware and run it under QEMU (needs `make deps`).
         #[arg(long)]
         qemu: bool,
-        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png.
+        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png (DIR
+        /// is created, with its parents, if missing).
         #[arg(long, value_name = "DIR")]
         frames: Option<PathBuf>,
-        /// Size of the frame pictures (pixels, square).
+        /// Size of the frame pictures (pixels, square; at most 4096).
         #[arg(long, default_value_t = 256)]
         frame_size: u32,
-        /// Write the per-frame rows as CSV to FILE.
+        /// Write the per-frame rows as CSV to FILE (its folder must exist).
         #[arg(long, value_name = "FILE")]
         csv: Option<PathBuf>,
-        /// Plot error against cumulative work units per script to STEM.svg and STEM.png.
+        /// Plot error against cumulative work units per script to STEM.svg and STEM.png (their folder must
+        /// exist; frames with every light off, whose relative error is undefined, are left out and counted in the
+        /// legend).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
         /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
@@ -325,7 +330,7 @@ pub enum Command {
     Lightmap {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output path without extension.
+        /// Output path without extension (its folder must exist).
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
     },
@@ -343,7 +348,8 @@ pub enum Command {
         table_scene: Option<PathBuf>,
         #[command(flatten)]
         check: CheckArgs,
-        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png.
+        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png
+        /// (their folder must exist).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
         /// Output format (`text` or `json`).
@@ -391,19 +397,19 @@ pub struct SceneArgs {
     /// extent).
     #[arg(long, value_name = "LENGTH")]
     pub max_patch_edge: Option<f64>,
-    /// Most patches the mesh may have (default: the scene's TOML, or 4096).
+    /// Most patches the mesh may have, at most 16384 (default: the scene's TOML, or 4096).
     #[arg(long, value_name = "N")]
     pub max_patches: Option<usize>,
-    /// Sample points on each patch for the form-factor integral.
+    /// Sample points on each patch for the form-factor integral (1 to 1024).
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
     pub samples: usize,
-    /// Occlusion rays per patch pair.
+    /// Occlusion rays per patch pair (1 to 16384).
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().rays_per_pair)]
     pub rays: usize,
     /// Seed of the form-factor sampling; equal seeds give identical results on any thread count.
     #[arg(long, default_value_t = FormFactorOptions::default().seed)]
     pub seed: u64,
-    /// Worker threads (default: all cores).
+    /// Worker threads, at most 1024 (default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// No progress bar or stage summaries on stderr.
