@@ -66,7 +66,22 @@ pub struct CheckArgs {
     /// are not exactly reciprocal).
     #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
     pub row_sum_tolerance: f64,
+    /// Add the discretization component: path trace the continuous scene (as `radiosity reference`) and
+    /// compare the mesh's f64 answer with it per OBJ face. Costs seconds, so it is off by default.
+    #[arg(long)]
+    pub continuous: bool,
+    /// With --continuous: the reference's relative standard error per face.
+    #[arg(long, value_name = "X", requires = "continuous", conflicts_with = "reference_samples",
+          default_value_t = CHECK_REFERENCE_SE)]
+    pub reference_se: f64,
+    /// With --continuous: paths per face for the reference instead of a target standard error.
+    #[arg(long, value_name = "N", requires = "continuous")]
+    pub reference_samples: Option<u64>,
 }
+
+/// Default relative standard error of `check --continuous`'s reference: well below the percent-level
+/// differences the discretization component is meant to show.
+pub const CHECK_REFERENCE_SE: f64 = 0.002;
 
 /// `--arith` values: one arithmetic path, or both.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -92,9 +107,22 @@ impl ArithArg {
 }
 
 impl CheckArgs {
-    /// The [`CheckOptions`] these arguments select.
+    /// The [`CheckOptions`] these arguments select (the continuous reference runs on `scene`'s threads, with
+    /// its progress bar unless `--quiet`).
     #[must_use]
-    pub fn options(&self) -> CheckOptions {
+    pub fn options(&self, scene: &SceneArgs) -> CheckOptions {
+        let continuous = self.continuous.then(|| ReferenceOptions {
+            samples: match self.reference_samples {
+                Some(n) => SampleCount::PerFace(n),
+                None => SampleCount::TargetRelative {
+                    target: self.reference_se,
+                    max_samples: ReferenceArgs::DEFAULT_MAX_SAMPLES,
+                },
+            },
+            threads: scene.threads,
+            progress: !scene.quiet,
+            ..ReferenceOptions::default()
+        });
         CheckOptions {
             bits: self.bits,
             codec: None,
@@ -106,6 +134,7 @@ impl CheckArgs {
             tolerance: self.tolerance,
             ff_factor: self.ff_factor,
             row_sum_tolerance: self.row_sum_tolerance,
+            continuous,
         }
     }
 }
@@ -389,7 +418,7 @@ pub struct ReferenceArgs {
     #[arg(long, value_name = "X")]
     pub target_se: Option<f64>,
     /// Most paths per face with a target standard error.
-    #[arg(long, value_name = "N", default_value_t = 1 << 20)]
+    #[arg(long, value_name = "N", default_value_t = ReferenceArgs::DEFAULT_MAX_SAMPLES)]
     pub max_samples: u64,
     /// Seed of the random numbers; equal seeds give identical results on any thread count.
     #[arg(long, default_value_t = ReferenceOptions::default().seed)]
@@ -409,6 +438,9 @@ pub struct ReferenceArgs {
 }
 
 impl ReferenceArgs {
+    /// Default of `--max-samples` (and the cap of `check --continuous`).
+    pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 20;
+
     /// The library's options these arguments select.
     #[must_use]
     pub fn options(&self) -> ReferenceOptions {

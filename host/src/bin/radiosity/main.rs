@@ -333,12 +333,12 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     &scene.scene,
                     &obj,
                     &scene.prepare_options(),
-                    &check.options(),
+                    &check.options(&scene),
                 )?,
                 None => radiosity_host::check::check_scene(
                     &scene.scene,
                     &scene.prepare_options(),
-                    &check.options(),
+                    &check.options(&scene),
                 )?,
             };
             match format {
