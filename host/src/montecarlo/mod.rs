@@ -53,8 +53,9 @@
 //! first gets [`FIRST_ROUND_SAMPLES`] (at most the cap), then rounds add batches to the faces whose relative
 //! standard error (largest over the channels with `B > 0`) is above the target, as many as the current error
 //! predicts (`n (rel / target)^2`, at least one batch, at most three times what the face has), until every face
-//! meets it or reaches the cap; [`ContinuousReference::target_met`] says which happened. (The stopping rule
-//! looks at the estimates, which biases them by a small fraction of a standard error.)
+//! meets it or reaches the cap; [`ContinuousReference::target_met`] says which happened. (A stopping rule that
+//! looks at the estimates can bias them slightly: a face stops a little more often after a low variance
+//! estimate. [`SampleCount::PerFace`] has no such effect, which is why the tests use it.)
 //!
 //! # Determinism
 //! The path of sample `n` of face `f` draws from a generator keyed by `(seed, f, n)`, the strata of batch `b`
