@@ -97,6 +97,12 @@ pub const BATCH_SIZE: usize = 256;
 /// sample variance that predicts the next round.
 pub const FIRST_ROUND_SAMPLES: u64 = 4 * BATCH_SIZE as u64;
 
+/// Default relative standard error per face ([`ReferenceOptions::default`], `radiosity reference`).
+pub const DEFAULT_TARGET: f64 = 0.01;
+
+/// Default cap on paths per face with a target standard error.
+pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 20;
+
 /// How many paths each face gets.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SampleCount {
@@ -131,7 +137,7 @@ pub struct ReferenceOptions {
 impl Default for ReferenceOptions {
     fn default() -> Self {
         ReferenceOptions {
-            samples: SampleCount::TargetRelative { target: 0.01, max_samples: 1 << 20 },
+            samples: SampleCount::TargetRelative { target: DEFAULT_TARGET, max_samples: DEFAULT_MAX_SAMPLES },
             seed: 1,
             threads: None,
             progress: true,

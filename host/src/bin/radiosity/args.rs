@@ -10,7 +10,7 @@ use radiosity_host::bake;
 use radiosity_host::bench::BenchOptions;
 use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
-use radiosity_host::montecarlo::{ReferenceOptions, SampleCount};
+use radiosity_host::montecarlo::{self, ReferenceOptions, SampleCount};
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
@@ -116,7 +116,7 @@ impl CheckArgs {
                 Some(n) => SampleCount::PerFace(n),
                 None => SampleCount::TargetRelative {
                     target: self.reference_se,
-                    max_samples: ReferenceArgs::DEFAULT_MAX_SAMPLES,
+                    max_samples: montecarlo::DEFAULT_MAX_SAMPLES,
                 },
             },
             threads: scene.threads,
@@ -288,7 +288,7 @@ pub enum Command {
         epsilon: Option<f64>,
     },
     /// Path trace the continuous scene (no mesh) and print every OBJ face's area-averaged radiosity with its
-    /// standard error: the reference that `solve`'s mesh answer converges to as the mesh is refined.
+    /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.
     ///
     /// Next-event estimation to the emitters and cosine-weighted bounces, combined by multiple importance
     /// sampling, with Russian roulette (method: the `montecarlo` module docs). `--format csv` prints
@@ -418,7 +418,7 @@ pub struct ReferenceArgs {
     #[arg(long, value_name = "X")]
     pub target_se: Option<f64>,
     /// Most paths per face with a target standard error.
-    #[arg(long, value_name = "N", default_value_t = ReferenceArgs::DEFAULT_MAX_SAMPLES)]
+    #[arg(long, value_name = "N", default_value_t = montecarlo::DEFAULT_MAX_SAMPLES)]
     pub max_samples: u64,
     /// Seed of the random numbers; equal seeds give identical results on any thread count.
     #[arg(long, default_value_t = ReferenceOptions::default().seed)]
@@ -438,16 +438,13 @@ pub struct ReferenceArgs {
 }
 
 impl ReferenceArgs {
-    /// Default of `--max-samples` (and the cap of `check --continuous`).
-    pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 20;
-
     /// The library's options these arguments select.
     #[must_use]
     pub fn options(&self) -> ReferenceOptions {
         let samples = match self.samples {
             Some(n) => SampleCount::PerFace(n),
             None => SampleCount::TargetRelative {
-                target: self.target_se.unwrap_or(0.01),
+                target: self.target_se.unwrap_or(montecarlo::DEFAULT_TARGET),
                 max_samples: self.max_samples,
             },
         };
