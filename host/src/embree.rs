@@ -46,8 +46,8 @@ use std::sync::{Arc, Mutex};
 use embree4_sys as sys;
 use glam::Vec3;
 
-pub use crate::raycast::Ray;
 use crate::raycast::{check_mesh, scene_scale, unit_factor, MeshInputError, RayCaster, RELATIVE_OFFSET};
+pub use crate::raycast::{Hit, Ray};
 
 /// An error reported by Embree, or bad input caught before it reaches Embree.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -432,22 +432,6 @@ fn to_raw(ray: &Ray, factor: f32) -> sys::RTCRay {
     }
 }
 
-/// The closest hit of a ray.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    /// Ray parameter of the hit point: `origin + t * direction`.
-    pub t: f32,
-    /// Index of the triangle hit, within its geometry (the order triangles were given in).
-    pub primitive: u32,
-    /// Geometry id (0 for the single mesh of [`Device::triangle_scene`]).
-    pub geometry: u32,
-    /// Barycentric coordinates `(u, v)` of the hit: the point is `(1 - u - v) * p0 + u * p1 + v * p2`.
-    pub barycentric: [f32; 2],
-    /// Unit geometric normal, `normalize((p1 - p0) x (p2 - p0))`: it points to the side from which the triangle's
-    /// vertices appear counter-clockwise.
-    pub normal: Vec3,
-}
-
 /// A committed triangle scene, ready for queries from any number of threads.
 pub struct TriangleScene {
     raw: sys::RTCScene,
@@ -656,5 +640,9 @@ impl RayCaster for TriangleScene {
 
     fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
         TriangleScene::occluded_many(self, rays, occluded);
+    }
+
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        TriangleScene::intersect(self, ray)
     }
 }

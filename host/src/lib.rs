@@ -1,8 +1,8 @@
 //! `radiosity-host`: the workstation side of the radiosity toolkit.
 //!
 //! Scene loading, meshing into patches, form factors with occlusion rays (`raycast`: Embree in production, a
-//! pure-Rust BVH for tests and cross-checks), the f64 reference solve, table writing, checks and reports. The
-//! physics conventions are those of `radiosity-core`; `rng` is the one random number generator, and
+//! pure-Rust BVH for tests and cross-checks), the f64 reference solve, a path-traced continuous reference,
+//! table writing, checks and reports. The physics conventions are those of `radiosity-core`; `rng` is the one random number generator, and
 //! [`rgb::Rgb`] (glam's `DVec3`, `x, y, z` = R, G, B) the one colour type of every per-patch reflectance,
 //! emission, radiosity and intensity.
 //!
@@ -17,6 +17,7 @@
 //! | prepare | [`pipeline`] | the stages above run together for a command |
 //! | hierarchy | [`hierarchy`] (`hierarchy/`: tree, link, solve) | the hierarchical solver with clustering (links instead of a matrix) |
 //! | reference | [`reference`](mod@reference), [`lighting`], [`input`], [`rgb`] | the f64 solves, per-patch lighting, the input checks they share, the colour type |
+//! | continuous reference | [`montecarlo`] (`montecarlo/`: tracer, report) | the path-traced per-face radiosity with standard errors, independent of the mesh |
 //! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
 //! | check, regress | [`check`], [`regress`] | the device run against f64 (frames through `firmware_sim::device::run_frame`, the one device loop), the quantization baseline |
@@ -38,6 +39,7 @@ pub mod lighting;
 pub mod limits;
 pub mod mesh;
 pub mod metrics;
+pub mod montecarlo;
 pub mod output;
 pub mod patch;
 pub mod picture;

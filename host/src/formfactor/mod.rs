@@ -125,12 +125,13 @@ pub use element::{Element, ElementRules};
 pub use kernel::point_to_polygon;
 pub use nearfield::{far_field_order, FAR_FIELD_GAP, NEAR_FIELD_DEPTH, NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH};
 pub use options::{ClosureMode, FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
+pub(crate) use quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler};
 
 use crate::embree::{Device, EmbreeError, SceneOptions, TriangleScene};
 use crate::patch::{Closure, FormFactorMatrix, Patch, ReciprocityChange};
 use crate::raycast::{MeshInputError, RayCaster, TriangleBvh};
 use nearfield::Receiver;
-use quadrature::{gauss_legendre, PolygonSampler, Quadrature};
+use quadrature::{gauss_legendre, Quadrature};
 use rows::{FractionWalk, Phases, RowContext, Visibility};
 
 /// Entries with `F_ij` below this are left out of the reciprocity error (their relative error is dominated by

@@ -13,7 +13,7 @@ use super::nearfield::{
     NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH,
 };
 use super::options::{FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
-use super::quadrature::{grid, PolygonSampler, Quadrature};
+use super::quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler, Quadrature};
 use crate::patch::Patch;
 use crate::raycast::{unit_factor, Ray, RayCaster};
 use crate::rng::SplitMix64;
@@ -49,13 +49,8 @@ impl<C: RayCaster + ?Sized> RowContext<'_, C> {
         self.samplers[i].stratified(ESCAPE_RAYS_PER_PATCH, &mut rng, &mut origins);
         rng.shuffle(&mut origins);
         let (a, b) = grid(ESCAPE_RAYS_PER_PATCH);
-        // An orthonormal frame around the normal (Duff et al., "Building an orthonormal basis, revisited", 2017).
         let n = p.normal;
-        let sign = 1.0f64.copysign(n.z);
-        let c = -1.0 / (sign + n.z);
-        let d = n.x * n.y * c;
-        let t1 = DVec3::new(1.0 + sign * n.x * n.x * c, sign * d, -sign * n.x);
-        let t2 = DVec3::new(d, sign + n.y * n.y * c, -n.y);
+        let (t1, t2) = tangent_frame(n);
         // Directions of the scene's size (a power of two near it, exact) rather than unit length: in a scene of
         // size 1e30 a unit direction is 1e-30 of it, and a caster that scales the scene to unit size (Embree's)
         // would see directions whose squares underflow. `t` runs to 4 scene sizes.
@@ -68,8 +63,7 @@ impl<C: RayCaster + ?Sized> RowContext<'_, C> {
                 ((k % a) as f64 + rng.open_unit()) / a as f64,
                 ((k / a) as f64 + rng.open_unit()) / b as f64,
             );
-            let (r, phi) = (s.sqrt(), std::f64::consts::TAU * t);
-            let dir = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - s).max(0.0).sqrt();
+            let dir = cosine_direction(n, (t1, t2), s, t);
             rays.push(Ray::new(x.as_vec3(), dir.normalize().as_vec3() * length, offset, far));
         }
         let mut occluded = vec![false; rays.len()];

@@ -1,10 +1,12 @@
-//! Occlusion queries behind one trait, so the form-factor estimator is independent of the ray caster.
+//! Ray queries behind one trait, so the form-factor estimator and the path tracer are independent of the ray
+//! caster.
 //!
-//! [`RayCaster`] is what the estimator asks of a scene: is anything on this segment, for batches of segments,
-//! and the offset by which segments between two surface points are shortened. Two casters implement it:
+//! [`RayCaster`] is what they ask of a scene: is anything on this segment, for batches of segments; what is the
+//! closest surface along a ray ([`Hit`]); and the offset by which segments between two surface points are
+//! shortened. Two casters implement it:
 //! - [`crate::embree::TriangleScene`], Embree's BVH and packet traversal: the production caster.
 //! - [`TriangleBvh`], a small pure-Rust BVH with an f64 ray-triangle test: no native library, so unit tests of
-//!   everything that only needs occlusion run without Embree, and a test checks Embree against it.
+//!   everything that only needs ray queries run without Embree, and tests check Embree against it.
 //!
 //! # Semantics (Embree's, which every caster follows)
 //! - A [`Ray`] covers `origin + t * direction` for `tnear < t <= tfar`: `tnear` is exclusive, `tfar`
@@ -15,6 +17,9 @@
 //!   is empty ([`Ray::is_empty`]): it is never occluded.
 //! - Triangles are two-sided (no back-face culling); a hit on a triangle's edge or vertex counts; degenerate
 //!   (zero-area) triangles are never hit.
+//! - A closest hit ([`RayCaster::intersect`]) names the triangle by its index in the order the caster was given
+//!   the triangles, with Embree's barycentric convention and a geometric normal from the vertex order. Which of
+//!   two triangles at the same distance is reported (a ray through a shared edge) is unspecified.
 //! - Casters differ only for rays that pass within rounding of a triangle's edge or end within rounding of a
 //!   surface: Embree tests in `f32`, [`TriangleBvh`] in `f64` from the same `f32` data.
 
@@ -125,7 +130,23 @@ pub fn offset_for(vertices: &[Vec3]) -> f32 {
     scene_scale(vertices) * RELATIVE_OFFSET
 }
 
-/// Occlusion queries on a fixed triangle scene, from any number of threads (see the module docs for the
+/// The closest hit of a ray ([`RayCaster::intersect`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit point: `origin + t * direction`.
+    pub t: f32,
+    /// Index of the triangle hit, within its geometry (the order triangles were given in).
+    pub primitive: u32,
+    /// Geometry id (0 for the single mesh of [`crate::embree::Device::triangle_scene`] and of [`TriangleBvh`]).
+    pub geometry: u32,
+    /// Barycentric coordinates `(u, v)` of the hit: the point is `(1 - u - v) * p0 + u * p1 + v * p2`.
+    pub barycentric: [f32; 2],
+    /// Unit geometric normal, `normalize((p1 - p0) x (p2 - p0))`: it points to the side from which the triangle's
+    /// vertices appear counter-clockwise.
+    pub normal: Vec3,
+}
+
+/// Ray queries on a fixed triangle scene, from any number of threads (see the module docs for the
 /// semantics every implementation follows).
 pub trait RayCaster: Sync {
     /// The absolute offset (scene units) to cut from both ends of a segment between two surface points
@@ -145,4 +166,7 @@ pub trait RayCaster: Sync {
             *out = self.occluded(ray);
         }
     }
+
+    /// The closest hit on `ray` with `tnear < t <= tfar`, if any; `None` for an empty ray.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
 }

@@ -10,6 +10,7 @@ use radiosity_host::bake;
 use radiosity_host::bench::BenchOptions;
 use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::montecarlo::{self, ReferenceOptions, SampleCount};
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
@@ -66,7 +67,22 @@ pub struct CheckArgs {
     /// are not exactly reciprocal).
     #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
     pub row_sum_tolerance: f64,
+    /// Add the discretization component: path trace the continuous scene (as `radiosity reference`) and
+    /// compare the mesh's f64 answer with it per OBJ face. Costs seconds, so it is off by default.
+    #[arg(long)]
+    pub continuous: bool,
+    /// With --continuous: the reference's relative standard error per face.
+    #[arg(long, value_name = "X", requires = "continuous", conflicts_with = "reference_samples",
+          default_value_t = CHECK_REFERENCE_SE)]
+    pub reference_se: f64,
+    /// With --continuous: paths per face for the reference instead of a target standard error.
+    #[arg(long, value_name = "N", requires = "continuous")]
+    pub reference_samples: Option<u64>,
 }
+
+/// Default relative standard error of `check --continuous`'s reference: well below the percent-level
+/// differences the discretization component is meant to show.
+pub const CHECK_REFERENCE_SE: f64 = 0.002;
 
 /// `--arith` values: one arithmetic path, or both.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -92,9 +108,22 @@ impl ArithArg {
 }
 
 impl CheckArgs {
-    /// The [`CheckOptions`] these arguments select.
+    /// The [`CheckOptions`] these arguments select (the continuous reference runs on `scene`'s threads, with
+    /// its progress bar unless `--quiet`).
     #[must_use]
-    pub fn options(&self) -> CheckOptions {
+    pub fn options(&self, scene: &SceneArgs) -> CheckOptions {
+        let continuous = self.continuous.then(|| ReferenceOptions {
+            samples: match self.reference_samples {
+                Some(n) => SampleCount::PerFace(n),
+                None => SampleCount::TargetRelative {
+                    target: self.reference_se,
+                    max_samples: montecarlo::DEFAULT_MAX_SAMPLES,
+                },
+            },
+            threads: scene.threads,
+            progress: !scene.quiet,
+            ..ReferenceOptions::default()
+        });
         CheckOptions {
             bits: self.bits,
             codec: None,
@@ -106,6 +135,7 @@ impl CheckArgs {
             tolerance: self.tolerance,
             ff_factor: self.ff_factor,
             row_sum_tolerance: self.row_sum_tolerance,
+            continuous,
         }
     }
 }
@@ -259,6 +289,14 @@ pub enum Command {
         #[arg(long, value_name = "E")]
         epsilon: Option<f64>,
     },
+    /// Path trace the continuous scene (no mesh) and print every OBJ face's area-averaged radiosity with its
+    /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.
+    ///
+    /// Next-event estimation to the emitters and cosine-weighted bounces, combined by multiple importance
+    /// sampling, with Russian roulette (method: the `montecarlo` module docs). `--format csv` prints
+    /// `face,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b,se_r,se_g,se_b,samples`. Deterministic for a seed,
+    /// whatever `--threads`.
+    Reference(ReferenceArgs),
     /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
     /// patch to show the mesh). Prints the output path.
     Render {
@@ -371,6 +409,59 @@ pub enum Command {
     /// Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
     /// CSV files and plots into the output folder. Run it from a release build.
     Bench(BenchArgs),
+}
+
+/// Command-line options of `radiosity reference`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ReferenceArgs {
+    /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
+    pub scene: PathBuf,
+    /// Paths per face (instead of a target standard error).
+    #[arg(long, value_name = "N", conflicts_with_all = ["target_se", "max_samples"])]
+    pub samples: Option<u64>,
+    /// Relative standard error to reach on every face (its worst channel); paths are added in rounds until
+    /// every face reaches it or has `--max-samples` [default: 0.01].
+    #[arg(long, value_name = "X")]
+    pub target_se: Option<f64>,
+    /// Most paths per face with a target standard error.
+    #[arg(long, value_name = "N", default_value_t = montecarlo::DEFAULT_MAX_SAMPLES)]
+    pub max_samples: u64,
+    /// Seed of the random numbers; equal seeds give identical results on any thread count.
+    #[arg(long, default_value_t = ReferenceOptions::default().seed)]
+    pub seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Output format (`text`: a table and a summary; `csv`: one row per face; `json`: everything).
+    #[arg(long, value_enum, default_value_t = Format::Text)]
+    pub format: Format,
+    /// Write the output to FILE instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// No progress bar or summary on stderr.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl ReferenceArgs {
+    /// The library's options these arguments select.
+    #[must_use]
+    pub fn options(&self) -> ReferenceOptions {
+        let samples = match self.samples {
+            Some(n) => SampleCount::PerFace(n),
+            None => SampleCount::TargetRelative {
+                target: self.target_se.unwrap_or(montecarlo::DEFAULT_TARGET),
+                max_samples: self.max_samples,
+            },
+        };
+        ReferenceOptions {
+            samples,
+            seed: self.seed,
+            threads: self.threads,
+            progress: !self.quiet,
+            ..ReferenceOptions::default()
+        }
+    }
 }
 
 /// `render --mode`.

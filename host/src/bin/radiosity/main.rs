@@ -144,6 +144,40 @@ fn solve_hierarchical_command(
     Ok(())
 }
 
+/// `radiosity reference`: the continuous reference of a scene, to stdout or `--output`.
+fn reference_command(args: &args::ReferenceArgs) -> Result<(), BoxError> {
+    let options = args.options();
+    // Bad options are reported before the scene is loaded or a ray is cast.
+    radiosity_host::montecarlo::validate_options(&options)?;
+    let scene = Scene::load(&args.scene)?;
+    if !args.quiet {
+        for w in &scene.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    let reference = radiosity_host::montecarlo::continuous_reference(&scene, &options)
+        .map_err(|e| format!("{}: {e}", args.scene.display()))?;
+    if !args.quiet {
+        eprintln!("{}: {}", args.scene.display(), reference.summary());
+    }
+    let mut out: Box<dyn Write> = match &args.output {
+        Some(path) => Box::new(BufWriter::new(
+            std::fs::File::create(path).map_err(|e| format!("creating {}: {e}", path.display()))?,
+        )),
+        None => Box::new(BufWriter::new(io::stdout().lock())),
+    };
+    match args.format {
+        Format::Text => write!(out, "{reference}")?,
+        Format::Csv => reference.write_csv(&mut out)?,
+        Format::Json => {
+            serde_json::to_writer_pretty(&mut out, &reference)?;
+            writeln!(out)?;
+        }
+    }
+    out.flush()?;
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<(), BoxError> {
     let stdout = io::stdout();
     let mut out = BufWriter::new(stdout.lock());
@@ -210,6 +244,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
         }
+        Command::Reference(args) => reference_command(&args)?,
         Command::Inspect { table, format } => {
             let report = inspect_file(&table)?;
             match format {
@@ -404,12 +439,12 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     &scene.scene,
                     &obj,
                     &scene.prepare_options(),
-                    &check.options(),
+                    &check.options(&scene),
                 )?,
                 None => radiosity_host::check::check_scene(
                     &scene.scene,
                     &scene.prepare_options(),
-                    &check.options(),
+                    &check.options(&scene),
                 )?,
             };
             match format {
