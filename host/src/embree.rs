@@ -32,8 +32,11 @@
 //!   scenes far from unit size lose hits (at 1e12 the products overflow `f32`, at 1e-15 they flush to zero).
 //!   [`TriangleScene`] therefore hands Embree the scene scaled by a power of two ([`unit_factor`]) that brings
 //!   its size ([`crate::raycast::scene_scale`]) into `[1, 2)`, and scales every ray's origin and direction by the
-//!   same factor. Multiplying by a power of two is exact in floating point, and a ray's parameter `t` does not
-//!   change, so callers keep working in their own units and results do not depend on the scene's unit.
+//!   same factor. It also scales each ray's direction by a second power of two that brings the direction's length
+//!   into `[1, 2)`, dividing `tnear` and `tfar` by it and multiplying a hit's `t` by it, so that a ray of any
+//!   direction length (a unit direction as well as a segment's) reaches Embree well scaled. Multiplying by a
+//!   power of two is exact in floating point, so callers keep working in their own units and `t`, and results do
+//!   not depend on the scene's unit or on the direction's length.
 //!
 //! These are the semantics of [`crate::raycast`], whose [`Ray`] this module takes; [`TriangleScene`] is the
 //! production [`RayCaster`], and [`crate::raycast::TriangleBvh`] the pure-Rust one it is tested against.
@@ -413,23 +416,36 @@ pub struct SceneOptions {
     pub robust: bool,
 }
 
-/// The Embree form of `ray` in the scene scaled by `factor` (a negative `tnear` raised to 0, all mask bits set).
-fn to_raw(ray: &Ray, factor: f32) -> sys::RTCRay {
-    let (origin, direction) = (ray.origin * factor, ray.direction * factor);
-    sys::RTCRay {
+/// The Embree form of `ray` in the scene scaled by `factor` (a negative `tnear` raised to 0, all mask bits set),
+/// and the power of two `u` by which Embree's `t` is to be multiplied to give the ray's own `t`.
+///
+/// The origin is scaled by `factor`; the direction by `factor` and then by the [`unit_factor`] of its length, so
+/// that Embree sees a direction of length in `[1, 2)` whatever length the caller chose: a unit direction in a
+/// scene of size 2^60 would otherwise reach Embree with components below `1e-18`, where its traversal replaces
+/// reciprocals by a constant (`rcp_safe`) and rays miss. `tnear` and `tfar` are divided by that second factor
+/// (`u`), so the ray covers the same points. Every scaling is by a power of two, hence exact.
+fn to_raw(ray: &Ray, factor: f32) -> (sys::RTCRay, f32) {
+    // In f64: the squares of a large or tiny direction's components would overflow or underflow f32.
+    let length = (ray.direction.as_dvec3() * f64::from(factor)).length() as f32;
+    let u = unit_factor(length);
+    // Embree's point `factor * origin + t' * factor * u * direction` is `factor` times the ray's point at
+    // `t = t' * u`.
+    let (origin, direction) = (ray.origin * factor, ray.direction * (factor * u));
+    let raw = sys::RTCRay {
         org_x: origin.x,
         org_y: origin.y,
         org_z: origin.z,
-        tnear: ray.tnear.max(0.0),
+        tnear: ray.tnear.max(0.0) / u,
         dir_x: direction.x,
         dir_y: direction.y,
         dir_z: direction.z,
         time: 0.0,
-        tfar: ray.tfar,
+        tfar: ray.tfar / u,
         mask: u32::MAX,
         id: 0,
         flags: 0,
-    }
+    };
+    (raw, u)
 }
 
 /// A committed triangle scene, ready for queries from any number of threads.
@@ -505,7 +521,7 @@ impl TriangleScene {
         if ray.is_empty() {
             return false;
         }
-        let mut raw = to_raw(ray, self.factor);
+        let (mut raw, _) = to_raw(ray, self.factor);
         let mut args = occluded_args();
         // SAFETY: `self.raw` is a committed scene (see the `Sync` impl); `raw` and `args` are valid, properly
         // aligned (`RTCRay` is `repr(align(16))`) locals that outlive the call.
@@ -540,7 +556,7 @@ impl TriangleScene {
             if ray.is_empty() {
                 continue;
             }
-            let r = to_raw(ray, self.factor);
+            let (r, _) = to_raw(ray, self.factor);
             packet.org_x[k] = r.org_x;
             packet.org_y[k] = r.org_y;
             packet.org_z[k] = r.org_z;
@@ -589,8 +605,9 @@ impl TriangleScene {
         if ray.is_empty() {
             return None;
         }
+        let (raw, u) = to_raw(ray, self.factor);
         let mut rayhit = sys::RTCRayHit {
-            ray: to_raw(ray, self.factor),
+            ray: raw,
             hit: sys::RTCHit {
                 Ng_x: 0.0,
                 Ng_y: 0.0,
@@ -620,7 +637,8 @@ impl TriangleScene {
         // `Hit::normal`); a test checks it.
         let normal = Vec3::new(hit.Ng_x, hit.Ng_y, hit.Ng_z).normalize_or_zero();
         Some(Hit {
-            t: rayhit.ray.tfar,
+            // Back to the ray's own parameter (exact: `u` is a power of two).
+            t: rayhit.ray.tfar * u,
             primitive: hit.primID,
             geometry: hit.geomID,
             barycentric: [hit.u, hit.v],

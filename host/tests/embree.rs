@@ -572,3 +572,85 @@ fn rows_above_one_beyond_sampling_noise_are_named() {
     let text = worst.to_string();
     assert!(text.contains(&format!("patch {} (face {})", worst.patch, worst.face)), "{text}");
 }
+
+/// Closest hits do not depend on the scene's unit either, whatever the length of the ray's direction: bounce
+/// rays as the path tracer casts them (unit directions, from points lifted off a patch by the caster's offset)
+/// and rays whose direction is of the scene's size, in the closed Cornell box scaled by `k`. For a power of two
+/// (2^100 ~ 1.3e30 down to 2^-50 ~ 8.9e-16) every hit is the scale-1 hit: the same triangle and barycentrics,
+/// and `t` times `k` (unit directions) or the same `t` (scaled directions), bit for bit. For 1e12 and 1e-15
+/// (inexact in binary) at most 1 ray in 1000 hits another triangle (a ray through a shared edge), and `t` agrees
+/// to 1e-5 of the scene size. Before Embree saw directions scaled as well as the scene, a unit direction at
+/// 2^100 was about 1e-30 of Embree's unit scene and every bounce ray missed.
+#[test]
+fn closest_hits_do_not_depend_on_the_scene_unit() {
+    let base = closed_cornell_scaled(1.0);
+    let mut rng = SplitMix64::new(29);
+    // (patch, point, unit direction into the front hemisphere) in scale-1 units, f64.
+    let mut starts = Vec::new();
+    while starts.len() < 20_000 {
+        let p = &base[(rng.unit() * base.len() as f64) as usize];
+        let v = &p.vertices;
+        let (s, t) = (rng.unit(), rng.unit());
+        let (s, t) = if s + t > 1.0 { (1.0 - s, 1.0 - t) } else { (s, t) };
+        let x = v[0] + (v[1] - v[0]) * s + (v[2] - v[0]) * t;
+        let d = glam::DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5).normalize();
+        let d = if d.dot(p.normal) < 0.0 { -d } else { d };
+        starts.push((p.normal, x, d));
+    }
+    let rays = |k: f64, offset: f32, scaled: bool| -> Vec<Ray> {
+        starts
+            .iter()
+            .map(|&(n, x, d)| {
+                // Lifted as the path tracer lifts its origins; the offset is `k` times scale 1's.
+                let origin = (x * k + n * f64::from(offset)).as_vec3();
+                let direction = if scaled { (d * k).as_vec3() } else { d.as_vec3() };
+                Ray::new(origin, direction, 0.0, f32::INFINITY)
+            })
+            .collect()
+    };
+    let reference_scene = radiosity_host::formfactor::occluder_scene(&base, true).unwrap();
+    let unit_offset = RayCaster::offset(&reference_scene);
+    let size =
+        f64::from(radiosity_host::raycast::scene_scale(&radiosity_host::formfactor::occluder_mesh(&base).0));
+    let reference: Vec<_> =
+        rays(1.0, unit_offset, false).iter().map(|r| reference_scene.intersect(r)).collect();
+    assert!(reference.iter().all(Option::is_some), "the closed box: every bounce ray hits");
+    for k in [2f64.powi(100), 2f64.powi(40), 2f64.powi(-50), 1e12, 1e-15] {
+        let patches = closed_cornell_scaled(k);
+        let scene = radiosity_host::formfactor::occluder_scene(&patches, true).unwrap();
+        let exact = k.log2().fract() == 0.0;
+        if exact {
+            assert_eq!(RayCaster::offset(&scene), (f64::from(unit_offset) * k) as f32, "{k:e}");
+        }
+        for scaled in [false, true] {
+            let mut other = 0;
+            for (ray, expected) in rays(k, RayCaster::offset(&scene), scaled).iter().zip(&reference) {
+                let expected = expected.unwrap();
+                let Some(hit) = scene.intersect(ray) else {
+                    panic!("{k:e}, scaled directions {scaled}: {ray:?} hits nothing (scale 1: {expected:?})");
+                };
+                // The hit's distance in scale-1 units.
+                let t = if scaled { f64::from(hit.t) } else { f64::from(hit.t) / k };
+                if exact {
+                    assert_eq!(
+                        (hit.primitive, hit.barycentric, t),
+                        (expected.primitive, expected.barycentric, f64::from(expected.t)),
+                        "{k:e}, scaled directions {scaled}: {ray:?}"
+                    );
+                    assert!((hit.normal - expected.normal).length() <= 1e-6, "{hit:?} vs {expected:?}");
+                } else if hit.primitive != expected.primitive {
+                    other += 1;
+                } else {
+                    assert!(
+                        (t - f64::from(expected.t)).abs() <= 1e-5 * size,
+                        "{k:e}: {hit:?} vs {expected:?}"
+                    );
+                }
+            }
+            assert!(
+                other * 1000 <= starts.len(),
+                "{k:e}, scaled directions {scaled}: {other} other triangles"
+            );
+        }
+    }
+}
