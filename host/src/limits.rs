@@ -9,6 +9,9 @@
 //!   [`MAX_PATCHES`] bounds the worst case near 3.5 GB (a typical scene stores far fewer entries).
 //! - Per pair of patches, [`MAX_SAMPLES`] kernel evaluations and [`MAX_RAYS`] occlusion rays; beyond them the
 //!   estimate stops improving measurably long before the run ends.
+//! - [`MAX_PATHS`] paths per face for the continuous reference (`reference --samples` and `--max-samples`,
+//!   `check --reference-samples`): 1024 times the default cap, and its standard error only falls as the square
+//!   root of the paths.
 //! - [`MAX_THREADS`] worker threads, [`MAX_REPS`] benchmark repetitions and [`MAX_FF_FACTOR`] for the
 //!   form-factor component's reference; device frames per light setting are limited by
 //!   [`crate::check::MAX_FRAMES`].
@@ -23,6 +26,9 @@ pub const MAX_PATCHES: usize = 16_384;
 pub const MAX_SAMPLES: usize = 1024;
 /// Largest number of occlusion rays per pair of patches (`--rays`).
 pub const MAX_RAYS: usize = 16_384;
+/// Largest number of paths per face of the continuous reference (`reference --samples`, `--max-samples`;
+/// `check --reference-samples`): 1024 times [`crate::montecarlo::DEFAULT_MAX_SAMPLES`].
+pub const MAX_PATHS: u64 = 1 << 30;
 /// Largest number of worker threads (`--threads`).
 pub const MAX_THREADS: usize = 1024;
 /// Largest number of repetitions of a timed run (`bench --reps`).

@@ -64,6 +64,10 @@ fn sizes_beyond_their_limits_are_refused_before_any_work() {
     assert_fails(&["check", MISSING, "--ff-factor", "1000"], &["--ff-factor 1000", "64"]);
     assert_fails(&["check", MISSING, "--frames", "100000000"], &["--frames"]);
     assert_fails(&["bench", "--reps", "100000", "--out", out], &["--reps"]);
+    assert_fails(&["reference", MISSING, "--samples", "2000000000"], &["samples", "1073741824"]);
+    assert_fails(&["reference", MISSING, "--max-samples", "2000000000"], &["max-samples", "1073741824"]);
+    assert_fails(&["reference", MISSING, "--threads", "100000"], &["threads", "1024"]);
+    assert_fails(&["check", MISSING, "--continuous", "--reference-samples", "2000000000"], &["1073741824"]);
 }
 
 #[test]
@@ -121,6 +125,7 @@ fn output_files_need_an_existing_folder_and_folders_the_tool_creates_are_checked
         assert_fails(&["relight", &scene("cornell-box.obj"), "--csv", &t("csv")], &[expect]);
         assert_fails(&["relight", &scene("cornell-box.obj"), "--plot", &t("plot")], &[expect]);
         assert_fails(&["regress", "--update", "--baseline", &t("json")], &[expect]);
+        assert_fails(&["reference", MISSING, "-o", &t("csv")], &[expect]);
     }
     assert!(!dir.join("no").exists(), "no folder was created for an output file");
     // A folder where the file should go.

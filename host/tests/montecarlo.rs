@@ -191,6 +191,12 @@ fn bad_options_are_refused() {
     assert!(refuse(target(1.5, 100), None).starts_with("target-se"));
     assert!(refuse(target(0.01, 0), None).starts_with("max-samples"));
     assert!(refuse(SampleCount::PerFace(10), Some(0)).starts_with("threads"));
+    // Sizes beyond their documented limits (radiosity_host::limits).
+    let limit = radiosity_host::limits::MAX_PATHS;
+    assert!(refuse(SampleCount::PerFace(limit + 1), None).starts_with("samples"));
+    assert!(refuse(target(0.01, limit + 1), None).starts_with("max-samples"));
+    let threads = refuse(SampleCount::PerFace(10), Some(radiosity_host::limits::MAX_THREADS + 1));
+    assert!(threads.starts_with("threads"), "{threads}");
 }
 
 /// The command line reports bad options as errors, naming the option.

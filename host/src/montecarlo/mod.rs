@@ -80,6 +80,7 @@ pub use report::{ContinuousReference, FaceReference, FACE_CSV_HEADER};
 use crate::embree::EmbreeError;
 use crate::formfactor::FormFactorError;
 use crate::lighting::PatchLighting;
+use crate::limits::{MAX_PATHS, MAX_THREADS};
 use crate::mesh::{mesh, MeshError, MeshOptions};
 use crate::patch::Patch;
 #[cfg(doc)]
@@ -188,8 +189,8 @@ pub enum MonteCarloError {
 /// Checks `options`.
 ///
 /// # Errors
-/// [`MonteCarloError::InvalidOption`] for zero samples, a target that is not a number in `(0, 1)`, a zero cap or
-/// zero threads.
+/// [`MonteCarloError::InvalidOption`] for zero samples, a target that is not a number in `(0, 1)`, a zero cap,
+/// samples or a cap above [`crate::limits::MAX_PATHS`], or threads outside `1..=`[`crate::limits::MAX_THREADS`].
 pub fn validate_options(options: &ReferenceOptions) -> Result<(), MonteCarloError> {
     let invalid =
         |name, problem: &str| Err(MonteCarloError::InvalidOption { name, problem: problem.to_owned() });
@@ -206,8 +207,24 @@ pub fn validate_options(options: &ReferenceOptions) -> Result<(), MonteCarloErro
         }
         _ => {}
     }
+    let paths = match options.samples {
+        SampleCount::PerFace(n) => ("samples", n),
+        SampleCount::TargetRelative { max_samples, .. } => ("max-samples", max_samples),
+    };
+    if paths.1 > MAX_PATHS {
+        return Err(MonteCarloError::InvalidOption {
+            name: paths.0,
+            problem: format!("{} is more than {MAX_PATHS} paths per face", paths.1),
+        });
+    }
     if options.threads == Some(0) {
         return invalid("threads", "must be at least 1");
+    }
+    if let Some(t) = options.threads.filter(|&t| t > MAX_THREADS) {
+        return Err(MonteCarloError::InvalidOption {
+            name: "threads",
+            problem: format!("{t} is more than {MAX_THREADS} worker threads"),
+        });
     }
     Ok(())
 }

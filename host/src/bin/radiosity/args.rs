@@ -75,7 +75,7 @@ pub struct CheckArgs {
     #[arg(long, value_name = "X", requires = "continuous", conflicts_with = "reference_samples",
           default_value_t = CHECK_REFERENCE_SE)]
     pub reference_se: f64,
-    /// With --continuous: paths per face for the reference instead of a target standard error.
+    /// With --continuous: paths per face for the reference instead of a target standard error (at most 2^30).
     #[arg(long, value_name = "N", requires = "continuous")]
     pub reference_samples: Option<u64>,
 }
@@ -416,26 +416,26 @@ pub enum Command {
 pub struct ReferenceArgs {
     /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
     pub scene: PathBuf,
-    /// Paths per face (instead of a target standard error).
+    /// Paths per face (instead of a target standard error), at most 2^30.
     #[arg(long, value_name = "N", conflicts_with_all = ["target_se", "max_samples"])]
     pub samples: Option<u64>,
     /// Relative standard error to reach on every face (its worst channel); paths are added in rounds until
     /// every face reaches it or has `--max-samples` [default: 0.01].
     #[arg(long, value_name = "X")]
     pub target_se: Option<f64>,
-    /// Most paths per face with a target standard error.
+    /// Most paths per face with a target standard error, at most 2^30.
     #[arg(long, value_name = "N", default_value_t = montecarlo::DEFAULT_MAX_SAMPLES)]
     pub max_samples: u64,
     /// Seed of the random numbers; equal seeds give identical results on any thread count.
     #[arg(long, default_value_t = ReferenceOptions::default().seed)]
     pub seed: u64,
-    /// Worker threads (default: all cores).
+    /// Worker threads, at most 1024 (default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// Output format (`text`: a table and a summary; `csv`: one row per face; `json`: everything).
     #[arg(long, value_enum, default_value_t = Format::Text)]
     pub format: Format,
-    /// Write the output to FILE instead of standard output.
+    /// Write the output to FILE (its folder must exist) instead of standard output.
     #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
     /// No progress bar or summary on stderr.

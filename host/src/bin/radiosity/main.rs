@@ -149,6 +149,7 @@ fn reference_command(args: &args::ReferenceArgs) -> Result<(), BoxError> {
     let options = args.options();
     // Bad options are reported before the scene is loaded or a ray is cast.
     radiosity_host::montecarlo::validate_options(&options)?;
+    check_outputs(&args.output)?;
     let scene = Scene::load(&args.scene)?;
     if !args.quiet {
         for w in &scene.warnings {
@@ -160,21 +161,19 @@ fn reference_command(args: &args::ReferenceArgs) -> Result<(), BoxError> {
     if !args.quiet {
         eprintln!("{}: {}", args.scene.display(), reference.summary());
     }
-    let mut out: Box<dyn Write> = match &args.output {
-        Some(path) => Box::new(BufWriter::new(
-            std::fs::File::create(path).map_err(|e| format!("creating {}: {e}", path.display()))?,
-        )),
-        None => Box::new(BufWriter::new(io::stdout().lock())),
-    };
+    let mut text = Vec::new();
     match args.format {
-        Format::Text => write!(out, "{reference}")?,
-        Format::Csv => reference.write_csv(&mut out)?,
+        Format::Text => write!(text, "{reference}")?,
+        Format::Csv => reference.write_csv(&mut text)?,
         Format::Json => {
-            serde_json::to_writer_pretty(&mut out, &reference)?;
-            writeln!(out)?;
+            serde_json::to_writer_pretty(&mut text, &reference)?;
+            writeln!(text)?;
         }
     }
-    out.flush()?;
+    match &args.output {
+        Some(path) => files::write_atomic(path, &text)?,
+        None => io::stdout().lock().write_all(&text)?,
+    }
     Ok(())
 }
 
