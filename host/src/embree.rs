@@ -28,6 +28,15 @@
 //! - The ray `mask` is set to all ones (`0xFFFF_FFFF`); Embree skips geometry whose mask does not intersect it.
 //! - Occlusion queries report a blocked ray by setting its `tfar` to `-inf`; this module turns that into `bool`s.
 //! - Embree works in `f32`; callers in `f64` convert at the boundary.
+//! - Embree's triangle tests multiply up to three coordinates and its traversal flushes denormals to zero, so
+//!   scenes far from unit size lose hits (at 1e12 the products overflow `f32`, at 1e-15 they flush to zero).
+//!   [`TriangleScene`] therefore hands Embree the scene scaled by a power of two ([`unit_factor`]) that brings
+//!   its size ([`crate::raycast::scene_scale`]) into `[1, 2)`, and scales every ray's origin and direction by the
+//!   same factor. It also scales each ray's direction by a second power of two that brings the direction's length
+//!   into `[1, 2)`, dividing `tnear` and `tfar` by it and multiplying a hit's `t` by it, so that a ray of any
+//!   direction length (a unit direction as well as a segment's) reaches Embree well scaled. Multiplying by a
+//!   power of two is exact in floating point, so callers keep working in their own units and `t`, and results do
+//!   not depend on the scene's unit or on the direction's length.
 //!
 //! These are the semantics of [`crate::raycast`], whose [`Ray`] this module takes; [`TriangleScene`] is the
 //! production [`RayCaster`], and [`crate::raycast::TriangleBvh`] the pure-Rust one it is tested against.
@@ -40,8 +49,8 @@ use std::sync::{Arc, Mutex};
 use embree4_sys as sys;
 use glam::Vec3;
 
-pub use crate::raycast::Ray;
-use crate::raycast::{check_mesh, scene_scale, MeshInputError, RayCaster, RELATIVE_OFFSET};
+use crate::raycast::{check_mesh, scene_scale, unit_factor, MeshInputError, RayCaster, RELATIVE_OFFSET};
+pub use crate::raycast::{Hit, Ray};
 
 /// An error reported by Embree, or bad input caught before it reaches Embree.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -115,6 +124,26 @@ impl fmt::Display for ErrorCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
+}
+
+// Embree 4.3 and later export `rtcGetDeviceLastErrorMessage`, which `embree4-sys`'s bindings predate; the wheel
+// `make deps` installs (4.4) has it. With a null device it returns the message of the failed `rtcNewDevice` on
+// this thread: the only way to get Embree's own words when no device exists to carry an error callback.
+extern "C" {
+    fn rtcGetDeviceLastErrorMessage(device: sys::RTCDevice) -> *const c_char;
+}
+
+/// Embree's message for the last error of `rtcNewDevice` on this thread (empty if it gave none).
+fn device_creation_message() -> String {
+    // SAFETY: with a null device, Embree reads this thread's last device-creation error; the result is null or a
+    // NUL-terminated string that Embree keeps valid until the next API call on this thread, and it is copied at
+    // once.
+    let message = unsafe { rtcGetDeviceLastErrorMessage(std::ptr::null_mut()) };
+    if message.is_null() {
+        return String::new();
+    }
+    // SAFETY: non-null, NUL-terminated (see above).
+    unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
 }
 
 /// Where Embree's error callback leaves the first error it reports, until this module collects it.
@@ -218,14 +247,17 @@ impl Device {
         // SAFETY: `config` is a valid NUL-terminated string that outlives the call.
         let raw = unsafe { sys::rtcNewDevice(config.as_ptr()) };
         if raw.is_null() {
+            // Embree's message first: reading the error code clears the thread's error.
+            let embree = device_creation_message();
             // SAFETY: with a null device, `rtcGetDeviceError` returns the error of the failed `rtcNewDevice` on
             // this thread (documented behaviour of `rtcGetDeviceError`).
             let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
+            let embree = if embree.is_empty() { "no message".to_owned() } else { embree };
             return Err(EmbreeError::Device {
                 code: ErrorCode::from_raw(code).unwrap_or(ErrorCode::Unknown),
                 operation: "rtcNewDevice",
                 message: format!(
-                    "Embree could not create a device with configuration {:?}",
+                    "Embree could not create a device with configuration {:?}: {embree}",
                     config.to_string_lossy()
                 ),
             });
@@ -242,6 +274,8 @@ impl Device {
     /// Builds and commits a scene holding one triangle mesh (geometry id 0).
     ///
     /// Triangles refer to `vertices` by index. An empty mesh gives an empty scene in which nothing is occluded.
+    /// Embree sees the vertices scaled by [`unit_factor`] (see the module docs); queries take and return
+    /// values in the caller's units.
     ///
     /// # Errors
     /// [`EmbreeError::Input`] for bad input (checked before Embree
@@ -258,11 +292,13 @@ impl Device {
         let raw = unsafe { sys::rtcNewScene(device.raw) };
         device.check("rtcNewScene")?;
         // From here on `scene` releases `raw` on every path, including errors.
+        let scale = scene_scale(vertices);
         let scene = TriangleScene {
             raw,
             _device: Arc::clone(device),
             triangle_count: triangles.len(),
-            scale: scene_scale(vertices),
+            scale,
+            factor: unit_factor(scale),
         };
         let flags = if options.robust { sys::RTCSceneFlags::ROBUST } else { sys::RTCSceneFlags::NONE };
         // SAFETY: `raw` is a live, uncommitted scene owned by this thread; setting flags and build quality before
@@ -273,7 +309,7 @@ impl Device {
         }
         device.check("rtcSetSceneFlags")?;
         if !triangles.is_empty() {
-            attach_mesh(device, raw, vertices, triangles)?;
+            attach_mesh(device, raw, vertices, triangles, scene.factor)?;
         }
         // SAFETY: `raw` is live and no other thread can see it yet, so the commit cannot race with queries.
         unsafe { sys::rtcCommitScene(raw) };
@@ -289,11 +325,12 @@ fn attach_mesh(
     scene: sys::RTCScene,
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
+    factor: f32,
 ) -> Result<(), EmbreeError> {
     // SAFETY: `device.raw` is a live device.
     let geometry = unsafe { sys::rtcNewGeometry(device.raw, sys::RTCGeometryType::TRIANGLE) };
     device.check("rtcNewGeometry")?;
-    let result = fill_and_attach(device, scene, geometry, vertices, triangles);
+    let result = fill_and_attach(device, scene, geometry, vertices, triangles, factor);
     // SAFETY: `geometry` came from `rtcNewGeometry` and this is the only release of our reference; if it was
     // attached, the scene holds its own reference.
     unsafe { sys::rtcReleaseGeometry(geometry) };
@@ -306,8 +343,9 @@ fn fill_and_attach(
     geometry: sys::RTCGeometry,
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
+    factor: f32,
 ) -> Result<(), EmbreeError> {
-    fill_buffer(device, geometry, vertices.iter().map(|v| v.to_array()))?;
+    fill_buffer(device, geometry, vertices.iter().map(|v| (*v * factor).to_array()))?;
     fill_buffer(device, geometry, triangles.iter().copied())?;
     // SAFETY: `geometry` is live with both buffers filled; `scene` is live and not yet committed or shared.
     unsafe {
@@ -378,38 +416,36 @@ pub struct SceneOptions {
     pub robust: bool,
 }
 
-/// The Embree form of `ray` (a negative `tnear` raised to 0, all mask bits set).
-fn to_raw(ray: &Ray) -> sys::RTCRay {
-    sys::RTCRay {
-        org_x: ray.origin.x,
-        org_y: ray.origin.y,
-        org_z: ray.origin.z,
-        tnear: ray.tnear.max(0.0),
-        dir_x: ray.direction.x,
-        dir_y: ray.direction.y,
-        dir_z: ray.direction.z,
+/// The Embree form of `ray` in the scene scaled by `factor` (a negative `tnear` raised to 0, all mask bits set),
+/// and the power of two `u` by which Embree's `t` is to be multiplied to give the ray's own `t`.
+///
+/// The origin is scaled by `factor`; the direction by `factor` and then by the [`unit_factor`] of its length, so
+/// that Embree sees a direction of length in `[1, 2)` whatever length the caller chose: a unit direction in a
+/// scene of size 2^60 would otherwise reach Embree with components below `1e-18`, where its traversal replaces
+/// reciprocals by a constant (`rcp_safe`) and rays miss. `tnear` and `tfar` are divided by that second factor
+/// (`u`), so the ray covers the same points. Every scaling is by a power of two, hence exact.
+fn to_raw(ray: &Ray, factor: f32) -> (sys::RTCRay, f32) {
+    // In f64: the squares of a large or tiny direction's components would overflow or underflow f32.
+    let length = (ray.direction.as_dvec3() * f64::from(factor)).length() as f32;
+    let u = unit_factor(length);
+    // Embree's point `factor * origin + t' * factor * u * direction` is `factor` times the ray's point at
+    // `t = t' * u`.
+    let (origin, direction) = (ray.origin * factor, ray.direction * (factor * u));
+    let raw = sys::RTCRay {
+        org_x: origin.x,
+        org_y: origin.y,
+        org_z: origin.z,
+        tnear: ray.tnear.max(0.0) / u,
+        dir_x: direction.x,
+        dir_y: direction.y,
+        dir_z: direction.z,
         time: 0.0,
-        tfar: ray.tfar,
+        tfar: ray.tfar / u,
         mask: u32::MAX,
         id: 0,
         flags: 0,
-    }
-}
-
-/// The closest hit of a ray.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    /// Ray parameter of the hit point: `origin + t * direction`.
-    pub t: f32,
-    /// Index of the triangle hit, within its geometry (the order triangles were given in).
-    pub primitive: u32,
-    /// Geometry id (0 for the single mesh of [`Device::triangle_scene`]).
-    pub geometry: u32,
-    /// Barycentric coordinates `(u, v)` of the hit: the point is `(1 - u - v) * p0 + u * p1 + v * p2`.
-    pub barycentric: [f32; 2],
-    /// Unit geometric normal, `normalize((p1 - p0) x (p2 - p0))`: it points to the side from which the triangle's
-    /// vertices appear counter-clockwise.
-    pub normal: Vec3,
+    };
+    (raw, u)
 }
 
 /// A committed triangle scene, ready for queries from any number of threads.
@@ -419,6 +455,8 @@ pub struct TriangleScene {
     _device: Arc<DeviceInner>,
     triangle_count: usize,
     scale: f32,
+    /// [`unit_factor`] of `scale`: Embree holds the vertices times this, and every ray is scaled by it too.
+    factor: f32,
 }
 
 // SAFETY: a committed scene is never modified through this type (no method takes `&mut self` or changes the scene),
@@ -435,6 +473,7 @@ impl fmt::Debug for TriangleScene {
         f.debug_struct("TriangleScene")
             .field("triangle_count", &self.triangle_count)
             .field("scale", &self.scale)
+            .field("factor", &self.factor)
             .finish_non_exhaustive()
     }
 }
@@ -482,7 +521,7 @@ impl TriangleScene {
         if ray.is_empty() {
             return false;
         }
-        let mut raw = to_raw(ray);
+        let (mut raw, _) = to_raw(ray, self.factor);
         let mut args = occluded_args();
         // SAFETY: `self.raw` is a committed scene (see the `Sync` impl); `raw` and `args` are valid, properly
         // aligned (`RTCRay` is `repr(align(16))`) locals that outlive the call.
@@ -517,7 +556,7 @@ impl TriangleScene {
             if ray.is_empty() {
                 continue;
             }
-            let r = to_raw(ray);
+            let (r, _) = to_raw(ray, self.factor);
             packet.org_x[k] = r.org_x;
             packet.org_y[k] = r.org_y;
             packet.org_z[k] = r.org_z;
@@ -566,8 +605,9 @@ impl TriangleScene {
         if ray.is_empty() {
             return None;
         }
+        let (raw, u) = to_raw(ray, self.factor);
         let mut rayhit = sys::RTCRayHit {
-            ray: to_raw(ray),
+            ray: raw,
             hit: sys::RTCHit {
                 Ng_x: 0.0,
                 Ng_y: 0.0,
@@ -597,7 +637,8 @@ impl TriangleScene {
         // `Hit::normal`); a test checks it.
         let normal = Vec3::new(hit.Ng_x, hit.Ng_y, hit.Ng_z).normalize_or_zero();
         Some(Hit {
-            t: rayhit.ray.tfar,
+            // Back to the ray's own parameter (exact: `u` is a power of two).
+            t: rayhit.ray.tfar * u,
             primitive: hit.primID,
             geometry: hit.geomID,
             barycentric: [hit.u, hit.v],
@@ -617,5 +658,9 @@ impl RayCaster for TriangleScene {
 
     fn occluded_many(&self, rays: &[Ray], occluded: &mut [bool]) {
         TriangleScene::occluded_many(self, rays, occluded);
+    }
+
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        TriangleScene::intersect(self, ray)
     }
 }

@@ -14,7 +14,9 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::formfactor::{compute_form_factors, FormFactorOptions, FormFactorStats};
+use crate::formfactor::{
+    compute_form_factors, rows_over_noise, FormFactorOptions, FormFactorStats, RowExcess,
+};
 use crate::lighting::PatchLighting;
 use crate::mesh::{
     mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions,
@@ -71,7 +73,8 @@ pub struct Prepared {
     pub form_factors: FormFactorMatrix,
     /// Statistics of the form-factor computation (before rows above 1 were scaled).
     pub stats: FormFactorStats,
-    /// Rows that summed to more than 1 (after reciprocity was enforced) and were scaled to 1.
+    /// Rows that summed to more than 1 (after reciprocity was enforced), within their sampling noise, and were
+    /// scaled to 1.
     pub clamp: RowClamp,
     /// How far apart the two estimates of each pair's energy exchange were, before averaging.
     pub reciprocity_change: ReciprocityChange,
@@ -110,6 +113,26 @@ pub enum PipelineError {
         /// What went wrong.
         source: crate::reference::ReferenceError,
     },
+    /// Rows of the form factors sum to more than 1 by more than sampling noise explains
+    /// ([`FormFactorStats::row_excess_allowed`]): the estimate is wrong, not noisy, and is not scaled to 1.
+    #[error(
+        "form factors of {path}: {count} rows sum to more than 1 by more than their sampling noise allows \
+         ({rays} rays per pair, {samples} samples per patch), so the estimate is wrong, not noisy: {}{}",
+        rows.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "),
+        if *count > rows.len() { "; ..." } else { "" }
+    )]
+    RowExcess {
+        /// The scene file.
+        path: PathBuf,
+        /// How many rows.
+        count: usize,
+        /// The worst rows (largest excess over its allowance first), at most [`ROW_EXCESS_LISTED`].
+        rows: Vec<RowExcess>,
+        /// Occlusion rays per pair of the estimate.
+        rays: usize,
+        /// Sample points per patch of the estimate.
+        samples: usize,
+    },
     /// Form factors could not be computed.
     #[error("form factors of {path}: {source}")]
     FormFactors {
@@ -120,10 +143,14 @@ pub enum PipelineError {
     },
 }
 
+/// Rows listed by [`PipelineError::RowExcess`].
+pub const ROW_EXCESS_LISTED: usize = 5;
+
 /// Loads `path`, meshes it and computes its form factors.
 ///
 /// # Errors
-/// [`PipelineError`] naming the stage that failed.
+/// [`PipelineError`] naming the stage that failed, and [`PipelineError::RowExcess`] if a row of the form factors
+/// sums to more than 1 by more than sampling noise explains (rows within it are scaled to 1 and reported).
 pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, PipelineError> {
     let scene = Scene::load(path)?;
     if options.verbose {
@@ -143,13 +170,13 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         mesh(&scene, &mesh_options).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
     if options.verbose {
         eprintln!(
-            "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {:.4})",
+            "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {})",
             path.display(),
             scene.faces.len(),
             scene.materials.len(),
             scene.light_groups.len(),
             meshed.patches.len(),
-            meshed.max_patch_edge
+            crate::scene::length(meshed.max_patch_edge)
         );
     }
     let refine_options = if options.no_subdivide {
@@ -169,6 +196,18 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         if let Some(c) = &stats.closure {
             // A closed scene's matrix was made reciprocal (and then closed) inside the estimator already.
             reciprocity_change = reciprocity_change.max(c.reciprocity_change);
+        }
+        let mut over = rows_over_noise(&form_factors, &stats.row_excess_allowed, &patches);
+        if !over.is_empty() {
+            let count = over.len();
+            over.truncate(ROW_EXCESS_LISTED);
+            return Err(PipelineError::RowExcess {
+                path: path.into(),
+                count,
+                rows: over,
+                rays: options.form_factors.rays_per_pair,
+                samples: options.form_factors.samples_per_patch,
+            });
         }
         let clamp = form_factors.clamp_rows_to_one();
         let lighting = PatchLighting::new(&scene, &patches);
@@ -280,8 +319,8 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     );
     if clamp.rows > 0 {
         eprintln!(
-            "form factors: {} rows summed to more than 1 (visibility noise; largest excess {:.2e}) and were scaled \
-             to 1",
+            "form factors: {} rows summed to more than 1 (within their sampling noise; largest excess {:.2e}) and \
+             were scaled to 1",
             clamp.rows, clamp.max_excess
         );
     }

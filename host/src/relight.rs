@@ -355,7 +355,7 @@ pub fn write_frames(
 
 /// The per-frame CSV header.
 pub const CSV_HEADER: &str =
-    "arith,script,frame,budget,used,light_units,converged,rel_l2,max_rel,luminance_rel_l2,\
+    "arith,script,frame,budget,used,light_units,converged,rel_l2,abs_rms,max_rel,luminance_rel_l2,\
 instructions_m4";
 
 impl RelightReport {
@@ -366,7 +366,7 @@ impl RelightReport {
         s.push('\n');
         for r in &self.frames {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{},{:e},{:e},{:e},{}\n",
+                "{},{},{},{},{},{},{},{:e},{:e},{:e},{:e},{}\n",
                 r.arith,
                 r.script,
                 r.frame,
@@ -375,6 +375,7 @@ impl RelightReport {
                 r.light_units,
                 u8::from(r.converged),
                 r.error.rel_l2,
+                r.error.abs_rms,
                 r.error.max_rel,
                 r.error.luminance_rel_l2,
                 r.instructions.map(|i| i.to_string()).unwrap_or_default()
@@ -384,26 +385,38 @@ impl RelightReport {
     }
 
     /// Error against cumulative work units, one series per script and arithmetic (for
-    /// [`crate::picture::plot::Plot::ErrorWork`]); points with zero error or work are left out (log axes).
+    /// [`crate::picture::plot::Plot::ErrorWork`]); points with zero error or work are left out (log axes), and so
+    /// are frames whose relative error is undefined (every light off: the exact answer is 0), which the series'
+    /// name then counts.
     #[must_use]
     pub fn error_series(&self) -> Vec<crate::picture::plot::Series> {
-        let mut series: Vec<crate::picture::plot::Series> = Vec::new();
+        let mut series: Vec<(crate::picture::plot::Series, usize)> = Vec::new();
         let mut work = 0.0;
         for r in &self.frames {
             let name = format!("{} ({})", r.script, r.arith);
-            if series.last().is_none_or(|s| s.name != name) {
-                series.push(crate::picture::plot::Series { name, points: Vec::new() });
+            if series.last().is_none_or(|(s, _)| s.name != name) {
+                series.push((crate::picture::plot::Series { name, points: Vec::new() }, 0));
                 work = 0.0;
             }
             work += f64::from(r.used) + f64::from(r.light_units);
-            if work > 0.0 && r.error.rel_l2 > 0.0 {
-                if let Some(s) = series.last_mut() {
+            if let Some((s, undefined)) = series.last_mut() {
+                if !r.error.rel_l2.is_finite() {
+                    *undefined += 1;
+                } else if work > 0.0 && r.error.rel_l2 > 0.0 {
                     s.points.push((work, r.error.rel_l2));
                 }
             }
         }
-        series.retain(|s| !s.points.is_empty());
         series
+            .into_iter()
+            .filter(|(s, _)| !s.points.is_empty())
+            .map(|(mut s, undefined)| {
+                if undefined > 0 {
+                    s.name = format!("{} [{undefined} dark frames not plotted]", s.name);
+                }
+                s
+            })
+            .collect()
     }
 }
 
@@ -415,6 +428,13 @@ impl fmt::Display for RelightReport {
              for the frame's intensities",
             self.patches, self.table_bytes
         )?;
+        if self.frames.iter().any(|r| !r.error.rel_l2.is_finite()) {
+            writeln!(
+                f,
+                "(\"abs\": a frame with every light off, whose exact answer is 0, so relative error is undefined: \
+                 the area-weighted RMS of B in W/m^2 instead)"
+            )?;
+        }
         for q in &self.qemu {
             writeln!(
                 f,
@@ -443,14 +463,14 @@ impl fmt::Display for RelightReport {
                 .find(|x| x.arith == Arith::Fixed && x.script == r.script && x.frame == r.frame);
             write!(
                 f,
-                "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10.3e} {:>10}",
+                "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10} {:>10}",
                 r.script,
                 r.frame,
                 r.budget,
                 r.used,
                 if r.converged { "yes" } else { "no" },
-                r.error.rel_l2,
-                fixed.map_or("-".into(), |x| format!("{:.3e}", x.error.rel_l2))
+                error_cell(&r.error),
+                fixed.map_or("-".into(), |x| error_cell(&x.error))
             )?;
             if has_qemu {
                 let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
@@ -459,6 +479,16 @@ impl fmt::Display for RelightReport {
             writeln!(f)?;
         }
         Ok(())
+    }
+}
+
+/// A frame's error for the text table: the relative L2 error, or, where it is undefined (every light off), `abs`
+/// and the absolute RMS error.
+fn error_cell(e: &crate::metrics::ErrorReport) -> String {
+    if e.rel_l2.is_finite() {
+        format!("{:.3e}", e.rel_l2)
+    } else {
+        format!("abs {:.1e}", e.abs_rms)
     }
 }
 

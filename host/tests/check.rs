@@ -217,3 +217,75 @@ fn noise_multiplier_is_derived() {
     assert!((k - 4.604 * 1.2f64.sqrt()).abs() < 1e-12, "{k}");
     assert!(regress::noise_multiplier(1).is_none());
 }
+
+/// The discretization component is opt-in; with it, the check reports one row per OBJ face: the exact f64
+/// answer of the mesh averaged over the face's patches by area, next to the continuous reference (the same
+/// run `montecarlo::continuous_reference` gives for those options: it is deterministic), their relative
+/// difference and the reference's standard error; the component itself (metrics over faces) comes first.
+#[test]
+fn discretization_component_compares_face_averages_with_the_continuous_reference() {
+    use radiosity_host::evaluate::{exact, EvaluateOptions, DISCRETIZATION};
+    use radiosity_host::metrics::compare;
+    use radiosity_host::montecarlo::{continuous_reference, ReferenceOptions, SampleCount};
+    use radiosity_host::reference::Method;
+    use radiosity_host::rgb::Rgb;
+    assert_eq!(CheckOptions::default().continuous, None, "off by default");
+    let (po, p) = cornell();
+    let continuous = ReferenceOptions {
+        samples: SampleCount::PerFace(512),
+        progress: false,
+        ..ReferenceOptions::default()
+    };
+    let opts = CheckOptions {
+        ff_factor: 1,
+        arith: vec![firmware_sim::sim::Arith::F32],
+        continuous: Some(continuous.clone()),
+        ..CheckOptions::default()
+    };
+    let r = check(&p, &po, &opts).expect("check");
+    let d = r.discretization.as_ref().expect("rows");
+    assert_eq!(r.components[0], d.component);
+    assert_eq!(d.component.name, DISCRETIZATION);
+    let reference = continuous_reference(&p.scene, &continuous).unwrap();
+    // The check's exact answer, solved the same way (dense LU at the check's slack).
+    let eval = EvaluateOptions {
+        method: Method::for_size(p.patches.len()),
+        row_sum_tolerance: opts.row_sum_tolerance,
+    };
+    let (b, _) = exact(&p.lighting, &p.form_factors, &eval).unwrap();
+    assert_eq!(d.faces.len(), p.scene.faces.len());
+    let (mut mesh, mut area) = (Vec::new(), Vec::new());
+    for (row, want) in d.faces.iter().zip(&reference.faces) {
+        let (mut a, mut sum) = (0.0, Rgb::ZERO);
+        for (q, v) in p.patches.iter().zip(&b) {
+            if q.face == row.face {
+                a += q.area;
+                sum += q.area * *v;
+            }
+        }
+        // Sums of the same terms in the same order: equal to the bit.
+        assert_eq!(row.mesh, sum / a, "face {}", row.face);
+        assert_eq!((row.reference, row.reference_standard_error), (want.radiosity, want.standard_error));
+        assert_eq!(row.relative_difference, (row.mesh - row.reference) / row.reference);
+        assert_eq!(row.line, p.scene.faces[row.face].line);
+        mesh.push(row.mesh);
+        area.push(a);
+    }
+    let faces: Vec<Rgb> = reference.faces.iter().map(|f| f.radiosity).collect();
+    assert_eq!(d.component.error, compare(&mesh, &faces, &area).unwrap());
+    let text = r.to_string();
+    assert!(text.contains("discretization per OBJ face") && text.contains(&d.reference_summary), "{text}");
+}
+
+/// Bad options of the continuous reference are refused by the check before any work.
+#[test]
+fn check_refuses_bad_continuous_options() {
+    use radiosity_host::montecarlo::{MonteCarloError, ReferenceOptions, SampleCount};
+    let (po, p) = cornell();
+    let continuous = ReferenceOptions { samples: SampleCount::PerFace(0), ..ReferenceOptions::default() };
+    let opts = CheckOptions { continuous: Some(continuous), ..CheckOptions::default() };
+    match check(&p, &po, &opts) {
+        Err(CheckError::MonteCarlo(MonteCarloError::InvalidOption { name: "samples", .. })) => {}
+        other => panic!("expected a samples error, got {:?}", other.map(|r| r.patches)),
+    }
+}

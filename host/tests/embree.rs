@@ -1,6 +1,6 @@
 //! Tests of the safe Embree wrapper: occlusion between facing quads, occluders, rays that start or end on
 //! surfaces, packets against single rays, closest hits, errors, a Monte Carlo form factor, and agreement with the
-//! pure-Rust caster (rays and form factors on the Cornell box).
+//! pure-Rust caster (occlusion, closest hits and form factors on the Cornell box).
 
 use glam::Vec3;
 use radiosity_host::embree::{Device, EmbreeError, Ray, SceneOptions, TriangleScene};
@@ -237,9 +237,11 @@ fn bad_input_and_embree_errors_are_reported() {
         )
         .unwrap_err();
     assert!(matches!(err, EmbreeError::Input(MeshInputError::NonFiniteVertex { index: 1, .. })), "{err}");
-    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config.
+    // Embree itself rejects a thread count that is not a number; the error names Embree's code and the config,
+    // and passes on Embree's own message (there is no device yet to carry an error callback).
     let err = Device::with_config("threads=abc").unwrap_err();
     assert!(err.to_string().contains("RTC_ERROR_") && err.to_string().contains("threads=abc"), "{err}");
+    assert!(err.to_string().contains("integer expected"), "Embree's message is lost: {err}");
     // An empty scene is valid and occludes nothing.
     let empty = device.triangle_scene(&[], &[], Default::default()).unwrap();
     assert!(!empty.occluded(&Ray::new(Vec3::ZERO, Vec3::X, 0.0, f32::INFINITY)));
@@ -379,6 +381,82 @@ fn embree_agrees_with_the_pure_rust_caster_on_the_cornell_box() {
     );
 }
 
+/// The closest hit of `ray` by `caster`, as (triangle, hit or not).
+fn closest(caster: &dyn RayCaster, ray: &Ray) -> Option<u32> {
+    caster.intersect(ray).map(|h| h.primitive)
+}
+
+/// Whether `ray`'s closest triangle is on the edge of a decision for `caster` (as `borderline` for occlusion):
+/// nudging its origin by `nudge` along an axis or its direction by `nudge` of its length changes the triangle
+/// reported (or whether any is). Rays through a shared edge, or grazing a face, are such rays.
+fn borderline_hit(caster: &dyn RayCaster, ray: &Ray, nudge: f32) -> bool {
+    let answer = closest(caster, ray);
+    let length = ray.direction.length();
+    [Vec3::X, Vec3::Y, Vec3::Z].iter().flat_map(|&axis| [axis * nudge, -axis * nudge]).any(|d| {
+        closest(caster, &Ray { origin: ray.origin + d, ..*ray }) != answer
+            || closest(caster, &Ray { direction: ray.direction + d * length, ..*ray }) != answer
+    })
+}
+
+/// Closest hits of Embree against the pure-Rust caster on the Cornell box: from random points of random
+/// patches in random directions of their front hemisphere (the path tracer's bounce rays) and between random
+/// points of the box's volume. The same triangle, or a borderline ray (`borderline_hit`, nudge 1e-6 of the
+/// scene size as above); on the same triangle the hit agrees to f32 rounding: distance within 1e-5 of the scene
+/// size (a few hundred ulps of Embree's f32 arithmetic), normals and barycentrics within 1e-4.
+#[test]
+fn closest_hits_agree_with_the_pure_rust_caster_on_the_cornell_box() {
+    let patches = cornell_patches();
+    let embree = radiosity_host::formfactor::occluder_scene(&patches, true).unwrap();
+    let bvh = radiosity_host::formfactor::occluder_bvh(&patches).unwrap();
+    let (vertices, _) = radiosity_host::formfactor::occluder_mesh(&patches);
+    let (lo, hi) = vertices.iter().fold((vertices[0], vertices[0]), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let size = (hi - lo).length();
+    let mut rng = SplitMix64::new(23);
+    let mut rays = Vec::new();
+    while rays.len() < 40_000 {
+        let p = &patches[(rng.unit() * patches.len() as f64) as usize];
+        let v = &p.vertices;
+        let (s, t) = (rng.unit(), rng.unit());
+        let (s, t) = if s + t > 1.0 { (1.0 - s, 1.0 - t) } else { (s, t) };
+        let x = v[0] + (v[1] - v[0]) * s + (v[2] - v[0]) * t;
+        let d = glam::DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5);
+        let d = if d.dot(p.normal) < 0.0 { -d } else { d };
+        rays.push(Ray::new(x.as_vec3(), d.as_vec3(), bvh.offset(), f32::INFINITY));
+    }
+    for _ in 0..20_000 {
+        let mut inside =
+            || lo + (hi - lo) * Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32);
+        let (a, b) = (inside(), inside());
+        rays.push(Ray::new(a, b - a, 0.0, f32::INFINITY));
+    }
+    let (mut hits, mut disagree) = (0, 0);
+    for ray in &rays {
+        let (e, b) = (embree.intersect(ray), bvh.intersect(ray));
+        match (e, b) {
+            (Some(e), Some(b)) if e.primitive == b.primitive => {
+                hits += 1;
+                let length = ray.direction.length();
+                assert!((e.t - b.t).abs() * length <= 1e-5 * size, "{ray:?}: {e:?} vs {b:?}");
+                assert!((e.normal - b.normal).length() <= 1e-4, "{ray:?}: {e:?} vs {b:?}");
+                for k in 0..2 {
+                    assert!((e.barycentric[k] - b.barycentric[k]).abs() <= 1e-4, "{ray:?}: {e:?} vs {b:?}");
+                }
+            }
+            (None, None) => {}
+            _ => {
+                disagree += 1;
+                assert!(
+                    borderline_hit(&bvh, ray, 1e-6 * size),
+                    "Embree {e:?}, pure Rust {b:?} on a clear-cut ray {ray:?}"
+                );
+            }
+        }
+    }
+    println!("{} rays, {hits} hit the same triangle, {disagree} disagreements (all borderline)", rays.len());
+    // The box is open at the front, so some rays escape; most hit, so the comparison means something.
+    assert!(hits > rays.len() / 2, "{hits} of {} rays hit the same triangle", rays.len());
+}
+
 /// Form factors of the Cornell box with Embree and with the pure-Rust caster: the rays are the same (same
 /// seeds, same offset), so the matrices differ only where a ray is borderline (see the test above), which
 /// changes one pair's visible fraction by one ray's weight. Asserted: at most 1 in 1000 entries differ at all,
@@ -410,4 +488,169 @@ fn form_factors_agree_with_both_casters() {
     println!("{} entries, {differ} differ, worst relative difference {worst:.2e}", embree.nonzeros());
     assert!(differ * 1000 <= embree.nonzeros(), "{differ} of {} entries differ", embree.nonzeros());
     assert!(worst <= 0.5, "worst relative difference {worst}");
+}
+
+/// The closed Cornell box meshed coarsely (walls in about 6 x 6 patches), with every length times `k`.
+fn closed_cornell_scaled(k: f64) -> Vec<radiosity_host::patch::Patch> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box-closed.obj");
+    let scene = radiosity_host::scene::Scene::load(path).expect("load");
+    let mut options = radiosity_host::mesh::MeshOptions::for_scene(&scene);
+    options.max_patch_edge = 140.0;
+    let mut patches = radiosity_host::mesh::mesh(&scene, &options).expect("mesh").patches;
+    for p in &mut patches {
+        p.vertices.iter_mut().for_each(|v| *v *= k);
+        p.centroid *= k;
+        p.area *= k * k;
+    }
+    patches
+}
+
+/// Form factors do not depend on the scene's unit: Embree sees every scene scaled to unit size by a power of two,
+/// and the f64 kernels' tolerances are relative, so the closed Cornell box scaled by a power of two (here up to
+/// 2^100 ~ 1.3e30 and down to 2^-50 ~ 8.9e-16) gives the same matrix bit for bit, closed as at scale 1; scaled by
+/// 1e12 or 1e-15 (inexact in binary) it stays closed, with every entry within a few rays' weight. Without the
+/// scaling, Embree's f32 triangle tests overflowed or flushed to zero at these sizes: occlusion was lost and the
+/// closed box looked open.
+#[test]
+fn form_factors_do_not_depend_on_the_scene_unit() {
+    use radiosity_host::formfactor::{compute_form_factors, FormFactorOptions};
+    let options =
+        FormFactorOptions { samples_per_patch: 4, rays_per_pair: 8, progress: false, ..Default::default() };
+    let (reference, stats) = compute_form_factors(&closed_cornell_scaled(1.0), &options).unwrap();
+    assert!(
+        stats.closure.is_some() && stats.escaped_rays == 0,
+        "the closed box at scale 1 is closed: {stats:?}"
+    );
+    for exponent in [100, 40, -50] {
+        let k = 2f64.powi(exponent);
+        let (m, s) = compute_form_factors(&closed_cornell_scaled(k), &options).unwrap();
+        assert_eq!(
+            s.escaped_rays, 0,
+            "2^{exponent}: {} of {} escape rays escaped",
+            s.escaped_rays, s.escape_rays
+        );
+        assert_eq!(m, reference, "2^{exponent}: the matrix differs from scale 1");
+    }
+    for k in [1e12, 1e-15] {
+        let (m, s) = compute_form_factors(&closed_cornell_scaled(k), &options).unwrap();
+        assert_eq!(s.escaped_rays, 0, "{k:e}: {} of {} escape rays escaped", s.escaped_rays, s.escape_rays);
+        assert!(s.closure.is_some(), "{k:e}: not closed");
+        let mut worst = 0.0f64;
+        for (i, j, f) in reference.entries() {
+            worst = worst.max((m.get(i, j) - f).abs());
+        }
+        // One ray of 8 flipping by rounding moves a pair's visible fraction by about 1/8 of its entry; the largest
+        // entries are below 0.5.
+        assert!(worst < 0.07, "{k:e}: largest entry difference from scale 1 {worst:.3e}");
+        // Rows without a partly visible entry are left as estimated: off by their quadrature error only.
+        assert!((s.row_sum_max - 1.0).abs() < 1e-3 && (s.row_sum_min - 1.0).abs() < 1e-3, "{k:e}: {s:?}");
+    }
+}
+
+/// A row that sums to well above 1 is an error, not visibility noise: with occlusion lost (a caster that holds
+/// no occluders, as Embree was at extreme scales), the rows of patches that see the Cornell box's blocks and
+/// what lies behind them sum to more than 1 by more than their sampling noise allows, and `rows_over_noise`
+/// names them with their faces; the same estimate with the scene's occluders has no such row.
+#[test]
+fn rows_above_one_beyond_sampling_noise_are_named() {
+    use radiosity_host::formfactor::FormFactorOptions;
+    use radiosity_host::formfactor::{compute_form_factors, compute_form_factors_with, rows_over_noise};
+    use radiosity_host::raycast::TriangleBvh;
+    let patches = closed_cornell_scaled(1.0);
+    let options =
+        FormFactorOptions { samples_per_patch: 4, rays_per_pair: 8, progress: false, ..Default::default() };
+    let (good, stats) = compute_form_factors(&patches, &options).unwrap();
+    assert_eq!(rows_over_noise(&good, &stats.row_excess_allowed, &patches), []);
+    let nothing = TriangleBvh::new(&[], &[]).unwrap();
+    let (lost, stats) = compute_form_factors_with(&nothing, &patches, &options).unwrap();
+    let over = rows_over_noise(&lost, &stats.row_excess_allowed, &patches);
+    assert!(over.len() > 10, "{} rows over their noise", over.len());
+    let worst = over[0];
+    assert!(worst.sum - 1.0 > 2.0 * worst.allowed, "{worst:?}");
+    assert_eq!(worst.face, patches[worst.patch].face);
+    assert!(over.windows(2).all(|w| w[0].sum - w[0].allowed >= w[1].sum - w[1].allowed), "worst first");
+    let text = worst.to_string();
+    assert!(text.contains(&format!("patch {} (face {})", worst.patch, worst.face)), "{text}");
+}
+
+/// Closest hits do not depend on the scene's unit either, whatever the length of the ray's direction: bounce
+/// rays as the path tracer casts them (unit directions, from points lifted off a patch by the caster's offset)
+/// and rays whose direction is of the scene's size, in the closed Cornell box scaled by `k`. For a power of two
+/// (2^100 ~ 1.3e30 down to 2^-50 ~ 8.9e-16) every hit is the scale-1 hit: the same triangle and barycentrics,
+/// and `t` times `k` (unit directions) or the same `t` (scaled directions), bit for bit. For 1e12 and 1e-15
+/// (inexact in binary) at most 1 ray in 1000 hits another triangle (a ray through a shared edge), and `t` agrees
+/// to 1e-5 of the scene size. Before Embree saw directions scaled as well as the scene, a unit direction at
+/// 2^100 was about 1e-30 of Embree's unit scene and every bounce ray missed.
+#[test]
+fn closest_hits_do_not_depend_on_the_scene_unit() {
+    let base = closed_cornell_scaled(1.0);
+    let mut rng = SplitMix64::new(29);
+    // (patch, point, unit direction into the front hemisphere) in scale-1 units, f64.
+    let mut starts = Vec::new();
+    while starts.len() < 20_000 {
+        let p = &base[(rng.unit() * base.len() as f64) as usize];
+        let v = &p.vertices;
+        let (s, t) = (rng.unit(), rng.unit());
+        let (s, t) = if s + t > 1.0 { (1.0 - s, 1.0 - t) } else { (s, t) };
+        let x = v[0] + (v[1] - v[0]) * s + (v[2] - v[0]) * t;
+        let d = glam::DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5).normalize();
+        let d = if d.dot(p.normal) < 0.0 { -d } else { d };
+        starts.push((p.normal, x, d));
+    }
+    let rays = |k: f64, offset: f32, scaled: bool| -> Vec<Ray> {
+        starts
+            .iter()
+            .map(|&(n, x, d)| {
+                // Lifted as the path tracer lifts its origins; the offset is `k` times scale 1's.
+                let origin = (x * k + n * f64::from(offset)).as_vec3();
+                let direction = if scaled { (d * k).as_vec3() } else { d.as_vec3() };
+                Ray::new(origin, direction, 0.0, f32::INFINITY)
+            })
+            .collect()
+    };
+    let reference_scene = radiosity_host::formfactor::occluder_scene(&base, true).unwrap();
+    let unit_offset = RayCaster::offset(&reference_scene);
+    let size =
+        f64::from(radiosity_host::raycast::scene_scale(&radiosity_host::formfactor::occluder_mesh(&base).0));
+    let reference: Vec<_> =
+        rays(1.0, unit_offset, false).iter().map(|r| reference_scene.intersect(r)).collect();
+    assert!(reference.iter().all(Option::is_some), "the closed box: every bounce ray hits");
+    for k in [2f64.powi(100), 2f64.powi(40), 2f64.powi(-50), 1e12, 1e-15] {
+        let patches = closed_cornell_scaled(k);
+        let scene = radiosity_host::formfactor::occluder_scene(&patches, true).unwrap();
+        let exact = k.log2().fract() == 0.0;
+        if exact {
+            assert_eq!(RayCaster::offset(&scene), (f64::from(unit_offset) * k) as f32, "{k:e}");
+        }
+        for scaled in [false, true] {
+            let mut other = 0;
+            for (ray, expected) in rays(k, RayCaster::offset(&scene), scaled).iter().zip(&reference) {
+                let expected = expected.unwrap();
+                let Some(hit) = scene.intersect(ray) else {
+                    panic!("{k:e}, scaled directions {scaled}: {ray:?} hits nothing (scale 1: {expected:?})");
+                };
+                // The hit's distance in scale-1 units.
+                let t = if scaled { f64::from(hit.t) } else { f64::from(hit.t) / k };
+                if exact {
+                    assert_eq!(
+                        (hit.primitive, hit.barycentric, t),
+                        (expected.primitive, expected.barycentric, f64::from(expected.t)),
+                        "{k:e}, scaled directions {scaled}: {ray:?}"
+                    );
+                    assert!((hit.normal - expected.normal).length() <= 1e-6, "{hit:?} vs {expected:?}");
+                } else if hit.primitive != expected.primitive {
+                    other += 1;
+                } else {
+                    assert!(
+                        (t - f64::from(expected.t)).abs() <= 1e-5 * size,
+                        "{k:e}: {hit:?} vs {expected:?}"
+                    );
+                }
+            }
+            assert!(
+                other * 1000 <= starts.len(),
+                "{k:e}, scaled directions {scaled}: {other} other triangles"
+            );
+        }
+    }
 }

@@ -127,7 +127,7 @@ fn cornell_box_loads_as_published() {
     // The red wall (published non-planar by ~3 mm) is split into two triangles with a warning.
     assert_eq!(s.warnings.len(), 1, "{:?}", s.warnings);
     let w = &s.warnings[0];
-    assert_eq!((w.face, w.line), (18, s.faces[18].line));
+    assert_eq!((w.face, w.line), (Some(18), Some(s.faces[18].line)));
     let text = w.to_string();
     assert!(
         text.contains("cornell-box.obj") && text.contains("non-planar") && text.contains("2 triangles"),
@@ -372,8 +372,9 @@ fn non_planar_faces() {
     let lifted = |h: f64| obj_with(&format!("v 0 0 3\nv 1 0 3\nv 1 1 {}\nv 0 1 3\nf 5 6 7 8\n", 3.0 + h));
     // h = 0.04: deviation 0.01 = 0.71% of the diameter, within the 1% limit: split with a warning.
     let s = Scene::load(write_scene(&lifted(0.04), MTL, None)).unwrap();
-    assert_eq!(s.warnings.len(), 1);
-    assert_eq!((s.warnings[0].face, s.warnings[0].line), (1, 12));
+    let faces: Vec<_> = s.warnings.iter().filter(|w| w.face.is_some()).collect();
+    assert_eq!(faces.len(), 1, "{:?}", s.warnings);
+    assert_eq!((faces[0].face, faces[0].line), (Some(1), Some(12)));
     assert_eq!(s.faces[1].polygons.len(), 2);
     // h = 0.1: deviation 0.025 = 1.8% of the diameter: an error.
     let (e, msg, path) = error_of(&lifted(0.1), MTL, None);
@@ -426,7 +427,11 @@ fn toml_errors() {
             "material 'lamp' is in two light groups ('g' and 'h')",
         ),
         ("[meshing]\nmax_patch_edge = -1.0\n".to_owned(), "max_patch_edge = -1 must be finite and positive"),
-        ("[meshing]\npatch_budget = 0\n".to_owned(), "patch_budget = 0 must be at least 1"),
+        ("[meshing]\npatch_budget = 0\n".to_owned(), "patch_budget = 0 must be between 1 and 16384"),
+        (
+            "[meshing]\npatch_budget = 100000\n".to_owned(),
+            "patch_budget = 100000 must be between 1 and 16384",
+        ),
         ("[meshing]\nrefine_passes = 7\n".to_owned(), "refine_passes = 7 must be between 0 and 6"),
         ("[meshing]\nrefine_passes = -1\n".to_owned(), "refine_passes = -1 must be between 0 and 6"),
         (
@@ -531,5 +536,69 @@ proptest! {
         let path = write_scene(&obj, &mtl, None);
         let _ = Scene::load(&path);
         std::fs::remove_dir_all(path.parent().unwrap()).unwrap();
+    }
+}
+
+/// The unit square of `obj_with` and a facing lamp square above it, every coordinate times `k` and shifted by
+/// `shift` along x.
+fn two_squares(k: f64, shift: f64) -> String {
+    let v = |x: f64, y: f64, z: f64| format!("v {} {} {}\n", x * k + shift, y * k, z * k);
+    let mut obj = String::from("mtllib scene.mtl\n");
+    for (x, y) in [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)] {
+        obj += &v(x, y, 0.0);
+    }
+    for (x, y) in [(0.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0, 0.0)] {
+        obj += &v(x, y, 1.0);
+    }
+    obj + "usemtl grey\nf 1 2 3 4\nusemtl lamp\nf 5 6 7 8\n"
+}
+
+#[test]
+fn scene_size_and_position_out_of_range_are_refused() {
+    use radiosity_host::scene::{MAX_ORIGIN_DISTANCE, MAX_SCENE_SIZE};
+    // In range, down to the limits: loads (every scene within them gives the same form factors, host/tests/embree.rs).
+    for k in [1e-15, 1.0, 1e12, 0.5 * MAX_SCENE_SIZE] {
+        let s = Scene::load(write_scene(&two_squares(k, 0.0), MTL, None)).unwrap();
+        assert!(s.warnings.is_empty(), "{k:e}: {:?}", s.warnings);
+    }
+    for (k, expect) in
+        [(1e30, "more than the largest size supported"), (1e-17, "less than the smallest size")]
+    {
+        let (e, msg, path) = error_of(&two_squares(k, 0.0), MTL, None);
+        assert!(matches!(e, SceneError::Extent { .. }), "{k:e}: {msg}");
+        assert_message(&msg, &path, &[expect, "across", "scale it"]);
+    }
+    // A unit scene 1e6 units from the origin: its rays' offsets would swallow it.
+    let (e, msg, path) = error_of(&two_squares(1.0, 1e6), MTL, None);
+    assert!(matches!(e, SceneError::Extent { .. }), "{msg}");
+    assert_message(&msg, &path, &["from the origin", "move the scene nearer the origin"]);
+    assert!(Scene::load(write_scene(&two_squares(1.0, 0.5 * MAX_ORIGIN_DISTANCE), MTL, None)).is_ok());
+}
+
+#[test]
+fn light_groups_without_faces_and_scenes_without_emitters_warn() {
+    // The lamp material is defined but no face uses it: its light group lights nothing, and nothing emits.
+    let s = Scene::load(write_scene(&obj_with(""), MTL, None)).unwrap();
+    let text: Vec<String> = s.warnings.iter().map(ToString::to_string).collect();
+    assert_eq!(text.len(), 2, "{text:?}");
+    assert!(text[0].contains("scene.mtl:4: light group 'lamp' has no faces"), "{text:?}");
+    assert!(text[1].contains("scene.obj: no face emits light"), "{text:?}");
+    assert!(s.warnings.iter().all(|w| w.face.is_none()));
+    // A TOML group of two materials, one of them used: no warning.
+    let mtl = format!("{MTL}\nnewmtl spare\nKd 0.1 0.1 0.1\nKe 2 2 2\n");
+    let toml = "[[light_group]]\nname = \"lights\"\nmaterials = [\"lamp\", \"spare\"]\n";
+    let s = Scene::load(write_scene(&two_squares(1.0, 0.0), &mtl, Some(toml))).unwrap();
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    // The same group with neither material used names both.
+    let s = Scene::load(write_scene(&obj_with(""), &mtl, Some(toml))).unwrap();
+    let first = s.warnings[0].to_string();
+    assert!(
+        first.contains("light group 'lights' has no faces") && first.contains("'lamp', 'spare'"),
+        "{first}"
+    );
+    // The shipped scenes emit, and every light group has faces.
+    for name in ["cornell-box", "furnace", "two-rooms", "hdr-boxes", "slab", "facing-squares"] {
+        let s = load(name);
+        assert!(s.warnings.iter().all(|w| w.face.is_some()), "{name}: {:?}", s.warnings);
     }
 }

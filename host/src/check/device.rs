@@ -105,6 +105,7 @@ pub(super) fn device_part(
         components,
         settings,
         frames,
+        discretization: None,
     })
 }
 

@@ -15,12 +15,18 @@
 //!
 //! | component | answer | against |
 //! |---|---|---|
+//! | discretization (optional) | f64 solve, averaged per OBJ face | continuous path-traced reference ([`crate::montecarlo`]), with its standard error |
 //! | form-factor estimation | f64 solve, matrix at the chosen samples/rays | f64 solve, matrix at `ff_factor` times both |
 //! | reciprocity | f64 solve, shooting form of the full matrix | f64 solve of the full matrix |
 //! | sparsification | f64 solve, shooting form of the sparsified matrix | f64 solve, shooting form of the full matrix |
 //! | quantization | f64 solve of the decoded table (decoded form factors, reflectances, emission, f32 areas) | the sparsified f64 solve above |
 //! | iteration truncation | device (f32) after `frames` frames of `budget` units, cold start | device (f32) converged, same table |
 //! | arithmetic (f32, fixed) | device converged | f64 solve of the decoded table |
+//!
+//! The discretization component ([`CheckOptions::continuous`], `check --continuous`) judges the mesh rather
+//! than the table: the exact answer is exact for its mesh only. It is off by default (its path tracing costs
+//! seconds); the report then lists, per face, the mesh answer, the reference, their relative difference and the
+//! reference's standard error ([`crate::evaluate::Discretization`]).
 //!
 //! The components telescope: device minus exact is the sum of the differences of arithmetic, quantization,
 //! sparsification and reciprocity (plus iteration truncation when frames are limited), so by the triangle
@@ -55,10 +61,12 @@ pub use table::{check_table, check_table_file, form_factor_distance, match_scene
 use crate::bake::{
     bake, codec_for_bits, BakeError, BakeInput, BakeOptions, DEFAULT_ROW_SUM_TOLERANCE, DEFAULT_THRESHOLD,
 };
+use crate::evaluate::Discretization;
 use crate::evaluate::{self, evaluate, EvaluateError, EvaluateOptions};
 use crate::metrics::MetricsError;
+use crate::montecarlo::{continuous_reference, validate_options, MonteCarloError, ReferenceOptions};
 use crate::pipeline::{prepare, PipelineError, PrepareOptions, Prepared};
-use crate::reference::{exact_transfer, Method, ReferenceError, TransferVectors};
+use crate::reference::{exact_transfer, Method, Radiosity, ReferenceError, TransferVectors};
 use device::{device_part, Answers};
 
 /// Settings of a check.
@@ -86,6 +94,8 @@ pub struct CheckOptions {
     pub ff_factor: usize,
     /// Slack on row sums of the shooting form above 1 in the f64 solves ([`BakeOptions::row_sum_tolerance`]).
     pub row_sum_tolerance: f64,
+    /// Add the discretization component: the continuous reference with these settings (`None`: skip it).
+    pub continuous: Option<ReferenceOptions>,
 }
 
 impl Default for CheckOptions {
@@ -101,6 +111,7 @@ impl Default for CheckOptions {
             tolerance: 1e-6,
             ff_factor: 4,
             row_sum_tolerance: DEFAULT_ROW_SUM_TOLERANCE,
+            continuous: None,
         }
     }
 }
@@ -135,6 +146,9 @@ pub enum CheckError {
     /// Bad options.
     #[error("bad option: {0}")]
     Options(String),
+    /// The continuous reference of the discretization component failed (or its options are bad).
+    #[error(transparent)]
+    MonteCarlo(#[from] MonteCarloError),
     /// The table file could not be read.
     #[error("reading table {path}: {message}")]
     ReadTable {
@@ -172,11 +186,40 @@ pub fn check_scene(
     prepare_options: &PrepareOptions,
     options: &CheckOptions,
 ) -> Result<CheckReport, CheckError> {
+    check_options(options)?;
     let p = prepare(path, prepare_options)?;
     check(&p, prepare_options, options)
 }
 
-fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
+/// Checks every option that needs no computation (`check_scene` and `check_table_file` call it before they
+/// prepare the scene, so a bad option is reported at once).
+pub(crate) fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
+    if options.codec.is_none() {
+        codec_for_bits(options.bits)?;
+    }
+    if !(0.0..1.0).contains(&options.threshold) {
+        return Err(BakeError::BadThreshold(options.threshold).into());
+    }
+    if options.frames.is_some_and(|f| f > MAX_FRAMES) {
+        return Err(CheckError::Options(format!(
+            "--frames {} is more than {MAX_FRAMES}",
+            options.frames.unwrap_or(0)
+        )));
+    }
+    crate::limits::check_count(
+        "--ff-factor",
+        options.ff_factor,
+        crate::limits::MAX_FF_FACTOR,
+        "the reference \
+        matrix costs that many times the samples and rays",
+    )
+    .map_err(|e| CheckError::Options(e.to_string()))?;
+    if !(options.row_sum_tolerance.is_finite() && options.row_sum_tolerance >= 0.0) {
+        return Err(CheckError::Options(format!(
+            "--row-sum-tolerance {} must be finite and >= 0",
+            options.row_sum_tolerance
+        )));
+    }
     if options.budget == 0 {
         return Err(CheckError::Options("--budget must be at least 1 work unit".into()));
     }
@@ -188,6 +231,9 @@ fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
     }
     if options.arith.is_empty() {
         return Err(CheckError::Options("no arithmetic path to run".into()));
+    }
+    if let Some(continuous) = &options.continuous {
+        validate_options(continuous)?;
     }
     Ok(())
 }
@@ -236,7 +282,8 @@ pub fn check(
     let eval_options = evaluation_options(p, options);
     let exact = exact_transfer_of(p, &eval_options)?;
     let evaluation = evaluate(&input, &baked, &eval_options)?;
-    let mut components = Vec::new();
+    let discretization = discretization_part(p, &evaluation.reference, options)?;
+    let mut components: Vec<_> = discretization.iter().map(|d| d.component.clone()).collect();
     if options.ff_factor > 1 {
         components.push(evaluate::form_factor_estimation(
             p,
@@ -256,5 +303,17 @@ pub fn check(
         device: &evaluation.device,
         area: &evaluation.area,
     };
-    device_part(&table, baked.table.len(), &answers, options, components)
+    let report = device_part(&table, baked.table.len(), &answers, options, components)?;
+    Ok(CheckReport { discretization, ..report })
+}
+
+/// The discretization component of `p`, whose exact answer is `reference`, if `options` ask for it.
+fn discretization_part(
+    p: &Prepared,
+    reference: &Radiosity,
+    options: &CheckOptions,
+) -> Result<Option<Discretization>, CheckError> {
+    let Some(settings) = &options.continuous else { return Ok(None) };
+    let continuous = continuous_reference(&p.scene, settings)?;
+    Ok(Some(evaluate::discretization(&p.patches, reference, &continuous)?))
 }

@@ -5,10 +5,10 @@ use std::fmt;
 use firmware_sim::sim::Arith;
 use serde::Serialize;
 
-use crate::evaluate::Component;
+use crate::evaluate::{Component, Discretization};
 use crate::metrics::ErrorReport;
 use crate::picture::plot::Plot;
-use crate::rgb::Rgb;
+use crate::rgb::{self, Rgb};
 
 /// One device frame compared with the exact answer.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -77,6 +77,9 @@ pub struct CheckReport {
     pub settings: Vec<Setting>,
     /// Every frame.
     pub frames: Vec<Frame>,
+    /// The discretization component's per-face rows (`None` unless the check asked for the continuous
+    /// reference); its [`Component`] is also the first of `components`.
+    pub discretization: Option<Discretization>,
 }
 
 impl CheckReport {
@@ -136,6 +139,9 @@ impl fmt::Display for CheckReport {
                 c.name, c.error.rel_l2, c.error.max_rel, c.error.luminance_rel_l2, c.compares
             )?;
         }
+        if let Some(d) = &self.discretization {
+            write_discretization(f, d)?;
+        }
         writeln!(
             f,
             "\ndevice vs exact f64 (scene matrix, transfer vectors relit), last frame of each setting"
@@ -187,4 +193,39 @@ impl fmt::Display for CheckReport {
         }
         Ok(())
     }
+}
+
+/// The discretization rows: per face, the mesh and reference luminance, the relative difference per channel,
+/// the reference's relative standard error and the worst channel's difference in standard errors.
+fn write_discretization(f: &mut fmt::Formatter<'_>, d: &Discretization) -> fmt::Result {
+    writeln!(
+        f,
+        "\ndiscretization per OBJ face: f64 mesh answer (area-averaged) vs continuous reference; noise floor \
+         (reference SE, rel L2) {:.3e}",
+        d.noise_rel_l2
+    )?;
+    writeln!(f, "reference: {}", d.reference_summary)?;
+    writeln!(
+        f,
+        "{:>5} {:>6} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}",
+        "face", "line", "mesh Y", "ref Y", "diff r", "diff g", "diff b", "rel SE", "|d|/SE"
+    )?;
+    for row in &d.faces {
+        let (_, sigmas) = row.worst_channel();
+        let diff = row.relative_difference;
+        writeln!(
+            f,
+            "{:>5} {:>6} {:>11.5e} {:>11.5e} {:>+9.3e} {:>+9.3e} {:>+9.3e} {:>9.2e} {:>8.1}",
+            row.face,
+            row.line,
+            rgb::luminance(row.mesh),
+            rgb::luminance(row.reference),
+            diff.x,
+            diff.y,
+            diff.z,
+            row.reference_relative_se,
+            sigmas
+        )?;
+    }
+    Ok(())
 }

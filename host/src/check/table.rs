@@ -5,7 +5,10 @@ use std::path::Path;
 use radiosity_core::Table;
 
 use super::device::{device_part, Answers};
-use super::{check_options, evaluation_options, exact_transfer_of, CheckError, CheckOptions, CheckReport};
+use super::{
+    check_options, discretization_part, evaluation_options, exact_transfer_of, CheckError, CheckOptions,
+    CheckReport,
+};
 use crate::bake::{self, decode_table};
 use crate::evaluate;
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
@@ -22,6 +25,7 @@ pub fn check_table_file(
     prepare_options: &PrepareOptions,
     options: &CheckOptions,
 ) -> Result<CheckReport, CheckError> {
+    check_options(options)?;
     let bytes = std::fs::read(table_path)
         .map_err(|e| CheckError::ReadTable { path: table_path.into(), message: e.to_string() })?;
     // Parse first: a damaged table is reported before the (slower) scene preparation.
@@ -43,6 +47,7 @@ pub fn check_table_file(
 ///
 /// | component | answer | against |
 /// |---|---|---|
+/// | discretization (with [`CheckOptions::continuous`]) | as [`super::check`] | |
 /// | table vs scene matrix | f64 solve of the decoded table | f64 solve of the scene's matrix (this run's estimate) |
 /// | iteration truncation | as [`super::check`] | |
 /// | arithmetic (f32, fixed) | as [`super::check`] | |
@@ -69,7 +74,9 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
     let (decoded, device, _) = evaluate::device_answer(&table, &eval_options)?;
     let (reference, _) = evaluate::exact(&p.lighting, &p.form_factors, &eval_options)?;
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
-    let components = vec![evaluate::table_vs_scene(&device, &reference, &area)?];
+    let discretization = discretization_part(p, &reference, options)?;
+    let mut components: Vec<_> = discretization.iter().map(|d| d.component.clone()).collect();
+    components.push(evaluate::table_vs_scene(&device, &reference, &area)?);
     let exact = exact_transfer_of(p, &eval_options)?;
     let answers = Answers {
         exact: &exact,
@@ -78,7 +85,8 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
         device: &device,
         area: &area,
     };
-    device_part(&table, bytes.len(), &answers, options, components)
+    let report = device_part(&table, bytes.len(), &answers, options, components)?;
+    Ok(CheckReport { discretization, ..report })
 }
 
 /// Whether `table` was baked from the patches of `p`; on a mismatch, the first difference found.

@@ -23,12 +23,15 @@
 //! - [`Evaluation::components`] (the decomposition of `check` and `regress`): each answer against the one a
 //!   step before, so the components telescope: reciprocity (reciprocal vs exact), sparsification (sparsified vs
 //!   reciprocal), quantization (decoded vs sparsified). [`form_factor_estimation`] adds the component of the
-//!   form-factor estimate, [`table_vs_scene`] the one component a table without its bake allows.
+//!   form-factor estimate, [`table_vs_scene`] the one component a table without its bake allows, and
+//!   [`discretization`] the one before them all: the exact answer, averaged per OBJ face, against the
+//!   continuous path-traced reference ([`crate::montecarlo`]), which judges the mesh itself.
 //!
 //! With a transfer basis, [`Evaluation::transfer`] compares core's f32 transfer relight of the table with the
 //! exact answer and with the f64 basis it was quantized from ([`TransferReport`]).
 
 mod components;
+mod discretization;
 mod summary;
 mod transfer;
 
@@ -39,6 +42,7 @@ pub use components::{
     form_factor_estimation, table_vs_scene, Component, FORM_FACTOR_ESTIMATION, ITERATION_TRUNCATION,
     QUANTIZATION, RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE,
 };
+pub use discretization::{discretization, Discretization, FaceDiscretization, DISCRETIZATION};
 pub use summary::BakeSummary;
 pub use transfer::TransferReport;
 

@@ -59,6 +59,13 @@
 //!    part of the hemisphere is physics, and its error (visibility noise) stays visible in the reported row-sum
 //!    range.
 //!
+//! # Rows above 1
+//! A row of an estimate may sum to a little more than 1 through sampling alone. [`FormFactorStats`] carries,
+//! per row, how much ([`row_excess_allowed`]: a 6-sigma bound on the visibility noise from the ray count, plus
+//! the quadrature error that the pair's two estimates show), and the pipeline scales rows within it to 1 (and
+//! says so) but refuses an estimate with a row beyond it ([`rows_over_noise`] names the rows and faces): such a
+//! row means lost occlusion or a broken kernel, not noise.
+//!
 //! # Near field and shared edges
 //! The point kernel `F_{x → j}` stays bounded (at most 1/2 for a point on an edge `j` shares with `i`, the
 //! half-plane limit) and only its derivative is singular there, while the `1/r²` integrand of plain Monte Carlo
@@ -118,12 +125,13 @@ pub use element::{Element, ElementRules};
 pub use kernel::point_to_polygon;
 pub use nearfield::{far_field_order, FAR_FIELD_GAP, NEAR_FIELD_DEPTH, NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH};
 pub use options::{ClosureMode, FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
+pub(crate) use quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler};
 
 use crate::embree::{Device, EmbreeError, SceneOptions, TriangleScene};
 use crate::patch::{Closure, FormFactorMatrix, Patch, ReciprocityChange};
 use crate::raycast::{MeshInputError, RayCaster, TriangleBvh};
 use nearfield::Receiver;
-use quadrature::{gauss_legendre, PolygonSampler, Quadrature};
+use quadrature::{gauss_legendre, Quadrature};
 use rows::{FractionWalk, Phases, RowContext, Visibility};
 
 /// Entries with `F_ij` below this are left out of the reciprocity error (their relative error is dominated by
@@ -172,6 +180,110 @@ pub struct FormFactorStats {
     pub visibility_time: Duration,
     /// Wall time of the whole computation.
     pub elapsed: Duration,
+    /// Per row, how far above 1 the row's sum may lie from sampling alone ([`row_excess_allowed`]); a row that
+    /// sums to more than `1 + allowed` is not noise, and the pipeline refuses it.
+    pub row_excess_allowed: Vec<f64>,
+}
+
+/// A row of the form factors whose sum exceeds 1 by more than its sampling noise allows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowExcess {
+    /// The patch (row).
+    pub patch: usize,
+    /// Its OBJ face.
+    pub face: usize,
+    /// The row's sum.
+    pub sum: f64,
+    /// How far above 1 sampling noise could have put it.
+    pub allowed: f64,
+}
+
+impl std::fmt::Display for RowExcess {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "patch {} (face {}) sums to {:.6}, noise allows up to {:.6}",
+            self.patch,
+            self.face,
+            self.sum,
+            1.0 + self.allowed
+        )
+    }
+}
+
+/// The rows of `form_factors` whose sum exceeds `1 + allowed[i]` (`allowed`: [`FormFactorStats::row_excess_allowed`]
+/// of the estimate, after any change that keeps within it, such as averaging for reciprocity), the worst (largest
+/// sum minus allowance) first. `patches` name each row's face.
+///
+/// # Panics
+/// If `patches` is shorter than the matrix.
+#[must_use]
+pub fn rows_over_noise(
+    form_factors: &FormFactorMatrix,
+    allowed: &[f64],
+    patches: &[Patch],
+) -> Vec<RowExcess> {
+    let mut rows: Vec<RowExcess> = (0..form_factors.n())
+        .filter_map(|i| {
+            let sum = form_factors.row_sum(i);
+            let allowed = allowed.get(i).copied().unwrap_or(0.0);
+            (sum > 1.0 + allowed).then(|| RowExcess { patch: i, face: patches[i].face, sum, allowed })
+        })
+        .collect();
+    rows.sort_by(|a, b| (b.sum - b.allowed).total_cmp(&(a.sum - a.allowed)));
+    rows
+}
+
+/// Standard deviations of visibility noise a row's excess over 1 may reach before it counts as an error (see
+/// [`row_excess_allowed`]): a Gaussian 6-sigma event has a probability of about 1e-9 per row.
+pub const ROW_EXCESS_SIGMAS: f64 = 6.0;
+
+/// Rounding allowance of a row sum in [`row_excess_allowed`] (a row of thousands of entries summed in f64).
+pub const ROW_EXCESS_ROUNDING: f64 = 1e-9;
+
+/// How far above 1 each row of an estimate may sum from sampling alone:
+/// `ROW_EXCESS_ROUNDING + q_i + ROW_EXCESS_SIGMAS * sigma_i`, where
+/// - `sigma_i² = Σ_j U_ij² ṽ_ij (1 - ṽ_ij) / R` is the variance of the row's visibility noise: each pair's
+///   visible fraction is estimated from `R = rays_per_pair` rays, a binomial variance evaluated at
+///   `ṽ = (v R + 1/2) / (R + 1)` (Jeffreys' estimate), not at the estimate `v` itself, because a pair all of whose
+///   few rays agreed (`v` = 0 or 1) may still be partly visible; a pair whose visibility could not be measured
+///   counts with the largest variance, `U² / 4`;
+/// - `q_i = Σ_j |F_ij - A_j F_ji / A_i|` is the row's quadrature error as the data show it: the two estimates of
+///   each pair's exchange come from different rules (`samples_per_patch` points on `i`, on `j`), and their
+///   disagreement is what averaging them for reciprocity moves the row by (at most half of it).
+///
+/// `unoccluded` are the rows of `U`, `fraction(i, j)` the pair's visible fraction (NaN if not measured), and
+/// `matrix` the estimate `F_ij = U_ij v_ij` before any reciprocity or closure.
+fn row_excess_allowed(
+    matrix: &FormFactorMatrix,
+    unoccluded: &[Vec<(u32, f64)>],
+    fraction: impl Fn(usize, usize) -> f64,
+    areas: &[f64],
+    rays_per_pair: usize,
+) -> Vec<f64> {
+    let rays = rays_per_pair.max(1) as f64;
+    (0..matrix.n())
+        .map(|i| {
+            let variance: f64 = unoccluded[i]
+                .iter()
+                .map(|&(j, u)| {
+                    let v = fraction(i, j as usize);
+                    if v.is_nan() {
+                        return u * u / 4.0;
+                    }
+                    let v = (v * rays + 0.5) / (rays + 1.0);
+                    u * u * v * (1.0 - v) / rays
+                })
+                .sum();
+            let quadrature: f64 = matrix
+                .row_columns(i)
+                .iter()
+                .zip(matrix.row_values(i))
+                .map(|(&j, &f)| (f - areas[j as usize] * matrix.get(j as usize, i) / areas[i]).abs())
+                .sum();
+            ROW_EXCESS_ROUNDING + quadrature + ROW_EXCESS_SIGMAS * variance.sqrt()
+        })
+        .collect()
 }
 
 /// How the rows of a closed scene were closed.
@@ -390,9 +502,11 @@ fn estimate<C: RayCaster + ?Sized>(
     };
     let (estimate_row_sum_min, estimate_row_sum_max) = row_sum_range(&matrix);
     let reciprocity_error_max = reciprocity_error(&matrix, patches);
+    let areas: Vec<f64> = patches.iter().map(|p| p.area).collect();
+    let row_excess_allowed =
+        row_excess_allowed(&matrix, &unoccluded, fraction, &areas, options.rays_per_pair);
     let closed = options.closure == ClosureMode::Detect && escape_rays > 0 && escaped_rays == 0;
     let closure = if closed {
-        let areas: Vec<f64> = patches.iter().map(|p| p.area).collect();
         let reciprocity_change = matrix.enforce_reciprocity(&areas);
         // Variance of a pair's visible fraction from R kernel-weighted rays: about v (1 - v) / R, so that of
         // G_ij = A_i U_ij v is (A_i U_ij)^2 v (1 - v) / R = G_ij^2 (1 - v) / v / R; R is common to all pairs and
@@ -436,6 +550,7 @@ fn estimate<C: RayCaster + ?Sized>(
         kernel_time,
         visibility_time,
         elapsed,
+        row_excess_allowed,
     };
     Ok((matrix, stats))
 }

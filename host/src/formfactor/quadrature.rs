@@ -1,5 +1,6 @@
-//! Points on a patch: the product Gauss-Legendre rule of the unoccluded form factors, and the area-preserving
-//! map of stratified points that the visibility rays start and end on.
+//! Points on a patch: the product Gauss-Legendre rule of the unoccluded form factors, the area-preserving
+//! map of stratified points that the visibility rays start and end on, and cosine-distributed directions (the
+//! escape rays; the path tracer of [`crate::montecarlo`] uses the same points and directions).
 
 use glam::DVec3;
 
@@ -8,7 +9,7 @@ use crate::rng::SplitMix64;
 /// Maps the unit square onto a convex polygon, preserving area (uniform in, uniform out), so a stratified set
 /// in the square is a stratified set on the polygon.
 #[derive(Clone, Debug)]
-pub(super) struct PolygonSampler {
+pub(crate) struct PolygonSampler {
     /// Parallelograms: `v0 + s (v1 - v0) + t (v3 - v0)`, exact strata.
     parallelogram: Option<[DVec3; 3]>,
     /// Otherwise: fan triangles `(v0, v_k, v_{k+1})` with their cumulative area fractions.
@@ -16,7 +17,8 @@ pub(super) struct PolygonSampler {
 }
 
 impl PolygonSampler {
-    pub(super) fn new(v: &[DVec3]) -> Self {
+    /// The sampler of the convex polygon `v` (at least 3 vertices, nonzero area).
+    pub(crate) fn new(v: &[DVec3]) -> Self {
         let size = v.iter().map(|p| (*p - v[0]).length()).fold(0.0, f64::max);
         if v.len() == 4 && (v[0] + v[2] - v[1] - v[3]).length() <= 1e-12 * size {
             return Self { parallelogram: Some([v[0], v[1] - v[0], v[3] - v[0]]), fan: Vec::new() };
@@ -36,7 +38,7 @@ impl PolygonSampler {
     }
 
     /// The point for `(s, t)` in the open unit square.
-    pub(super) fn point(&self, s: f64, t: f64) -> DVec3 {
+    pub(crate) fn point(&self, s: f64, t: f64) -> DVec3 {
         if let Some([o, a, b]) = self.parallelogram {
             return o + a * s + b * t;
         }
@@ -139,8 +141,28 @@ impl Quadrature {
     }
 }
 
+/// An orthonormal tangent frame `(t1, t2)` around the unit normal `n`, with `t1 × t2 = n` (J. R. Frisvad's
+/// construction without its singularity: T. Duff et al., "Building an orthonormal basis, revisited", JCGT 2017).
+pub(crate) fn tangent_frame(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1.0f64.copysign(n.z);
+    let c = -1.0 / (sign + n.z);
+    let d = n.x * n.y * c;
+    let t1 = DVec3::new(1.0 + sign * n.x * n.x * c, sign * d, -sign * n.x);
+    let t2 = DVec3::new(d, sign + n.y * n.y * c, -n.y);
+    (t1, t2)
+}
+
+/// The cosine-distributed direction (density `cos θ / π` over the hemisphere of `n`) for `(s, t)` in the unit
+/// square, `s < 1`: a uniform point of the unit disc (`r = √s`, `φ = 2π t`) lifted to the hemisphere (Malley's
+/// method; e.g. Pharr, Jakob, Humphreys, *Physically Based Rendering*, 13.6.3). Unit length up to rounding;
+/// `(t1, t2)` is the [`tangent_frame`] of `n`.
+pub(crate) fn cosine_direction(n: DVec3, (t1, t2): (DVec3, DVec3), s: f64, t: f64) -> DVec3 {
+    let (r, phi) = (s.sqrt(), std::f64::consts::TAU * t);
+    t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - s).max(0.0).sqrt()
+}
+
 /// The smallest near-square grid `a × b >= count`.
-pub(super) fn grid(count: usize) -> (usize, usize) {
+pub(crate) fn grid(count: usize) -> (usize, usize) {
     let a = (count as f64).sqrt().round().max(1.0) as usize;
     (a, count.div_ceil(a))
 }

@@ -13,9 +13,9 @@ use super::nearfield::{
     NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH,
 };
 use super::options::{FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
-use super::quadrature::{grid, PolygonSampler, Quadrature};
+use super::quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler, Quadrature};
 use crate::patch::Patch;
-use crate::raycast::{Ray, RayCaster};
+use crate::raycast::{unit_factor, Ray, RayCaster};
 use crate::rng::SplitMix64;
 
 /// Unoccluded rows, visibility rows, (escape rays cast, escaped), and (kernel evaluations, wall time of the
@@ -49,24 +49,22 @@ impl<C: RayCaster + ?Sized> RowContext<'_, C> {
         self.samplers[i].stratified(ESCAPE_RAYS_PER_PATCH, &mut rng, &mut origins);
         rng.shuffle(&mut origins);
         let (a, b) = grid(ESCAPE_RAYS_PER_PATCH);
-        // An orthonormal frame around the normal (Duff et al., "Building an orthonormal basis, revisited", 2017).
         let n = p.normal;
-        let sign = 1.0f64.copysign(n.z);
-        let c = -1.0 / (sign + n.z);
-        let d = n.x * n.y * c;
-        let t1 = DVec3::new(1.0 + sign * n.x * n.x * c, sign * d, -sign * n.x);
-        let t2 = DVec3::new(d, sign + n.y * n.y * c, -n.y);
-        let offset = self.scene.offset();
-        let far = 4.0 * self.scene_size as f32;
+        let (t1, t2) = tangent_frame(n);
+        // Directions of the scene's size (a power of two near it, exact) rather than unit length: in a scene of
+        // size 1e30 a unit direction is 1e-30 of it, and a caster that scales the scene to unit size (Embree's)
+        // would see directions whose squares underflow. `t` runs to 4 scene sizes.
+        let length = 1.0 / unit_factor(self.scene_size as f32);
+        let offset = self.scene.offset() / length;
+        let far = 4.0 * self.scene_size as f32 / length;
         let mut rays = Vec::with_capacity(a * b);
         for (k, x) in origins.iter().enumerate() {
             let (s, t) = (
                 ((k % a) as f64 + rng.open_unit()) / a as f64,
                 ((k / a) as f64 + rng.open_unit()) / b as f64,
             );
-            let (r, phi) = (s.sqrt(), std::f64::consts::TAU * t);
-            let dir = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - s).max(0.0).sqrt();
-            rays.push(Ray::new(x.as_vec3(), dir.normalize().as_vec3(), offset, far));
+            let dir = cosine_direction(n, (t1, t2), s, t);
+            rays.push(Ray::new(x.as_vec3(), dir.normalize().as_vec3() * length, offset, far));
         }
         let mut occluded = vec![false; rays.len()];
         self.scene.occluded_many(&rays, &mut occluded);
@@ -75,14 +73,14 @@ impl<C: RayCaster + ?Sized> RowContext<'_, C> {
         // way (far wider than an f32 crack, far narrower than a real opening), escape too.
         let mut escaped = 0;
         for (ray, _) in rays.iter().zip(&occluded).filter(|(_, &o)| !o) {
-            let d = ray.direction;
+            let d = ray.direction / length;
             let tilt = (t1 * 1e-3 + t2 * 1e-3).as_vec3();
             // Also from a point moved 1 % of the way to the centroid: a ray that starts within the ray offset of a
             // contact edge can slip past the touching face's edge, which is no opening either.
             let origin = (ray.origin.as_dvec3() * 0.99 + p.centroid * 0.01).as_vec3();
             let again = [
-                Ray::new(origin, (d + tilt).normalize(), ray.tnear, ray.tfar),
-                Ray::new(origin, (d - tilt).normalize(), ray.tnear, ray.tfar),
+                Ray::new(origin, (d + tilt).normalize() * length, ray.tnear, ray.tfar),
+                Ray::new(origin, (d - tilt).normalize() * length, ray.tnear, ray.tfar),
             ];
             if !self.scene.occluded(&again[0]) && !self.scene.occluded(&again[1]) {
                 escaped += 1;

@@ -26,8 +26,6 @@ pub mod shading;
 pub mod text;
 pub mod tonemap;
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 pub use tonemap::{RgbImage, ToneMap};
@@ -139,9 +137,10 @@ pub fn write_png(path: &Path, image: &RgbImage) -> Result<(), PictureError> {
     write_file(path, &bytes)
 }
 
-/// Writes bytes to a file, creating it (and naming the path in the error).
+/// Writes bytes to a file atomically ([`crate::files::write_atomic`]), naming the path in the error.
 pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), PictureError> {
-    let file = File::create(path).map_err(|e| PictureError::io(path, e))?;
-    let mut w = BufWriter::new(file);
-    w.write_all(bytes).and_then(|()| w.flush()).map_err(|e| PictureError::io(path, e))
+    crate::files::write_atomic(path, bytes).map_err(|e| match e {
+        crate::files::FileError::Io { source, .. } => PictureError::io(path, source),
+        other => PictureError::io(path, std::io::Error::other(other.to_string())),
+    })
 }

@@ -137,9 +137,9 @@ pub fn trace_view(
     trace: &(dyn Fn(DVec3, DVec3) -> Option<Hit> + Sync),
 ) -> Result<ViewHits, PictureError> {
     let Frame { camera, width, height } = *frame;
-    if width == 0 || height == 0 {
-        return Err(PictureError::invalid("view size", format!("{width}x{height} has no pixels")));
-    }
+    // Checked before anything is allocated: a huge size is an error, not an aborted allocation.
+    crate::limits::check_image_size("view size", width, height)
+        .map_err(|e| PictureError::invalid("view size", e.to_string()))?;
     let w = width as usize;
     let hits = (0..w * height as usize)
         .into_par_iter()

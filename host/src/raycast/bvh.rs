@@ -1,12 +1,12 @@
-//! [`TriangleBvh`]: a pure-Rust occlusion caster, a bounding-volume hierarchy over the triangles with an f64
-//! Möller-Trumbore test.
+//! [`TriangleBvh`]: a pure-Rust ray caster (occlusion and closest hits), a bounding-volume hierarchy over the
+//! triangles with an f64 Möller-Trumbore test.
 //!
 //! It exists for tests and as the reference Embree is checked against, not for speed: nodes split at the
 //! median centroid along their longest axis (no surface-area heuristic), one ray at a time, no SIMD.
 
 use glam::{DVec3, Vec3};
 
-use super::{offset_for, Ray, RayCaster};
+use super::{offset_for, Hit, Ray, RayCaster};
 
 /// Triangles per leaf at most (fewer where the centroids coincide and cannot be split).
 const LEAF_SIZE: usize = 4;
@@ -45,12 +45,14 @@ struct Node {
     count: u32,
 }
 
-/// A pure-Rust occlusion caster over a triangle mesh, with the semantics of the module docs (those of
+/// A pure-Rust ray caster over a triangle mesh, with the semantics of the module docs (those of
 /// [`crate::embree::TriangleScene`]).
 #[derive(Clone, Debug)]
 pub struct TriangleBvh {
     /// The non-degenerate triangles in f64, in the order the leaves hold them.
     triangles: Vec<[DVec3; 3]>,
+    /// Index of each of `triangles` in the input (what [`Hit::primitive`] reports).
+    ids: Vec<u32>,
     nodes: Vec<Node>,
     offset: f32,
     /// Boxes are widened by this (scene units), so rounding in the box test never rejects a hit.
@@ -66,14 +68,16 @@ impl TriangleBvh {
     /// [`MeshInputError`] for a non-finite vertex or an index out of range.
     pub fn new(vertices: &[Vec3], triangles: &[[u32; 3]]) -> Result<Self, MeshInputError> {
         check_mesh(vertices, triangles)?;
-        let mut tris: Vec<[DVec3; 3]> = triangles
+        let mut tris: Vec<([DVec3; 3], u32)> = triangles
             .iter()
-            .map(|t| t.map(|k| vertices[k as usize].as_dvec3()))
-            .filter(|[a, b, c]| (*b - *a).cross(*c - *a) != DVec3::ZERO)
+            .zip(0u32..)
+            .map(|(t, id)| (t.map(|k| vertices[k as usize].as_dvec3()), id))
+            .filter(|([a, b, c], _)| (*b - *a).cross(*c - *a) != DVec3::ZERO)
             .collect();
         let scale = f64::from(super::scene_scale(vertices));
         let mut bvh = TriangleBvh {
             triangles: Vec::new(),
+            ids: Vec::new(),
             nodes: Vec::new(),
             offset: offset_for(vertices),
             pad: 1e-9 * scale,
@@ -83,7 +87,7 @@ impl TriangleBvh {
             let count = tris.len();
             bvh.build(0, &mut tris, 0, count);
         }
-        bvh.triangles = tris;
+        (bvh.triangles, bvh.ids) = tris.into_iter().unzip();
         Ok(bvh)
     }
 
@@ -95,11 +99,11 @@ impl TriangleBvh {
 
     /// Fills node `node` with the triangles `tris[first..first + count]`, splitting it while it holds more than
     /// [`LEAF_SIZE`].
-    fn build(&mut self, node: usize, tris: &mut [[DVec3; 3]], first: usize, count: usize) {
+    fn build(&mut self, node: usize, tris: &mut [([DVec3; 3], u32)], first: usize, count: usize) {
         let part = &mut tris[first..first + count];
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let (mut clo, mut chi) = (lo, hi);
-        for t in part.iter() {
+        for (t, _) in part.iter() {
             for v in t {
                 lo = lo.min(*v);
                 hi = hi.max(*v);
@@ -122,7 +126,7 @@ impl TriangleBvh {
             2
         };
         let half = count / 2;
-        part.select_nth_unstable_by(half, |a, b| centroid(a)[axis].total_cmp(&centroid(b)[axis]));
+        part.select_nth_unstable_by(half, |a, b| centroid(&a.0)[axis].total_cmp(&centroid(&b.0)[axis]));
         let left = self.nodes.len();
         self.nodes[node] = Node { lo, hi, first: left as u32, count: 0 };
         let empty = Node { lo: DVec3::ZERO, hi: DVec3::ZERO, first: 0, count: 0 };
@@ -168,24 +172,36 @@ fn meets_box(node: &Node, origin: DVec3, inverse: DVec3, tnear: f64, tfar: f64) 
 
 /// Möller-Trumbore, two-sided: a hit at `t` with `tnear < t <= tfar`, edges and vertices included.
 fn hits_triangle(t: &[DVec3; 3], origin: DVec3, direction: DVec3, tnear: f64, tfar: f64) -> bool {
+    triangle_hit(t, origin, direction, tnear, tfar).is_some()
+}
+
+/// Möller-Trumbore, two-sided: `(t, u, v)` of a hit with `tnear < t <= tfar` (edges and vertices included),
+/// the point being `(1 - u - v) * t0 + u * t1 + v * t2`.
+fn triangle_hit(
+    t: &[DVec3; 3],
+    origin: DVec3,
+    direction: DVec3,
+    tnear: f64,
+    tfar: f64,
+) -> Option<(f64, f64, f64)> {
     let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
     let p = direction.cross(e2);
     let det = e1.dot(p);
     if det == 0.0 {
-        return false;
+        return None;
     }
     let s = origin - t[0];
     let u = s.dot(p) / det;
     if !(0.0..=1.0).contains(&u) {
-        return false;
+        return None;
     }
     let q = s.cross(e1);
     let v = direction.dot(q) / det;
     if v < 0.0 || u + v > 1.0 {
-        return false;
+        return None;
     }
     let distance = e2.dot(q) / det;
-    distance > tnear && distance <= tfar
+    (distance > tnear && distance <= tfar).then_some((distance, u, v))
 }
 
 impl RayCaster for TriangleBvh {
@@ -219,6 +235,49 @@ impl RayCaster for TriangleBvh {
         }
         false
     }
+
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if ray.is_empty() || self.nodes.is_empty() {
+            return None;
+        }
+        let (origin, direction) = (ray.origin.as_dvec3(), ray.direction.as_dvec3());
+        let tnear = f64::from(ray.tnear.max(0.0));
+        let mut tfar = f64::from(ray.tfar);
+        let inverse = DVec3::ONE / direction;
+        let mut best: Option<(usize, f64, f64, f64)> = None;
+        let mut stack = vec![0usize];
+        while let Some(k) = stack.pop() {
+            let node = &self.nodes[k];
+            // `tfar` shrinks to the closest hit so far (inclusive: an equally close triangle is still tested,
+            // and the first one found is kept).
+            if !meets_box(node, origin, inverse, tnear, tfar) {
+                continue;
+            }
+            let first = node.first as usize;
+            if node.count == 0 {
+                stack.push(first);
+                stack.push(first + 1);
+                continue;
+            }
+            for k in first..first + node.count as usize {
+                if let Some((t, u, v)) = triangle_hit(&self.triangles[k], origin, direction, tnear, tfar) {
+                    if best.is_none_or(|(_, best_t, _, _)| t < best_t) {
+                        best = Some((k, t, u, v));
+                        tfar = t;
+                    }
+                }
+            }
+        }
+        let (k, t, u, v) = best?;
+        let [p0, p1, p2] = self.triangles[k];
+        Some(Hit {
+            t: t as f32,
+            primitive: self.ids[k],
+            geometry: 0,
+            barycentric: [u as f32, v as f32],
+            normal: (p1 - p0).cross(p2 - p0).normalize().as_vec3(),
+        })
+    }
 }
 
 #[cfg(test)]
@@ -249,6 +308,45 @@ mod tests {
                 hits += 1;
             } else {
                 misses += 1;
+            }
+        }
+        assert!(hits > 100 && misses > 100, "{hits} hits, {misses} misses");
+    }
+
+    /// Closest hits against testing every triangle: the same triangle, distance and barycentrics, over random
+    /// rays through a cloud of random triangles; ids name the input order, with a degenerate triangle dropped.
+    #[test]
+    fn closest_hit_matches_testing_every_triangle() {
+        let mut rng = crate::rng::SplitMix64::new(4);
+        let mut point = || Vec3::new(rng.unit() as f32, rng.unit() as f32, rng.unit() as f32) * 10.0;
+        let mut vertices: Vec<Vec3> = (0..300).map(|_| point()).collect();
+        vertices.extend([Vec3::ZERO, Vec3::X, Vec3::X * 2.0]);
+        let mut triangles: Vec<[u32; 3]> = vec![[300, 301, 302]];
+        triangles.extend((0..100).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]));
+        let bvh = TriangleBvh::new(&vertices, &triangles).unwrap();
+        let (mut hits, mut misses) = (0, 0);
+        for _ in 0..2000 {
+            let (from, to) = (point(), point());
+            let ray = Ray::new(from, to - from, 0.0, 2.0);
+            let (o, d) = (from.as_dvec3(), (to - from).as_dvec3());
+            let nearest = triangles
+                .iter()
+                .enumerate()
+                .filter_map(|(k, t)| {
+                    let t = t.map(|i| vertices[i as usize].as_dvec3());
+                    triangle_hit(&t, o, d, 0.0, 2.0).map(|h| (k, h))
+                })
+                .min_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+            match (bvh.intersect(&ray), nearest) {
+                (None, None) => misses += 1,
+                (Some(hit), Some((k, (t, u, v)))) => {
+                    hits += 1;
+                    assert_eq!(hit.primitive as usize, k);
+                    assert_eq!((hit.t, hit.barycentric), (t as f32, [u as f32, v as f32]));
+                    let [p0, p1, p2] = triangles[k].map(|i| vertices[i as usize]);
+                    assert!((hit.normal - (p1 - p0).cross(p2 - p0).normalize()).length() < 1e-6);
+                }
+                (got, want) => panic!("{ray:?}: {got:?} vs {want:?}"),
             }
         }
         assert!(hits > 100 && misses > 100, "{hits} hits, {misses} misses");

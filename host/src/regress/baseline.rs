@@ -163,17 +163,15 @@ pub fn read_baseline(path: &Path) -> Result<Baseline, RegressError> {
         .map_err(|e| RegressError::BadBaseline { path: path.into(), message: e.to_string() })
 }
 
-/// Writes a baseline file (pretty JSON, trailing newline), creating its folder.
+/// Writes a baseline file (pretty JSON, trailing newline) atomically ([`crate::files::write_atomic`]); its
+/// folder must exist ([`crate::files`] policy).
 ///
 /// # Errors
 /// [`RegressError::Io`].
 pub fn write_baseline(path: &Path, baseline: &Baseline) -> Result<(), RegressError> {
-    let io = |e: std::io::Error| RegressError::Io { path: path.into(), message: e.to_string() };
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(io)?;
-    }
     let mut text = serde_json::to_string_pretty(baseline)
         .map_err(|e| RegressError::Io { path: path.into(), message: e.to_string() })?;
     text.push('\n');
-    std::fs::write(path, text).map_err(io)
+    crate::files::write_atomic(path, text.as_bytes())
+        .map_err(|e| RegressError::Io { path: path.into(), message: e.to_string() })
 }

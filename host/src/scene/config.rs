@@ -75,8 +75,14 @@ pub(super) fn check_meshing(file: &Path, m: Option<&TomlMeshing>) -> Result<Mesh
     let patch_budget = match m.patch_budget {
         None => None,
         Some(b) => match usize::try_from(b) {
-            Ok(b) if b >= 1 => Some(b),
-            _ => return Err(invalid(format!("meshing.patch_budget = {b} must be at least 1"))),
+            Ok(b) if (1..=crate::limits::MAX_PATCHES).contains(&b) => Some(b),
+            _ => {
+                return Err(invalid(format!(
+                    "meshing.patch_budget = {b} must be between 1 and {} (form factors cost time and memory \
+                     growing with its square)",
+                    crate::limits::MAX_PATCHES
+                )))
+            }
         },
     };
     let refine_passes = match m.refine_passes {

@@ -9,17 +9,35 @@ use std::path::PathBuf;
 pub struct SceneWarning {
     /// File the warning is about.
     pub file: PathBuf,
-    /// Line in that file (1-based).
-    pub line: usize,
-    /// Face index in OBJ order.
-    pub face: usize,
+    /// Line in that file (1-based), if it is about one line.
+    pub line: Option<usize>,
+    /// Face index in OBJ order, if it is about one face.
+    pub face: Option<usize>,
     /// What happened.
     pub message: String,
 }
 
 impl fmt::Display for SceneWarning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}:{}: face {}: {}", self.file.display(), self.line, self.face, self.message)
+        write!(f, "{}", self.file.display())?;
+        if let Some(line) = self.line {
+            write!(f, ":{line}")?;
+        }
+        if let Some(face) = self.face {
+            write!(f, ": face {face}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+/// A length (or any value in scene units) for a message: four decimals for lengths from 1e-3 to 1e6, four
+/// significant digits in scientific notation otherwise (so a scene in tiny or huge units does not print 0.0000).
+#[must_use]
+pub(crate) fn length(value: f64) -> String {
+    if value == 0.0 || (1e-3..1e6).contains(&value.abs()) {
+        format!("{value:.4}")
+    } else {
+        format!("{value:.4e}")
     }
 }
 
@@ -109,9 +127,9 @@ pub enum SceneError {
     },
     /// A face is further from planar than [`NON_PLANAR_LIMIT`](super::NON_PLANAR_LIMIT) allows.
     #[error(
-        "{}:{line}: face {face}: non-planar face: a vertex is {deviation:.4} from the face's mean plane, more than \
-         the limit {limit:.4} (1% of the face diameter)",
-        file.display()
+        "{}:{line}: face {face}: non-planar face: a vertex is {} from the face's mean plane, more than \
+         the limit {} (1% of the face diameter)",
+        file.display(), length(*deviation), length(*limit)
     )]
     NonPlanarFace {
         /// The OBJ file.
@@ -144,6 +162,16 @@ pub enum SceneError {
         line_b: usize,
         /// Area of the intersection, in scene units squared.
         area: f64,
+    },
+    /// The scene's size or position is outside the range supported (see
+    /// [`MIN_SCENE_SIZE`](super::MIN_SCENE_SIZE), [`MAX_SCENE_SIZE`](super::MAX_SCENE_SIZE),
+    /// [`MAX_ORIGIN_DISTANCE`](super::MAX_ORIGIN_DISTANCE)).
+    #[error("{}: {problem}", file.display())]
+    Extent {
+        /// The OBJ file.
+        file: PathBuf,
+        /// What is out of range, by how much, and what to do.
+        problem: String,
     },
     /// The TOML file does not parse.
     #[error("{}: {message}", file.display())]

@@ -21,7 +21,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::error::{SceneError, SceneWarning};
+use super::error::{length, SceneError, SceneWarning};
 use super::material::Material;
 use super::obj::ObjData;
 use super::polygon::{diameter, newell, Polygon};
@@ -199,12 +199,14 @@ fn build_face(
         }
         warnings.push(SceneWarning {
             file: file.to_path_buf(),
-            line,
-            face: index,
+            line: Some(line),
+            face: Some(index),
             message: format!(
-                "non-planar face (a vertex is {deviation:.4} from the mean plane, {:.3}% of the face diameter \
-                 {d:.4}; planar means <= {PLANAR_TOLERANCE:e} of it) split into {} triangles",
+                "non-planar face (a vertex is {} from the mean plane, {:.3}% of the face diameter {}; planar \
+                 means <= {PLANAR_TOLERANCE:e} of it) split into {} triangles",
+                length(deviation),
                 100.0 * deviation / d,
+                length(d),
                 tris.len()
             ),
         });

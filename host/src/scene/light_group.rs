@@ -6,8 +6,10 @@ use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use super::config::TomlGroup;
-use super::error::SceneError;
+use super::error::{SceneError, SceneWarning};
+use super::face::Face;
 use super::material::Material;
+use super::obj::ObjData;
 use crate::rgb::Rgb;
 
 /// A light group: emitting materials whose intensity changes together.
@@ -103,4 +105,45 @@ pub(super) fn build_light_groups(
         }
     }
     Ok(out)
+}
+
+/// Warnings about light that the scene cannot emit: a light group none of whose materials any face uses (it would
+/// light nothing, whatever its intensity), and a scene with no emitting face at all (every radiosity is 0).
+pub(super) fn light_warnings(
+    obj: &ObjData,
+    groups: &[LightGroup],
+    materials: &[Material],
+    faces: &[Face],
+) -> Vec<SceneWarning> {
+    let used: HashSet<usize> = faces.iter().map(|f| f.material).collect();
+    let mut warnings = Vec::new();
+    for g in groups {
+        if g.materials.iter().any(|m| used.contains(m)) {
+            continue;
+        }
+        let names: Vec<String> = g.materials.iter().map(|&m| format!("'{}'", materials[m].name)).collect();
+        // Name the MTL file and line of the group's first material, where the user defined the emitter.
+        let source = materials.get(g.materials[0]).and_then(|m| obj.sources.get(&m.name));
+        warnings.push(SceneWarning {
+            file: source.map_or_else(|| obj.file.clone(), |s| s.file.clone()),
+            line: source.map(|s| s.newmtl_line),
+            face: None,
+            message: format!(
+                "light group '{}' has no faces: no face uses its emitting material{} {}, so it lights nothing",
+                g.name,
+                if names.len() == 1 { "" } else { "s" },
+                names.join(", ")
+            ),
+        });
+    }
+    if !faces.iter().any(|f| materials[f.material].is_emitter()) {
+        warnings.push(SceneWarning {
+            file: obj.file.clone(),
+            line: None,
+            face: None,
+            message: "no face emits light (no face's material has a nonzero Ke): every radiosity is 0"
+                .to_owned(),
+        });
+    }
+    warnings
 }

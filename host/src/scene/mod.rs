@@ -30,7 +30,10 @@
 //! missing or unreadable file, an OBJ/MTL/TOML syntax error, a face without a defined material, a reflectance
 //! outside `[0, 1)`, a negative or non-finite value, a face with fewer than three vertices, non-finite or
 //! repeated vertices or zero area (degenerate), a non-convex face, a face too far from planar, and coplanar faces
-//! that overlap with positive area (duplicates included). Nothing in this module panics on any input. The
+//! that overlap with positive area (duplicates included), and a scene whose size or distance from the origin is
+//! outside the supported range (`extent`: [`MIN_SCENE_SIZE`], [`MAX_SCENE_SIZE`], [`MAX_ORIGIN_DISTANCE`]).
+//! It warns ([`Scene::warnings`]) about a non-planar face split into triangles, a light group whose materials no
+//! face uses, and a scene in which no face emits. Nothing in this module panics on any input. The
 //! tolerances are relative to each face's size ([`PLANAR_TOLERANCE`], [`NON_PLANAR_LIMIT`],
 //! [`DEGENERATE_TOLERANCE`], [`OVERLAP_TOLERANCE`]; the reasoning behind each is in the submodule that uses it).
 //!
@@ -42,14 +45,17 @@
 //! - `material`: [`Material`]s checked (`Kd`, `Ke`).
 //! - `face`: [`Face`]s built and checked (degenerate, convex, planar or split into a fan), with the face
 //!   tolerances.
+//! - `extent`: the scene's size and position against the supported range.
 //! - `overlap`: the coplanar-overlap check between faces.
 //! - `config`: the `NAME.toml` file and its [`MeshingLimits`].
-//! - `light_group`: [`LightGroup`]s from the TOML file and the emitting materials.
+//! - `light_group`: [`LightGroup`]s from the TOML file and the emitting materials, and the warnings about light
+//!   that cannot be emitted.
 //!
 //! This module depends on no later stage: meshing ([`crate::mesh`]) reads the scene, never the other way.
 
 mod config;
 mod error;
+mod extent;
 mod face;
 mod light_group;
 mod material;
@@ -60,7 +66,9 @@ mod polygon;
 use std::path::{Path, PathBuf};
 
 pub use config::{MeshingLimits, MAX_REFINE_PASSES};
+pub(crate) use error::length;
 pub use error::{SceneError, SceneWarning};
+pub use extent::{MAX_ORIGIN_DISTANCE, MAX_SCENE_SIZE, MIN_SCENE_SIZE};
 pub use face::{Face, DEGENERATE_TOLERANCE, NON_PLANAR_LIMIT, PLANAR_TOLERANCE};
 pub use light_group::LightGroup;
 pub use material::Material;
@@ -68,8 +76,9 @@ pub use overlap::OVERLAP_TOLERANCE;
 pub use polygon::Polygon;
 
 use config::{check_meshing, parse_config, TomlScene};
+use extent::check_extent;
 use face::build_faces;
-use light_group::build_light_groups;
+use light_group::{build_light_groups, light_warnings};
 use material::check_materials;
 use obj::{load_obj, read_text};
 use overlap::check_overlaps;
@@ -88,7 +97,8 @@ pub struct Scene {
     pub light_groups: Vec<LightGroup>,
     /// Meshing limits from the TOML file.
     pub meshing: MeshingLimits,
-    /// Problems that did not stop loading (e.g. non-planar faces split into triangles). Not printed here.
+    /// Problems that did not stop loading (non-planar faces split into triangles, light groups without faces, no
+    /// emitting face). Not printed here: the command line prints them on stderr.
     pub warnings: Vec<SceneWarning>,
 }
 
@@ -114,6 +124,7 @@ impl Scene {
         let materials = check_materials(&obj)?;
         let mut warnings = Vec::new();
         let faces = build_faces(obj_path, &obj, &materials, &mut warnings)?;
+        check_extent(obj_path, &faces)?;
         check_overlaps(obj_path, &faces)?;
         let settings = match toml_path {
             Some(p) => parse_config(p, &read_text(p)?)?,
@@ -122,6 +133,7 @@ impl Scene {
         let toml_file = toml_path.map_or_else(|| obj_path.with_extension("toml"), Path::to_path_buf);
         let meshing = check_meshing(&toml_file, settings.meshing.as_ref())?;
         let light_groups = build_light_groups(&toml_file, &settings.light_group, &materials)?;
+        warnings.extend(light_warnings(&obj, &light_groups, &materials, &faces));
         Ok(Scene { path: obj_path.to_path_buf(), faces, materials, light_groups, meshing, warnings })
     }
 

@@ -1,6 +1,7 @@
 //! The bench's outputs: `REPORT.md`, `curves.csv` (one row per curve point), `growth.csv`, and per scene three
 //! plots (error against work units, model instructions and wall time), each as SVG and PNG.
 
+use crate::files::write_atomic;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -19,6 +20,16 @@ pub const CSV_HEADER: &str =
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> BenchError + '_ {
     move |source| BenchError::Io { path: path.to_path_buf(), source }
+}
+
+/// [`BenchError::Io`] from a failed [`write_atomic`] of `path`.
+fn written(path: &Path) -> impl Fn(crate::files::FileError) -> BenchError + '_ {
+    move |e| match e {
+        crate::files::FileError::Io { source, .. } => BenchError::Io { path: path.to_path_buf(), source },
+        other => {
+            BenchError::Io { path: path.to_path_buf(), source: std::io::Error::other(other.to_string()) }
+        }
+    }
 }
 
 fn opt<T: std::fmt::Display>(v: Option<T>) -> String {
@@ -141,14 +152,14 @@ fn plots(results: &BenchResults, out: &Path, scene: &str) -> Result<Vec<String>,
     Ok(files)
 }
 
-/// Writes every output into `out` (created if needed).
+/// Writes every output into `out` (created if needed), each file atomically ([`write_atomic`]).
 ///
 /// # Errors
 /// If a file cannot be written or a plot cannot be drawn.
 pub fn write(results: &BenchResults, out: &Path) -> Result<(), BenchError> {
     std::fs::create_dir_all(out).map_err(io(out))?;
     let csv = out.join("curves.csv");
-    std::fs::write(&csv, curves_csv(&results.curves)).map_err(io(&csv))?;
+    write_atomic(&csv, curves_csv(&results.curves).as_bytes()).map_err(written(&csv))?;
     let mut g = String::from(
         "patches,form_factor_seconds,bake_seconds,nonzeros,table_entries,table_bytes,work_to_1pct_shooting_f32_16\n",
     );
@@ -156,14 +167,14 @@ pub fn write(results: &BenchResults, out: &Path) -> Result<(), BenchError> {
         let _ = writeln!(g, "{}", growth_cells(r, 4).join(","));
     }
     let growth = out.join("growth.csv");
-    std::fs::write(&growth, g).map_err(io(&growth))?;
+    write_atomic(&growth, g.as_bytes()).map_err(written(&growth))?;
     let mut plot_files = Vec::new();
     for s in &results.scenes {
         plot_files.push((s.name.clone(), plots(results, out, &s.name)?));
     }
     let md = markdown(results, &plot_files);
     let path = out.join("REPORT.md");
-    std::fs::write(&path, md).map_err(io(&path))?;
+    write_atomic(&path, md.as_bytes()).map_err(written(&path))?;
     Ok(())
 }
 

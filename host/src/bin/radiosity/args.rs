@@ -10,6 +10,7 @@ use radiosity_host::bake;
 use radiosity_host::bench::BenchOptions;
 use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
+use radiosity_host::montecarlo::{self, ReferenceOptions, SampleCount};
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
@@ -46,7 +47,7 @@ pub struct CheckArgs {
     /// Work units per frame.
     #[arg(long, value_name = "UNITS", default_value_t = CheckOptions::default().budget)]
     pub budget: u32,
-    /// Frames per light setting (default: run each setting to convergence).
+    /// Frames per light setting, at most 100000 (default: run each setting to convergence).
     #[arg(long, value_name = "N")]
     pub frames: Option<usize>,
     /// Arithmetic paths of the device solver.
@@ -58,14 +59,30 @@ pub struct CheckArgs {
     /// Solver tolerance as a fraction of the largest per-channel emitted power.
     #[arg(long, default_value_t = CheckOptions::default().tolerance)]
     pub tolerance: f64,
-    /// The form-factor component's reference matrix uses this many times the samples and rays (1: skip).
+    /// The form-factor component's reference matrix uses this many times the samples and rays (1: skip; at
+    /// most 64).
     #[arg(long, value_name = "K", default_value_t = CheckOptions::default().ff_factor)]
     pub ff_factor: usize,
     /// Slack on row sums of the shooting form `A_j F_ji / A_i` above 1 in the f64 solves (estimated form factors
     /// are not exactly reciprocal).
     #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
     pub row_sum_tolerance: f64,
+    /// Add the discretization component: path trace the continuous scene (as `radiosity reference`) and
+    /// compare the mesh's f64 answer with it per OBJ face. Costs seconds, so it is off by default.
+    #[arg(long)]
+    pub continuous: bool,
+    /// With --continuous: the reference's relative standard error per face.
+    #[arg(long, value_name = "X", requires = "continuous", conflicts_with = "reference_samples",
+          default_value_t = CHECK_REFERENCE_SE)]
+    pub reference_se: f64,
+    /// With --continuous: paths per face for the reference instead of a target standard error (at most 2^30).
+    #[arg(long, value_name = "N", requires = "continuous")]
+    pub reference_samples: Option<u64>,
 }
+
+/// Default relative standard error of `check --continuous`'s reference: well below the percent-level
+/// differences the discretization component is meant to show.
+pub const CHECK_REFERENCE_SE: f64 = 0.002;
 
 /// `--arith` values: one arithmetic path, or both.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -91,9 +108,22 @@ impl ArithArg {
 }
 
 impl CheckArgs {
-    /// The [`CheckOptions`] these arguments select.
+    /// The [`CheckOptions`] these arguments select (the continuous reference runs on `scene`'s threads, with
+    /// its progress bar unless `--quiet`).
     #[must_use]
-    pub fn options(&self) -> CheckOptions {
+    pub fn options(&self, scene: &SceneArgs) -> CheckOptions {
+        let continuous = self.continuous.then(|| ReferenceOptions {
+            samples: match self.reference_samples {
+                Some(n) => SampleCount::PerFace(n),
+                None => SampleCount::TargetRelative {
+                    target: self.reference_se,
+                    max_samples: montecarlo::DEFAULT_MAX_SAMPLES,
+                },
+            },
+            threads: scene.threads,
+            progress: !scene.quiet,
+            ..ReferenceOptions::default()
+        });
         CheckOptions {
             bits: self.bits,
             codec: None,
@@ -105,6 +135,7 @@ impl CheckArgs {
             tolerance: self.tolerance,
             ff_factor: self.ff_factor,
             row_sum_tolerance: self.row_sum_tolerance,
+            continuous,
         }
     }
 }
@@ -148,10 +179,10 @@ pub struct BenchArgs {
     /// Small scenes and one repetition: checks that the report is produced (seconds, not minutes).
     #[arg(long)]
     pub quick: bool,
-    /// Output folder for REPORT.md, the CSV files and the plots.
+    /// Output folder for REPORT.md, the CSV files and the plots (created, with its parents, if missing).
     #[arg(long, default_value = "bench")]
     pub out: PathBuf,
-    /// Repetitions of every timed run (default: 3, or 1 with --quick).
+    /// Repetitions of every timed run, 1 to 100 (default: 3, or 1 with --quick).
     #[arg(long, value_name = "N")]
     pub reps: Option<usize>,
 }
@@ -200,7 +231,8 @@ pub enum Command {
     Bake {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output table file (.rft).
+        /// Output table file (.rft); its folder must exist. Written atomically, as every output file (a
+        /// temporary file beside it, renamed over it when complete).
         #[arg(short, long, value_name = "TABLE")]
         output: PathBuf,
         /// Bits per form-factor code: 16 (small float, relative error < 2^-12) or 8 (< 2^-5).
@@ -232,7 +264,7 @@ pub enum Command {
     /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
     /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
     Demo {
-        /// Folder for the outputs.
+        /// Folder for the outputs (created, with its parents, if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
@@ -258,6 +290,14 @@ pub enum Command {
         #[arg(long, value_name = "E")]
         epsilon: Option<f64>,
     },
+    /// Path trace the continuous scene (no mesh) and print every OBJ face's area-averaged radiosity with its
+    /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.
+    ///
+    /// Next-event estimation to the emitters and cosine-weighted bounces, combined by multiple importance
+    /// sampling, with Russian roulette (method: the `montecarlo` module docs). `--format csv` prints
+    /// `face,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b,se_r,se_g,se_b,samples`. Deterministic for a seed,
+    /// whatever `--threads`.
+    Reference(ReferenceArgs),
     /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
     /// patch to show the mesh). Prints the output path.
     Render {
@@ -267,19 +307,19 @@ pub enum Command {
         /// Default: the published Cornell camera for scenes named cornell-box*, else a view of the bounding box.
         #[arg(long, allow_hyphen_values = true)]
         camera: Option<String>,
-        /// Image width in pixels.
+        /// Image width in pixels (at most 16384, and 4096 x 4096 pixels in all).
         #[arg(long, default_value_t = 512)]
         width: u32,
-        /// Image height in pixels.
+        /// Image height in pixels (at most 16384, and 4096 x 4096 pixels in all).
         #[arg(long, default_value_t = 512)]
         height: u32,
         /// What the picture shows.
         #[arg(long, value_enum, default_value_t = RenderModeArg::Shaded)]
         mode: RenderModeArg,
-        /// Table for `--mode error` (baked from SCENE with the same meshing options; default: bake one).
+        /// Table for `--mode error` only (baked from SCENE with the same meshing options; default: bake one).
         #[arg(long, value_name = "TABLE")]
         table: Option<PathBuf>,
-        /// Output PNG file.
+        /// Output PNG file; its folder must exist.
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -305,16 +345,19 @@ pub enum Command {
         /// Also build the Cortex-M4 firmware and run it under QEMU (needs `make deps`).
         #[arg(long)]
         qemu: bool,
-        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png.
+        /// Render the f32 device answer of every frame of the first selected script to DIR/SCRIPT-NNNN.png (DIR
+        /// is created, with its parents, if missing).
         #[arg(long, value_name = "DIR")]
         frames: Option<PathBuf>,
-        /// Size of the frame pictures (pixels, square).
+        /// Size of the frame pictures (pixels, square; at most 4096).
         #[arg(long, default_value_t = 256)]
         frame_size: u32,
-        /// Write the per-frame rows as CSV to FILE.
+        /// Write the per-frame rows as CSV to FILE (its folder must exist).
         #[arg(long, value_name = "FILE")]
         csv: Option<PathBuf>,
-        /// Plot error against cumulative work units per script to STEM.svg and STEM.png.
+        /// Plot error against cumulative work units per script to STEM.svg and STEM.png (their folder must
+        /// exist; frames with every light off, whose relative error is undefined, are left out and counted in the
+        /// legend).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
         /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
@@ -326,7 +369,7 @@ pub enum Command {
     Lightmap {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output path without extension.
+        /// Output path without extension (its folder must exist).
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
     },
@@ -344,7 +387,8 @@ pub enum Command {
         table_scene: Option<PathBuf>,
         #[command(flatten)]
         check: CheckArgs,
-        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png.
+        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png
+        /// (their folder must exist).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
         /// Output format (`text` or `json`).
@@ -366,6 +410,59 @@ pub enum Command {
     /// Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
     /// CSV files and plots into the output folder. Run it from a release build.
     Bench(BenchArgs),
+}
+
+/// Command-line options of `radiosity reference`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct ReferenceArgs {
+    /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
+    pub scene: PathBuf,
+    /// Paths per face (instead of a target standard error), at most 2^30.
+    #[arg(long, value_name = "N", conflicts_with_all = ["target_se", "max_samples"])]
+    pub samples: Option<u64>,
+    /// Relative standard error to reach on every face (its worst channel); paths are added in rounds until
+    /// every face reaches it or has `--max-samples` [default: 0.01].
+    #[arg(long, value_name = "X")]
+    pub target_se: Option<f64>,
+    /// Most paths per face with a target standard error, at most 2^30.
+    #[arg(long, value_name = "N", default_value_t = montecarlo::DEFAULT_MAX_SAMPLES)]
+    pub max_samples: u64,
+    /// Seed of the random numbers; equal seeds give identical results on any thread count.
+    #[arg(long, default_value_t = ReferenceOptions::default().seed)]
+    pub seed: u64,
+    /// Worker threads, at most 1024 (default: all cores).
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Output format (`text`: a table and a summary; `csv`: one row per face; `json`: everything).
+    #[arg(long, value_enum, default_value_t = Format::Text)]
+    pub format: Format,
+    /// Write the output to FILE (its folder must exist) instead of standard output.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// No progress bar or summary on stderr.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl ReferenceArgs {
+    /// The library's options these arguments select.
+    #[must_use]
+    pub fn options(&self) -> ReferenceOptions {
+        let samples = match self.samples {
+            Some(n) => SampleCount::PerFace(n),
+            None => SampleCount::TargetRelative {
+                target: self.target_se.unwrap_or(montecarlo::DEFAULT_TARGET),
+                max_samples: self.max_samples,
+            },
+        };
+        ReferenceOptions {
+            samples,
+            seed: self.seed,
+            threads: self.threads,
+            progress: !self.quiet,
+            ..ReferenceOptions::default()
+        }
+    }
 }
 
 /// `render --mode`.
@@ -392,19 +489,19 @@ pub struct SceneArgs {
     /// extent).
     #[arg(long, value_name = "LENGTH")]
     pub max_patch_edge: Option<f64>,
-    /// Most patches the mesh may have (default: the scene's TOML, or 4096).
+    /// Most patches the mesh may have, at most 16384 (default: the scene's TOML, or 4096).
     #[arg(long, value_name = "N")]
     pub max_patches: Option<usize>,
-    /// Sample points on each patch for the form-factor integral.
+    /// Sample points on each patch for the form-factor integral (1 to 1024).
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
     pub samples: usize,
-    /// Occlusion rays per patch pair.
+    /// Occlusion rays per patch pair (1 to 16384).
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().rays_per_pair)]
     pub rays: usize,
     /// Seed of the form-factor sampling; equal seeds give identical results on any thread count.
     #[arg(long, default_value_t = FormFactorOptions::default().seed)]
     pub seed: u64,
-    /// Worker threads (default: all cores).
+    /// Worker threads, at most 1024 (default: all cores).
     #[arg(long, value_name = "N")]
     pub threads: Option<usize>,
     /// No progress bar or stage summaries on stderr.

@@ -1,12 +1,13 @@
 //! The `radiosity` command-line tool: bake scenes into tables, solve them exactly, and check the device.
 
 use std::io::{self, BufWriter, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::Parser;
 use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
 use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
+use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON};
 use radiosity_host::inspect::inspect_file;
@@ -40,6 +41,51 @@ fn main() -> ExitCode {
 }
 
 type BoxError = Box<dyn std::error::Error>;
+
+/// Checks the options every scene command shares against their limits ([`radiosity_host::limits`]), before any
+/// work.
+fn check_scene_args(scene: &args::SceneArgs) -> Result<(), BoxError> {
+    use radiosity_host::limits::{check_count, MAX_PATCHES, MAX_RAYS, MAX_SAMPLES, MAX_THREADS};
+    if let Some(n) = scene.max_patches {
+        check_count(
+            "--max-patches",
+            n,
+            MAX_PATCHES,
+            "form factors cost time and memory growing with its square",
+        )?;
+    }
+    check_count("--samples", scene.samples, MAX_SAMPLES, "kernel evaluations per pair of patches")?;
+    check_count("--rays", scene.rays, MAX_RAYS, "occlusion rays per pair of patches")?;
+    if let Some(t) = scene.threads {
+        check_count("--threads", t, MAX_THREADS, "worker threads")?;
+    }
+    if let Some(e) = scene.max_patch_edge {
+        if !(e.is_finite() && e > 0.0) {
+            return Err(format!("--max-patch-edge {e}: must be a positive length").into());
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every file in `paths` can be written ([`files::check_output_file`]), before any work.
+fn check_outputs<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) -> Result<(), BoxError> {
+    for path in paths {
+        files::check_output_file(path.as_ref())?;
+    }
+    Ok(())
+}
+
+/// The files of a plot written to `stem` ([`radiosity_host::picture::plot::Plot::write`]).
+fn plot_files(stem: &Path) -> [PathBuf; 2] {
+    [stem.with_extension("svg"), stem.with_extension("png")]
+}
+
+/// Reads the table at `path` and validates it with the device's parser, before any work.
+fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
+    let bytes = std::fs::read(path).map_err(|e| format!("reading table {}: {e}", path.display()))?;
+    radiosity_core::Table::parse(&bytes).map_err(|e| format!("table {}: {e}", path.display()))?;
+    Ok(bytes)
+}
 
 /// `radiosity solve --method hierarchical`: the leaves' patch table (CSV), or the statistics and mean radiosity
 /// (text; JSON adds the radiosity per leaf).
@@ -99,11 +145,45 @@ fn solve_hierarchical_command(
     Ok(())
 }
 
+/// `radiosity reference`: the continuous reference of a scene, to stdout or `--output`.
+fn reference_command(args: &args::ReferenceArgs) -> Result<(), BoxError> {
+    let options = args.options();
+    // Bad options are reported before the scene is loaded or a ray is cast.
+    radiosity_host::montecarlo::validate_options(&options)?;
+    check_outputs(&args.output)?;
+    let scene = Scene::load(&args.scene)?;
+    if !args.quiet {
+        for w in &scene.warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    let reference = radiosity_host::montecarlo::continuous_reference(&scene, &options)
+        .map_err(|e| format!("{}: {e}", args.scene.display()))?;
+    if !args.quiet {
+        eprintln!("{}: {}", args.scene.display(), reference.summary());
+    }
+    let mut text = Vec::new();
+    match args.format {
+        Format::Text => write!(text, "{reference}")?,
+        Format::Csv => reference.write_csv(&mut text)?,
+        Format::Json => {
+            serde_json::to_writer_pretty(&mut text, &reference)?;
+            writeln!(text)?;
+        }
+    }
+    match &args.output {
+        Some(path) => files::write_atomic(path, &text)?,
+        None => io::stdout().lock().write_all(&text)?,
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<(), BoxError> {
     let stdout = io::stdout();
     let mut out = BufWriter::new(stdout.lock());
     match cli.command {
         Command::Formfactors { scene, format } => {
+            check_scene_args(&scene)?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             match format {
                 Format::Csv => {
@@ -155,9 +235,16 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
         }
         Command::Bake { scene, output, bits, threshold, transfer, format } => {
+            check_scene_args(&scene)?;
+            codec_for_bits(bits)?;
+            if !(0.0..1.0).contains(&threshold) {
+                return Err(radiosity_host::bake::BakeError::BadThreshold(threshold).into());
+            }
+            check_outputs([output.clone(), with_suffix(&output, ".capacities.json")])?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
         }
+        Command::Reference(args) => reference_command(&args)?,
         Command::Inspect { table, format } => {
             let report = inspect_file(&table)?;
             match format {
@@ -168,18 +255,29 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 Format::Text | Format::Csv => writeln!(out, "{report}")?,
             }
         }
-        Command::Demo { out: dir } => demo(&dir, &mut out)?,
+        Command::Demo { out: dir } => {
+            files::check_output_folder(&dir)?;
+            files::create_output_folder(&dir)?;
+            demo(&dir, &mut out)?;
+        }
         Command::Bench(args) => {
+            if let Some(reps) = args.reps {
+                use radiosity_host::limits::{check_count, MAX_REPS};
+                check_count("--reps", reps, MAX_REPS, "repetitions of every timed run")?;
+            }
+            files::check_output_folder(&args.out)?;
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
         Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon } => {
+            check_scene_args(&scene)?;
             solve_hierarchical_command(&scene, format, epsilon, &mut out)?;
         }
         Command::Solve { scene, format, method: SolveMethod::Flat, epsilon } => {
             if epsilon.is_some() {
                 return Err("--epsilon applies to --method hierarchical only".into());
             }
+            check_scene_args(&scene)?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let l = &p.lighting;
             let tv = exact_transfer(l, &p.form_factors, &Method::for_size(p.patches.len()))?;
@@ -226,14 +324,28 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
         }
         Command::Render { scene, camera, width, height, mode, table, output } => {
+            check_scene_args(&scene)?;
+            radiosity_host::limits::check_image_size("--width/--height", width, height)?;
+            let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
+            if table.is_some() && !matches!(mode, RenderModeArg::Error) {
+                return Err(
+                    "--table applies to --mode error only (shaded and patches pictures show the f64 \
+                            solve of the scene)"
+                        .into(),
+                );
+            }
+            let table = table.as_deref().map(read_table).transpose()?;
+            check_outputs([&output])?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let exact = view::solve_default(&p)?;
-            let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
             let (b, mode) = match mode {
                 RenderModeArg::Shaded => (exact.clone(), view::RenderMode::Shaded),
                 RenderModeArg::Patches => (exact.clone(), view::RenderMode::Patches),
                 RenderModeArg::Error => {
-                    let bytes = table_bytes(&p, table.as_deref())?;
+                    let bytes = match table {
+                        Some(bytes) => bytes,
+                        None => table_bytes(&p, None)?,
+                    };
                     let intensity: Vec<[f32; 3]> =
                         p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
                     let b = relight::device_answer(&bytes, &intensity)?;
@@ -245,23 +357,53 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             writeln!(out, "{}", output.display())?;
         }
         Command::Relight { scene, table, scripts, script, qemu, frames, frame_size, csv, plot, format } => {
-            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            check_scene_args(&scene)?;
             let scripts = scripts.unwrap_or_else(|| scene.scene.with_extension("relight.toml"));
-            let (table_path, _temp) = match table {
-                Some(t) => (t, None),
+            let loaded = firmware_sim::script::ScriptFile::load(&scripts)
+                .map_err(|e| format!("relight scripts {}: {e}", scripts.display()))?;
+            if let Some(name) = &script {
+                if !loaded.scripts.iter().any(|s| &s.name == name) {
+                    let names: Vec<&str> = loaded.scripts.iter().map(|s| s.name.as_str()).collect();
+                    return Err(format!(
+                        "relight scripts {}: no script named {name:?} (the file has: {})",
+                        scripts.display(),
+                        names.join(", ")
+                    )
+                    .into());
+                }
+            }
+            let table = table.map(|t| read_table(&t).map(|bytes| (t, bytes))).transpose()?;
+            if frames.is_some() {
+                radiosity_host::limits::check_image_size("--frame-size", frame_size, frame_size)?;
+            }
+            if let Some(dir) = &frames {
+                files::check_output_folder(dir)?;
+            }
+            check_outputs(csv.iter().cloned().chain(plot.iter().flat_map(|stem| plot_files(stem))))?;
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            let (table_path, bytes, _temp) = match table {
+                Some((path, bytes)) => (path, bytes, None),
                 None => {
                     let bytes = table_bytes(&p, None)?;
                     let path =
                         std::env::temp_dir().join(format!("radiosity-relight-{}.rft", std::process::id()));
-                    std::fs::write(&path, &bytes).map_err(|e| format!("writing {}: {e}", path.display()))?;
-                    (path.clone(), Some(TempFile(path)))
+                    files::write_atomic(&path, &bytes)?;
+                    (path.clone(), bytes, Some(TempFile(path)))
                 }
             };
-            let bytes =
-                std::fs::read(&table_path).map_err(|e| format!("reading {}: {e}", table_path.display()))?;
             let options =
                 relight::RelightOptions { only: script, qemu, ..relight::RelightOptions::default() };
             let report = relight::relight(&p, &bytes, &table_path, &scripts, &options)?;
+            // The results first, so that a failure writing an output file loses none of them.
+            match format {
+                Format::Text => write!(out, "{report}")?,
+                Format::Csv => write!(out, "{}", report.to_csv())?,
+                Format::Json => {
+                    serde_json::to_writer_pretty(&mut out, &report)?;
+                    writeln!(out)?;
+                }
+            }
+            out.flush()?;
             write_relight_outputs(
                 &p,
                 &report,
@@ -271,16 +413,10 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 plot.as_deref(),
                 &mut out,
             )?;
-            match format {
-                Format::Text => write!(out, "{report}")?,
-                Format::Csv => write!(out, "{}", report.to_csv())?,
-                Format::Json => {
-                    serde_json::to_writer_pretty(&mut out, &report)?;
-                    writeln!(out)?;
-                }
-            }
         }
         Command::Lightmap { scene, output } => {
+            check_scene_args(&scene)?;
+            check_outputs(["hdr", "png", "json"].map(|e| output.with_extension(e)))?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             for path in view::write_light_map(&p, &view::solve_default(&p)?, &output)? {
                 writeln!(out, "{}", path.display())?;
@@ -294,17 +430,21 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 )
                 .into());
             }
+            check_scene_args(&scene)?;
+            if let Some(stem) = &plot {
+                check_outputs(plot_files(stem))?;
+            }
             let report = match table_scene {
                 Some(obj) => radiosity_host::check::check_table_file(
                     &scene.scene,
                     &obj,
                     &scene.prepare_options(),
-                    &check.options(),
+                    &check.options(&scene),
                 )?,
                 None => radiosity_host::check::check_scene(
                     &scene.scene,
                     &scene.prepare_options(),
-                    &check.options(),
+                    &check.options(&scene),
                 )?,
             };
             match format {
@@ -319,6 +459,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
         }
         Command::Regress { regress, format } => {
+            if regress.update {
+                check_outputs([&regress.baseline])?;
+            }
             let report = radiosity_host::regress::run(&regress.options())?;
             match format {
                 Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
@@ -354,11 +497,8 @@ fn bake_to_files(
     let baked = bake(&input, &options)?;
     let evaluation = evaluate(&input, &baked, &EvaluateOptions::for_bake(p.patches.len(), &options))?;
     let summary = BakeSummary::new(&baked, &evaluation);
-    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-    }
     let write = |path: PathBuf, bytes: &[u8]| -> Result<PathBuf, BoxError> {
-        std::fs::write(&path, bytes).map_err(|e| format!("writing {}: {e}", path.display()))?;
+        files::write_atomic(&path, bytes)?;
         Ok(path)
     };
     let table = write(output.to_path_buf(), &baked.table)?;
@@ -416,7 +556,7 @@ fn write_relight_outputs(
         }
     }
     if let Some(path) = csv {
-        std::fs::write(path, report.to_csv()).map_err(|e| format!("writing {}: {e}", path.display()))?;
+        files::write_atomic(path, report.to_csv().as_bytes())?;
         writeln!(out, "{}", path.display())?;
     }
     if let Some(stem) = plot {

@@ -1,0 +1,143 @@
+//! The discretization component: the mesh's exact f64 answer, area-averaged per OBJ face, against the
+//! continuous path-traced reference of [`crate::montecarlo`], with the reference's standard error beside it.
+//!
+//! The f64 solve is exact for its own mesh, so every other component is measured against it; this one says how
+//! far that answer is from the scene itself (patches that average lit and hidden area, a mesh too coarse where
+//! light changes fast). The comparison is per face because the reference is: face `f`'s mesh answer is
+//! `sum_{p in f} A_p B_p / sum_{p in f} A_p` over its patches. Its metrics ([`metrics::compare`] over faces,
+//! weighted by face area) include the reference's noise: [`Discretization::noise_rel_l2`] is the relative L2
+//! of the reference's standard errors, what the component would read if the mesh were exact.
+
+use serde::Serialize;
+
+use super::{Component, EvaluateError};
+use crate::input::check_len;
+use crate::metrics::{self, MetricsError};
+use crate::montecarlo::ContinuousReference;
+use crate::patch::Patch;
+use crate::rgb::Rgb;
+
+/// Component name of [`discretization`], as reports show it.
+pub const DISCRETIZATION: &str = "discretization";
+
+/// One face's row: mesh answer, reference, difference, and the reference's standard error.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FaceDiscretization {
+    /// Index of the face in OBJ order.
+    pub face: usize,
+    /// Line of its `f` statement in the OBJ file.
+    pub line: usize,
+    /// Area of the face.
+    pub area: f64,
+    /// The mesh's f64 answer averaged over the face's patches (by area).
+    pub mesh: Rgb,
+    /// The continuous reference.
+    pub reference: Rgb,
+    /// `(mesh - reference) / reference` per channel (0 where both are 0; infinite, serialized as `null`, where
+    /// only the reference is 0).
+    pub relative_difference: Rgb,
+    /// The reference's standard error per channel.
+    pub reference_standard_error: Rgb,
+    /// The reference's relative standard error (largest over the channels with nonzero radiosity).
+    pub reference_relative_se: f64,
+}
+
+impl FaceDiscretization {
+    /// The channel with the largest `|relative difference|`, and that difference in standard errors of the
+    /// reference (infinite where the standard error is 0 and the difference is not).
+    #[must_use]
+    pub fn worst_channel(&self) -> (usize, f64) {
+        let c = (0..3)
+            .max_by(|&a, &b| self.relative_difference[a].abs().total_cmp(&self.relative_difference[b].abs()))
+            .unwrap_or(0);
+        let difference = (self.mesh[c] - self.reference[c]).abs();
+        let se = self.reference_standard_error[c];
+        let sigmas = if difference == 0.0 { 0.0 } else { difference / se };
+        (c, sigmas)
+    }
+}
+
+/// The discretization component with its per-face rows.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Discretization {
+    /// The component (metrics over faces: `patches` counts faces, `max_rel_patch` is a face index).
+    pub component: Component,
+    /// Per face, in OBJ order.
+    pub faces: Vec<FaceDiscretization>,
+    /// Area-weighted relative L2 of the reference's standard errors: the component's noise floor.
+    pub noise_rel_l2: f64,
+    /// The reference's own summary (paths, rays, time, target).
+    pub reference_summary: String,
+}
+
+/// Compares the mesh answer `b` (one value per patch of `patches`) with `continuous`, face by face.
+///
+/// # Errors
+/// [`EvaluateError::Metrics`] if `b` does not match `patches`, a patch names a face the reference does not
+/// have (patches and reference of different scenes), an answer is not finite, or a face has no patches.
+pub fn discretization(
+    patches: &[Patch],
+    b: &[Rgb],
+    continuous: &ContinuousReference,
+) -> Result<Discretization, EvaluateError> {
+    let faces = continuous.faces.len();
+    check_len("mesh answer", b, patches.len()).map_err(MetricsError::from)?;
+    let needed = patches.iter().map(|p| p.face + 1).max().unwrap_or(0).max(faces);
+    check_len("continuous reference faces", &continuous.faces, needed).map_err(MetricsError::from)?;
+    let mut sums = vec![(0.0, Rgb::ZERO); faces];
+    for (p, &v) in patches.iter().zip(b) {
+        let s = &mut sums[p.face];
+        s.0 += p.area;
+        s.1 += p.area * v;
+    }
+    let mesh: Vec<Rgb> = sums.iter().map(|&(a, s)| if a > 0.0 { s / a } else { Rgb::ZERO }).collect();
+    let reference: Vec<Rgb> = continuous.faces.iter().map(|f| f.radiosity).collect();
+    let area: Vec<f64> = sums.iter().map(|&(a, _)| a).collect();
+    let error = metrics::compare(&mesh, &reference, &area)?;
+    let rows: Vec<FaceDiscretization> = continuous
+        .faces
+        .iter()
+        .zip(&mesh)
+        .map(|(f, &m)| {
+            let relative = |c: usize| {
+                let (d, r) = (m[c] - f.radiosity[c], f.radiosity[c]);
+                if d == 0.0 {
+                    0.0
+                } else if r == 0.0 {
+                    f64::INFINITY
+                } else {
+                    d / r
+                }
+            };
+            FaceDiscretization {
+                face: f.face,
+                line: f.line,
+                area: f.area,
+                mesh: m,
+                reference: f.radiosity,
+                relative_difference: Rgb::new(relative(0), relative(1), relative(2)),
+                reference_standard_error: f.standard_error,
+                reference_relative_se: f.relative_standard_error,
+            }
+        })
+        .collect();
+    let (mut noise, mut magnitude) = (0.0, 0.0);
+    for f in &continuous.faces {
+        noise += f.area * f.standard_error.length_squared();
+        magnitude += f.area * f.radiosity.length_squared();
+    }
+    let noise_rel_l2 = if magnitude > 0.0 { (noise / magnitude).sqrt() } else { 0.0 };
+    Ok(Discretization {
+        component: Component {
+            name: DISCRETIZATION.into(),
+            compares:
+                "f64 mesh answer averaged per OBJ face vs the continuous path-traced reference (metrics over \
+                       faces; includes the reference's noise)"
+                    .into(),
+            error,
+        },
+        faces: rows,
+        noise_rel_l2,
+        reference_summary: continuous.summary(),
+    })
+}
