@@ -28,6 +28,7 @@ fn quick_bench_writes_a_well_formed_report() {
         "## Transfer basis",
         "## Bake throughput",
         "## Growth with the patch count",
+        "## Hierarchy against flat",
         "Fitted exponents",
         "## Conclusions",
     ] {
@@ -84,6 +85,17 @@ fn quick_bench_writes_a_well_formed_report() {
         for (_, r) in &s.roofline {
             assert!(r.shooting_entries > 0 && r.shooting_entries_per_s.is_finite());
             assert!(r.rounds >= 1 && r.shooting_over_stream > 0.0 && r.shooting_over_stream.is_finite());
+        }
+    }
+    // The hierarchy section: a hierarchical and a flat row, each judged by the continuous reference; the
+    // hierarchical one (few leaves) also by the dense solve of its leaves.
+    let h = &results.hierarchy;
+    assert!(h.rows.iter().any(|r| r.epsilon.is_some()) && h.rows.iter().any(|r| r.epsilon.is_none()));
+    for r in &h.rows {
+        assert!(r.elements > 0 && r.links > 0 && r.seconds.is_finite(), "{r:?}");
+        assert!(r.vs_continuous.worst.is_finite() && r.vs_continuous.mean <= r.vs_continuous.worst, "{r:?}");
+        if r.epsilon.is_some() {
+            assert!(r.vs_dense.is_some_and(|e| e.worst.is_finite()), "{r:?}");
         }
     }
     if std::env::var_os("RADIOSITY_KEEP_BENCH").is_none() {

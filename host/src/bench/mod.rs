@@ -15,7 +15,8 @@
 //! instructions are work units times the Cortex-M4 cost model's bound per unit (`firmware-sim/COST.md`, read at
 //! build time); wall times are medians of repeated runs. Then the roofline ([`roofline`]), the bake throughput
 //! against raw Embree ([`bakebench`]) and the growth of bake time, nonzeros, table bytes and work with the patch
-//! count (`growth.rs`), with log-log least-squares exponents. [`report`] writes `REPORT.md`, `curves.csv`,
+//! count (`growth.rs`), with log-log least-squares exponents, and the hierarchical solver against the flat one,
+//! both judged by the continuous path-traced reference ([`hierarchy`]). [`report`] writes `REPORT.md`, `curves.csv`,
 //! `growth.csv` and the plots.
 //!
 //! Files: this module holds the options, the result types and [`run`]; `scenes.rs` runs one scene (mesh, exact
@@ -26,6 +27,7 @@ pub mod bakebench;
 mod curves;
 pub mod device;
 mod growth;
+pub mod hierarchy;
 pub mod report;
 pub mod roofline;
 mod scenes;
@@ -396,6 +398,8 @@ pub struct BenchResults {
     pub growth: Vec<GrowthRow>,
     /// What the growth series covers (sizes and what runs at each).
     pub growth_limit_note: String,
+    /// The hierarchical solver against the flat one, judged by the continuous reference.
+    pub hierarchy: hierarchy::HierarchySection,
     /// Total wall time of the run, seconds.
     pub total_seconds: f64,
 }
@@ -518,6 +522,7 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         log(options, &format!("bake throughput: ~{target} patches"));
         bake.push(bakebench::bake_throughput(options, target)?);
     }
+    let hierarchy = hierarchy::section(options)?;
     let mut results = BenchResults {
         quick: options.quick,
         reps: options.reps,
@@ -530,6 +535,7 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         bake,
         growth,
         growth_limit_note: growth::note(options.quick),
+        hierarchy,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
     results.machine.push(load_average("at the end"));

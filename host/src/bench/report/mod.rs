@@ -262,6 +262,7 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
     scene::transfer_basis(&mut s, r);
     throughput::bake_throughput(&mut s, r);
     growth(&mut s, r);
+    hierarchy(&mut s, r);
     let _ = writeln!(s, "## Conclusions (computed from the numbers above)\n");
     for line in conclusions(r) {
         let _ = writeln!(s, "- {line}");
@@ -306,4 +307,67 @@ fn growth(s: &mut String, r: &BenchResults) {
         fit(&|g| g.work_to_1pct.map(|w| w as f64)),
     );
     let _ = writeln!(s, "Sizes: {}.\n", r.growth_limit_note);
+}
+
+/// The section `## Hierarchy against flat`: per-face errors against the continuous reference and costs.
+fn hierarchy(s: &mut String, r: &BenchResults) {
+    use super::hierarchy::{DENSE_LIMIT, ENTRY_BYTES, LINK_BYTES, SMALL_FACE};
+    let h = &r.hierarchy;
+    let _ = writeln!(s, "## Hierarchy against flat (Cornell box, judged by the continuous reference)\n");
+    for (scene, paths, seconds, se) in &h.references {
+        let _ = writeln!(
+            s,
+            "Continuous reference of `{scene}`: `radiosity reference`'s path tracer, {paths} paths in {seconds:.1} s, \
+             largest relative standard error of a face {se:.2e}. Errors are per OBJ face (area-averaged radiosity, \
+             worst channel, relative), over the lit faces not smaller than {:.0}% of the largest. \"vs dense\" is \
+             the hierarchy against the dense f64 solve of its own leaves (what its links get wrong; up to {DENSE_LIMIT} \
+             leaves); \"vs continuous\" adds the mesh's error. Bytes: {LINK_BYTES} per link (two directions, each a \
+             32-bit node index and a 16-bit code), {ENTRY_BYTES} per flat entry; the flat rows' seconds include their \
+             adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative.\n",
+            100.0 * SMALL_FACE
+        );
+    }
+    let _ = writeln!(
+        s,
+        "| method | elements | links / entries | bytes | seconds | rays | worst face vs dense | worst face vs continuous (face) | mean face vs continuous | claimed |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    for row in &h.rows {
+        let dense = row
+            .vs_dense
+            .map_or("-".to_owned(), |e| format!("{:.2}% (face {})", 100.0 * e.worst, e.worst_face));
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {:.2} | {} | {} | {:.2}% ({}) | {:.2}% | {} |",
+            row.method,
+            row.elements,
+            row.links,
+            row.bytes,
+            row.seconds,
+            row.rays,
+            dense,
+            100.0 * row.vs_continuous.worst,
+            row.vs_continuous.worst_face,
+            100.0 * row.vs_continuous.mean,
+            row.claimed.map_or("-".to_owned(), |c| format!("{c:.2e}"))
+        );
+    }
+    for (scene, links, time) in &h.exponents {
+        let f = |k: &Option<f64>| k.map_or("-".to_owned(), |k| format!("{k:.2}"));
+        let _ = writeln!(
+            s,
+            "\nGrowth over the hierarchical rows of `{scene}` (log-log least squares against leaves): links {}, \
+             seconds {}.",
+            f(links),
+            f(time)
+        );
+    }
+    if let Some(rss) = h.peak_rss {
+        let _ = writeln!(
+            s,
+            "\nPeak resident memory of the bench process after this section: {:.0} MiB.",
+            rss as f64 / 1048576.0
+        );
+    }
+    let _ = writeln!(s);
 }

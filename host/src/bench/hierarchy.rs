@@ -1,0 +1,251 @@
+//! The hierarchy section: the hierarchical solver against the flat one on the same scene, each judged by the
+//! continuous path-traced reference (per OBJ face) and, for the hierarchy, by the dense f64 solve of its own
+//! leaves (what its links get wrong, apart from the mesh), with what each costs (elements, links, bytes, seconds,
+//! rays), and the growth of links and time with the leaf count.
+
+use std::time::Instant;
+
+use super::report::loglog_slope;
+use super::{log, BenchError, BenchOptions};
+use crate::formfactor::{compute_form_factors, FormFactorOptions};
+use crate::hierarchy::{solve_hierarchical, HierarchyOptions};
+use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
+use crate::patch::Patch;
+use crate::pipeline::{prepare, PrepareOptions};
+use crate::reference::{exact_transfer, solve_many, Method, RadiositySystem};
+use crate::rgb::Rgb;
+use crate::scene::Scene;
+
+/// Largest leaf count at which the hierarchy is also compared with the dense solve of its leaves.
+pub const DENSE_LIMIT: usize = 4096;
+
+/// Relative standard error per face of the continuous reference the rows are judged by.
+pub const REFERENCE_TARGET: f64 = 0.002;
+
+/// Faces smaller than this share of the largest face are left out of the per-face errors (the targets
+/// are stated for faces larger than 5% of the floor).
+pub const SMALL_FACE: f64 = 0.05;
+
+/// Bytes a link would take in a 16-bit table: two directions, each a 32-bit node index and a 16-bit code.
+pub const LINK_BYTES: usize = 2 * (4 + 2);
+
+/// Bytes an entry of the flat 16-bit table takes (a 16-bit receiver index and a 16-bit code).
+pub const ENTRY_BYTES: usize = 2 + 2;
+
+/// Per-face errors against a reference: the worst face (its index) and the mean over faces.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FaceErrors {
+    /// Largest relative difference of a face's area-averaged radiosity (worst channel).
+    pub worst: f64,
+    /// The OBJ face where it is.
+    pub worst_face: usize,
+    /// Mean over the faces of the relative difference.
+    pub mean: f64,
+}
+
+/// One solve of one scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HierarchyRow {
+    /// Scene name.
+    pub scene: String,
+    /// `hierarchical (epsilon E)` or `flat (N patches)`.
+    pub method: String,
+    /// The hierarchy's epsilon (`None` for flat rows).
+    pub epsilon: Option<f64>,
+    /// Leaves or patches.
+    pub elements: usize,
+    /// Links, or the flat matrix's nonzero entries.
+    pub links: usize,
+    /// Bytes of the links or entries at 16 bits ([`LINK_BYTES`], [`ENTRY_BYTES`]).
+    pub bytes: usize,
+    /// Whole solve, seconds (meshing, form factors or links, and the f64 solve).
+    pub seconds: f64,
+    /// Occlusion rays cast (flat rows: the final mesh's form factors; its adaptive passes cast more before).
+    pub rays: u64,
+    /// Against the dense f64 solve of the same leaves (hierarchical rows with at most [`DENSE_LIMIT`] leaves).
+    pub vs_dense: Option<FaceErrors>,
+    /// Against the continuous reference.
+    pub vs_continuous: FaceErrors,
+    /// The hierarchy's claimed error (see `HierarchyStats::claimed_error`).
+    pub claimed: Option<f64>,
+}
+
+/// The section's results: the rows, the reference they are judged by, and the fitted growth exponents.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HierarchySection {
+    /// The rows, per scene: hierarchical at decreasing epsilon, then flat.
+    pub rows: Vec<HierarchyRow>,
+    /// The continuous reference's cost and reach: scene, paths, seconds, largest relative standard error.
+    pub references: Vec<(String, u64, f64, f64)>,
+    /// Log-log slopes over the hierarchical rows of one scene: links and seconds against leaves.
+    pub exponents: Vec<(String, Option<f64>, Option<f64>)>,
+    /// The process's peak resident memory after the section (bytes), if the system reports it.
+    pub peak_rss: Option<u64>,
+}
+
+/// Area-averaged radiosity per OBJ face of `patches` carrying `b` (faces without patches are `None`).
+fn face_means(patches: &[Patch], b: &[Rgb], faces: usize) -> Vec<Option<Rgb>> {
+    let mut sums = vec![(0.0, Rgb::ZERO); faces];
+    for (p, v) in patches.iter().zip(b) {
+        if let Some(s) = sums.get_mut(p.face) {
+            s.0 += p.area;
+            s.1 += p.area * *v;
+        }
+    }
+    sums.into_iter().map(|(a, s)| (a > 0.0).then(|| s / a)).collect()
+}
+
+/// Per-face errors of `got` against `want` over `faces` (the faces taken into account).
+fn face_errors(got: &[Option<Rgb>], want: &[Option<Rgb>], faces: &[usize]) -> FaceErrors {
+    let mut out = FaceErrors { worst: 0.0, worst_face: 0, mean: 0.0 };
+    let mut n = 0;
+    for &f in faces {
+        let (Some(g), Some(w)) = (got.get(f).copied().flatten(), want.get(f).copied().flatten()) else {
+            continue;
+        };
+        let rel = ((g - w) / w).abs().max_element();
+        if rel.is_finite() {
+            if rel > out.worst {
+                out.worst = rel;
+                out.worst_face = f;
+            }
+            out.mean += rel;
+            n += 1;
+        }
+    }
+    if n > 0 {
+        out.mean /= n as f64;
+    }
+    out
+}
+
+/// The faces the errors are taken over: lit ones (reference radiosity above zero) not smaller than
+/// [`SMALL_FACE`] of the largest.
+fn judged_faces(reference: &ContinuousReference) -> Vec<usize> {
+    let largest = reference.faces.iter().map(|f| f.area).fold(0.0, f64::max);
+    reference
+        .faces
+        .iter()
+        .filter(|f| f.area >= SMALL_FACE * largest && f.radiosity.min_element() > 0.0)
+        .map(|f| f.face)
+        .collect()
+}
+
+/// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
+fn peak_rss() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Runs the section on the Cornell box: the hierarchy at each epsilon (quick: one), the flat solve at its default
+/// mesh and (full run) a finer one, each judged by one continuous reference.
+///
+/// # Errors
+/// Loading, meshing, the solves and the reference; a failure is the bench's.
+pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
+    let epsilons: &[f64] = if options.quick { &[0.3] } else { &[0.3, 0.1, 0.03, 0.01] };
+    let flat_sizes: &[Option<usize>] = if options.quick { &[Some(200)] } else { &[None, Some(3000)] };
+    let name = "cornell-box";
+    let path = options.scenes.join(format!("{name}.obj"));
+    let scene = Scene::load(&path)?;
+    log(options, "hierarchy: continuous reference of the Cornell box");
+    let target = if options.quick { 0.02 } else { REFERENCE_TARGET };
+    let reference = continuous_reference(
+        &scene,
+        &ReferenceOptions {
+            samples: SampleCount::TargetRelative {
+                target,
+                max_samples: crate::montecarlo::DEFAULT_MAX_SAMPLES,
+            },
+            progress: false,
+            ..ReferenceOptions::default()
+        },
+    )
+    .map_err(|e| BenchError::Options(format!("continuous reference: {e}")))?;
+    let faces = reference.faces.iter().map(|f| f.face).max().map_or(0, |m| m + 1);
+    let mut want = vec![None; faces];
+    for f in &reference.faces {
+        want[f.face] = Some(f.radiosity);
+    }
+    let judged = judged_faces(&reference);
+    let worst_se = reference.faces.iter().map(|f| f.relative_standard_error).fold(0.0, f64::max);
+    let mut rows = Vec::new();
+    for &epsilon in epsilons {
+        log(options, &format!("hierarchy: epsilon {epsilon}"));
+        let start = Instant::now();
+        let sol = solve_hierarchical(&scene, &HierarchyOptions { epsilon, ..HierarchyOptions::default() })
+            .map_err(|e| BenchError::Options(format!("hierarchical solve at epsilon {epsilon}: {e}")))?;
+        let seconds = start.elapsed().as_secs_f64();
+        let got = face_means(&sol.leaves, &sol.b, faces);
+        let vs_dense = if sol.leaves.len() <= DENSE_LIMIT {
+            let (ff, _) = compute_form_factors(
+                &sol.leaves,
+                &FormFactorOptions { progress: false, ..FormFactorOptions::default() },
+            )
+            .map_err(|e| BenchError::Options(format!("dense form factors of the leaves: {e}")))?;
+            // Raw rows, as the hierarchy's are: any excess keeping rho * row sum below 1 leaves the system a
+            // contraction (see the hierarchy tests).
+            let rho_max = sol.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
+            let system = RadiositySystem::with_row_sum_tolerance(&sol.rho, &ff, 0.5 * (1.0 / rho_max - 1.0))?;
+            let dense = solve_many(system, &[&sol.emission], &Method::for_size(sol.leaves.len()))?.remove(0);
+            Some(face_errors(&got, &face_means(&sol.leaves, &dense.b, faces), &judged))
+        } else {
+            None
+        };
+        let links = sol.stats.surface_links + sol.stats.cluster_links;
+        rows.push(HierarchyRow {
+            scene: name.to_owned(),
+            method: format!("hierarchical (epsilon {epsilon})"),
+            epsilon: Some(epsilon),
+            elements: sol.leaves.len(),
+            links,
+            bytes: links * LINK_BYTES,
+            seconds,
+            rays: sol.stats.rays,
+            vs_dense,
+            vs_continuous: face_errors(&got, &want, &judged),
+            claimed: sol.stats.claimed_error,
+        });
+    }
+    for &max_patches in flat_sizes {
+        log(options, &format!("hierarchy: flat solve at {max_patches:?} patches"));
+        let start = Instant::now();
+        let prepared =
+            prepare(&path, &PrepareOptions { max_patches, ..PrepareOptions::quiet(false, 16, 16) })?;
+        let l = &prepared.lighting;
+        let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
+        let b = tv.relight(&l.default_intensity)?;
+        let seconds = start.elapsed().as_secs_f64();
+        let entries = prepared.form_factors.nonzeros();
+        rows.push(HierarchyRow {
+            scene: name.to_owned(),
+            method: format!("flat ({} patches)", prepared.patches.len()),
+            epsilon: None,
+            elements: prepared.patches.len(),
+            links: entries,
+            bytes: entries * ENTRY_BYTES,
+            seconds,
+            rays: prepared.stats.rays_cast,
+            vs_dense: None,
+            vs_continuous: face_errors(&face_means(&prepared.patches, &b, faces), &want, &judged),
+            claimed: None,
+        });
+    }
+    let hierarchical: Vec<&HierarchyRow> = rows.iter().filter(|r| r.epsilon.is_some()).collect();
+    let exponents = if hierarchical.len() >= 2 {
+        let links: Vec<(f64, f64)> =
+            hierarchical.iter().map(|r| (r.elements as f64, r.links as f64)).collect();
+        let time: Vec<(f64, f64)> = hierarchical.iter().map(|r| (r.elements as f64, r.seconds)).collect();
+        vec![(name.to_owned(), loglog_slope(&links), loglog_slope(&time))]
+    } else {
+        Vec::new()
+    };
+    Ok(HierarchySection {
+        rows,
+        references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
+        exponents,
+        peak_rss: peak_rss(),
+    })
+}
