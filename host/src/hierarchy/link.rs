@@ -17,6 +17,13 @@ use crate::rng::SplitMix64;
 /// Salt of the random streams of cluster links (so they never coincide with surface pairs' visibility streams).
 const CLUSTER_STREAM: u64 = 0x9e37_79b9_7f4a_7c15;
 
+/// Largest relative standard error of a cluster link's Monte Carlo estimate that is accepted. Near a contact
+/// (a block standing on the floor, both in one cluster pair) the point kernel `1 / r^2` is heavy-tailed: one
+/// sample pair that lands close dominates the mean, and its relative standard error is then about 1; such an
+/// estimate (which can exceed a form factor of 1) says nothing, and accepting it while the sender is still dark
+/// (pass 1 judges by emission alone) made the iteration diverge.
+pub(super) const MAX_CLUSTER_RELATIVE_ERROR: f64 = 0.25;
+
 /// How far toward its centroid a receiver's vertex is moved to probe the point-wise form factor there (so that a
 /// probe never lies on a neighbour's edge, where the kernel is singular in its derivatives).
 const PROBE_INSET: f64 = 0.02;
@@ -49,6 +56,9 @@ pub(super) struct Link {
 pub(super) struct Estimate {
     /// The link it would be.
     pub(super) link: Link,
+    /// Whether the estimate can be trusted at all (see [`MAX_CLUSTER_RELATIVE_ERROR`]); one that cannot is split
+    /// whatever its brightness.
+    trusted: bool,
     /// Occlusion rays cast.
     rays: u64,
 }
@@ -96,6 +106,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
                 visible: 1.0,
                 unoccluded_ab: 0.0,
             },
+            trusted: true,
             rays: 0,
         };
         if tree.behind(a, b) || tree.behind(b, a) {
@@ -151,6 +162,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
                 visible: v,
                 unoccluded_ab: u_ab,
             },
+            trusted: true,
             rays,
         })
     }
@@ -191,6 +203,8 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         let mean = values.iter().sum::<f64>() / n as f64;
         let var = values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n.max(2) - 1) as f64;
         let se = (var / n as f64).sqrt();
+        let trusted =
+            se <= MAX_CLUSTER_RELATIVE_ERROR * mean && nb.area * mean <= 1.0 && na.area * mean <= 1.0;
         let gap = na.center.distance(nb.center) - na.radius - nb.radius;
         let bound = |area: f64| if gap > 0.0 { (area / (PI * gap * gap)).min(1.0) } else { 1.0 };
         let link = Link {
@@ -203,7 +217,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
             visible: 1.0,
             unoccluded_ab: nb.area * mean,
         };
-        Estimate { link, rays: rays.len() as u64 }
+        Estimate { link, trusted: trusted || mean == 0.0, rays: rays.len() as u64 }
     }
 }
 
@@ -300,7 +314,7 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
             if link.f_ab == 0.0 && link.spread_ab == 0.0 && link.spread_ba == 0.0 {
                 continue;
             }
-            if link_error(tree, spans, &link) <= limits.threshold {
+            if est.trusted && link_error(tree, spans, &link) <= limits.threshold {
                 // A pair whose rays all missed may still exchange light somewhere: kept (it carries no transfer)
                 // so that the budgets can refine it.
                 links.push(link);
