@@ -17,6 +17,7 @@ fn options(max_patches: Option<usize>, rays: usize) -> PrepareOptions {
         no_subdivide: false,
         max_patch_edge: None,
         max_patches,
+        repair: true,
         form_factors: FormFactorOptions {
             rays_per_pair: rays,
             progress: false,

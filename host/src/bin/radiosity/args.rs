@@ -395,6 +395,10 @@ pub struct SceneArgs {
     /// Most patches the mesh may have (default: the scene's TOML, or 4096).
     #[arg(long, value_name = "N")]
     pub max_patches: Option<usize>,
+    /// Mesh the faces as loaded: no cuts where faces touch or pass through each other, no culling of what no
+    /// point can see (by default each changed face is reported on stderr, by OBJ line).
+    #[arg(long)]
+    pub no_repair: bool,
     /// Sample points on each patch for the form-factor integral.
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
     pub samples: usize,
@@ -419,6 +423,7 @@ impl SceneArgs {
             no_subdivide: self.no_subdivide,
             max_patch_edge: self.max_patch_edge,
             max_patches: self.max_patches,
+            repair: !self.no_repair,
             form_factors: FormFactorOptions {
                 samples_per_patch: self.samples,
                 rays_per_pair: self.rays,
