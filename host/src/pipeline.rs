@@ -31,7 +31,7 @@ use crate::scene::Scene;
 /// How to turn a scene into patches and form factors.
 #[derive(Clone, Debug)]
 pub struct PrepareOptions {
-    /// One patch per OBJ face (patch `k` is face `k`) instead of uniform subdivision.
+    /// One patch per OBJ face polygon (after repair, per repaired piece) instead of uniform subdivision.
     pub no_subdivide: bool,
     /// Longest patch edge in scene units; `None` takes the scene's TOML value or the default.
     pub max_patch_edge: Option<f64>,

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::DVec3;
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions};
 use radiosity_host::mesh::{mesh, repair, Meeting, MeshOptions, Repaired};
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::scene::{Polygon, Scene};
@@ -333,4 +334,46 @@ fn published_cornell_box_floor_loses_the_block_footprints() {
     );
     // Repairing the hand-cut variant changes nothing.
     assert!(repair(&closed).report.faces.is_empty());
+}
+
+#[test]
+fn the_hierarchy_takes_several_roots_per_face() {
+    // A lit box (a light in the ceiling of a closed room, inward normals) with a block resting on its floor: the
+    // floor is repaired into pieces, each a root of the hierarchy, and its leaves add up to the floor less the
+    // footprint, all with face 0.
+    let room = |lo: f64, hi: f64| {
+        let mut s = String::new();
+        // Inward normals: the floor faces up, the ceiling down, the walls inward.
+        s += &face("grey", &[[lo, lo, lo], [lo, lo, hi], [hi, lo, hi], [hi, lo, lo]]);
+        s += &face("grey", &[[lo, hi, lo], [hi, hi, lo], [hi, hi, hi], [lo, hi, hi]]);
+        s += &face("grey", &[[lo, lo, lo], [lo, hi, lo], [lo, hi, hi], [lo, lo, hi]]);
+        s += &face("grey", &[[hi, lo, lo], [hi, lo, hi], [hi, hi, hi], [hi, hi, lo]]);
+        s += &face("grey", &[[lo, lo, lo], [hi, lo, lo], [hi, hi, lo], [lo, hi, lo]]);
+        s += &face("grey", &[[lo, lo, hi], [lo, hi, hi], [hi, hi, hi], [hi, lo, hi]]);
+        s
+    };
+    let lamp = face("lamp", &[[1.5, 3.999, 1.5], [2.5, 3.999, 1.5], [2.5, 3.999, 2.5], [1.5, 3.999, 2.5]]);
+    let obj = room(0.0, 4.0) + &lamp + &cuboid([1.0, 0.0, 1.0], [2.0, 1.0, 2.5], false, "grey");
+    let s = load(&obj);
+    let r = repair(&s);
+    assert_eq!(r.report.faces.iter().map(|f| f.face).collect::<Vec<_>>(), vec![0]);
+    assert!(r.polygons[0].len() > 1);
+    let options = HierarchyOptions { epsilon: 0.3, ..HierarchyOptions::default() };
+    let sol = solve_hierarchical(&s, &options).unwrap();
+    assert_eq!(sol.stats.polygons, r.polygons.iter().map(Vec::len).sum::<usize>());
+    let floor: Vec<Polygon> = r.polygons[0].clone();
+    let leaves: Vec<Polygon> = sol
+        .leaves
+        .iter()
+        .filter(|p| p.face == 0)
+        .map(|p| Polygon::with_normal(p.vertices.clone(), p.normal).unwrap())
+        .collect();
+    // The pieces' rounding, and the leaves' (each cut from a piece the same way).
+    let c = coord_scale(&s);
+    let allowed = area_tol(&floor, c) + area_tol(&leaves, c);
+    assert!((area(&leaves) - 14.5).abs() <= allowed, "floor leaves {}", area(&leaves));
+    assert!(sol.b.iter().all(|b| b.is_finite()));
+    // The claim is finite, and the floor is lit.
+    assert!(sol.error_bound.is_some());
+    assert!(sol.leaves.iter().zip(&sol.b).any(|(p, b)| p.face == 0 && b.max_element() > 0.0));
 }

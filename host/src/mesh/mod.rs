@@ -16,7 +16,8 @@
 //!   [`crate::scene`]) gives one patch per triangle, all with the same `face`, in fan order; the patches after it
 //!   shift by the number of extra triangles; a face that repair cut gives one patch per piece it kept (none if
 //!   all of it was culled). Map patches to faces with `Patch::face`, never by position. (The
-//!   shipped Cornell box puts its non-planar red wall last, so there patch `k` is face `k` for every other face.)
+//!   shipped Cornell box puts its non-planar red wall last, so with `--no-repair` patch `k` is face `k` for every
+//!   other face; repaired, its floor, face 0, is several pieces and the faces after it shift.)
 //! - **Uniform subdivision** ([`mesh`] with `subdivide: true`): each planar convex polygon of a face is cut into
 //!   convex pieces whose edges are all at most `max_patch_edge`:
 //!   - a polygon whose edges already fit stays one patch;

@@ -385,7 +385,8 @@ pub enum RenderModeArg {
 pub struct SceneArgs {
     /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
     pub scene: PathBuf,
-    /// One patch per OBJ face: patch k is face k, so results can be checked against hand computations.
+    /// One patch per OBJ face polygon: with `--no-repair` (and no non-planar face before it) patch k is face k,
+    /// so results can be checked against hand computations; the `face` column maps patches to faces always.
     #[arg(long)]
     pub no_subdivide: bool,
     /// Longest patch edge after uniform subdivision, in scene units (default: the scene's TOML, or 1/8 of its
