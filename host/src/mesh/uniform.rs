@@ -25,7 +25,7 @@ pub struct MeshOptions {
     pub max_patch_edge: f64,
     /// Most patches the mesh may have.
     pub patch_budget: usize,
-    /// Repair the faces first ([`super::repair`]): cut them where other faces meet them and cull what no point
+    /// Repair the faces first ([`super::repair()`]): cut them where other faces meet them and cull what no point
     /// can see. `false` (`--no-repair`) meshes the faces as loaded.
     pub repair: bool,
 }
