@@ -11,6 +11,11 @@
 //! `change * sqrt(area)` first, within an equal share of the patch budget left per remaining pass (so later
 //! passes can still split the children of earlier ones). Evenly lit patches stay as the uniform mesh made them.
 //! The form factors of the final mesh are the ones returned. Every patch keeps its parent face.
+//!
+//! # Repair
+//! Meshing repairs the faces first unless [`PrepareOptions::repair`] is off or the scene's TOML says
+//! `repair = false` ([`crate::mesh::repair()`]); with `verbose`, one `repair:` line per changed face goes to
+//! stderr (after the loader's `warning:` lines), naming the face, the faces that meet it and the area culled.
 
 use std::path::{Path, PathBuf};
 
@@ -19,7 +24,7 @@ use crate::formfactor::{
 };
 use crate::lighting::PatchLighting;
 use crate::mesh::{
-    mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions,
+    mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions, RepairReport,
 };
 use crate::patch::{FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
 use crate::reference::{solve_many, RadiositySystem};
@@ -28,12 +33,15 @@ use crate::scene::Scene;
 /// How to turn a scene into patches and form factors.
 #[derive(Clone, Debug)]
 pub struct PrepareOptions {
-    /// One patch per OBJ face (patch `k` is face `k`) instead of uniform subdivision.
+    /// One patch per OBJ face polygon (after repair, per repaired piece) instead of uniform subdivision.
     pub no_subdivide: bool,
     /// Longest patch edge in scene units; `None` takes the scene's TOML value or the default.
     pub max_patch_edge: Option<f64>,
     /// Most patches; `None` takes the scene's TOML value or the default.
     pub max_patches: Option<usize>,
+    /// Repair the faces before meshing (see [`crate::mesh::repair()`]); `false` (`--no-repair`) keeps them as
+    /// loaded. When `true`, the scene's TOML may still turn repair off (`repair = false`).
+    pub repair: bool,
     /// Form-factor estimator settings.
     pub form_factors: FormFactorOptions,
     /// Print stage summaries and warnings on stderr.
@@ -49,6 +57,7 @@ impl PrepareOptions {
             no_subdivide,
             max_patch_edge: None,
             max_patches: None,
+            repair: true,
             form_factors: FormFactorOptions {
                 samples_per_patch,
                 rays_per_pair,
@@ -80,6 +89,8 @@ pub struct Prepared {
     pub reciprocity_change: ReciprocityChange,
     /// The meshing passes: the uniform mesh, then one entry per refinement pass that split patches.
     pub mesh_passes: Vec<MeshPass>,
+    /// What mesh repair changed (`None` when repair was off).
+    pub repair: Option<RepairReport>,
 }
 
 /// One meshing pass of [`prepare`].
@@ -166,9 +177,15 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
     if let Some(budget) = options.max_patches {
         mesh_options.patch_budget = budget;
     }
+    mesh_options.repair &= options.repair;
     let meshed =
         mesh(&scene, &mesh_options).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
     if options.verbose {
+        if let Some(report) = &meshed.repair {
+            for note in report.notes(path) {
+                eprintln!("repair: {note}");
+            }
+        }
         eprintln!(
             "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {})",
             path.display(),
@@ -185,6 +202,7 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         RefineOptions::for_scene(&scene)
     };
     let budget = mesh_options.patch_budget;
+    let repair = meshed.repair;
     let mut patches = meshed.patches;
     let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0 }];
     loop {
@@ -251,6 +269,7 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
                 clamp,
                 reciprocity_change,
                 mesh_passes,
+                repair,
             });
         }
         patches =

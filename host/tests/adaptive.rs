@@ -17,6 +17,7 @@ fn options(max_patches: Option<usize>, rays: usize) -> PrepareOptions {
         no_subdivide: false,
         max_patch_edge: None,
         max_patches,
+        repair: true,
         form_factors: FormFactorOptions {
             rays_per_pair: rays,
             progress: false,
@@ -41,12 +42,16 @@ fn cornell_box_is_refined_where_light_changes_fast_within_the_budget() {
     assert!(p.mesh_passes.len() >= 2 && p.patches.len() > uniform, "no refinement: {:?}", p.mesh_passes);
 
     // Parent faces preserved: every patch names a face, lies in its plane, and each face's patches tile it
-    // (areas add up to the face's area to rounding: children's areas sum to their parent's).
+    // (areas add up to the face's area less what repair culled, to rounding: children's areas sum to their
+    // parent's). Repair culls the floor under the two blocks.
+    let repair = p.repair.as_ref().expect("repair is on by default");
+    assert_eq!(repair.faces.iter().map(|f| f.face).collect::<Vec<_>>(), vec![0]);
     for f in &p.scene.faces {
         let total: f64 = areas_of(&p, f.index).iter().sum();
+        let culled = repair.faces.iter().find(|r| r.face == f.index).map_or(0.0, |r| r.culled_area);
         assert!(
-            (total - f.area).abs() <= 1e-9 * f.area,
-            "face {}: patches cover {total}, face {}",
+            (total + culled - f.area).abs() <= 1e-9 * f.area,
+            "face {}: patches cover {total} + culled {culled}, face {}",
             f.index,
             f.area
         );
@@ -91,14 +96,22 @@ fn cornell_box_is_refined_where_light_changes_fast_within_the_budget() {
 fn smaller_budget_is_respected_and_no_subdivide_gives_one_patch_per_face() {
     let p = prepare(&scene("cornell-box.obj"), &options(Some(350), 4)).unwrap();
     assert!(p.patches.len() <= 350 && p.patches.len() > p.mesh_passes[0].patches, "{:?}", p.mesh_passes);
-    let one = prepare(&scene("cornell-box.obj"), &PrepareOptions { no_subdivide: true, ..options(None, 4) })
-        .unwrap();
+    let faces_as_loaded = PrepareOptions { no_subdivide: true, repair: false, ..options(None, 4) };
+    let one = prepare(&scene("cornell-box.obj"), &faces_as_loaded).unwrap();
     // 19 faces, the non-planar red wall split into 2 triangles.
     assert_eq!(one.patches.len(), 20);
     assert_eq!(one.mesh_passes.len(), 1);
     for (k, q) in one.patches.iter().enumerate().take(18) {
         assert_eq!(q.face, k);
     }
+    // Repaired (the default), the floor is its pieces and the other faces follow in order.
+    let repaired =
+        prepare(&scene("cornell-box.obj"), &PrepareOptions { no_subdivide: true, ..options(None, 4) })
+            .unwrap();
+    let floor = repaired.repair.as_ref().map(|r| r.faces[0].polygons).expect("the floor is repaired");
+    assert_eq!(repaired.patches.len(), 19 + floor);
+    assert!(repaired.patches[..floor].iter().all(|q| q.face == 0));
+    assert_eq!(repaired.patches[floor..], one.patches[1..]);
 }
 
 /// Rows of a closed scene must sum to 1 within 1e-4 (the bound; the furnace at rho = 0.99 multiplies a

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 use proptest::prelude::*;
-use radiosity_host::mesh::{adjacency, mesh, refine, MeshError, MeshOptions};
+use radiosity_host::mesh::{adjacency, mesh, refine, MeshError, MeshOptions, RepairReport};
 use radiosity_host::patch::Patch;
 use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::{Face, Material, MeshingLimits, Polygon, Scene};
@@ -29,8 +29,14 @@ fn area_tol(n: usize, edge: f64, c: f64, area: f64) -> f64 {
     n as f64 * 4.0 * edge * delta + 8.0 * f64::EPSILON * area
 }
 
-/// Checks every patch against its face: normal, plane, convexity, edge limit; and per face that the areas add up.
+/// Checks every patch against its face: normal, plane, convexity, edge limit; and per face that the areas add up
+/// (to the face's area less what repair culled, for a repaired mesh).
 fn check_mesh(s: &Scene, patches: &[Patch], edge: f64) {
+    check_repaired_mesh(s, patches, edge, None);
+}
+
+/// [`check_mesh`] for a mesh that `repair` changed.
+fn check_repaired_mesh(s: &Scene, patches: &[Patch], edge: f64, repair: Option<&RepairReport>) {
     let c = coord_scale(s);
     let tol = 8.0 * f64::EPSILON * c;
     for (k, p) in patches.iter().enumerate() {
@@ -71,10 +77,12 @@ fn check_mesh(s: &Scene, patches: &[Patch], edge: f64) {
         let mine: Vec<&Patch> = patches.iter().filter(|p| p.face == f.index).collect();
         assert!(!mine.is_empty(), "face {} has no patch", f.index);
         let sum: f64 = mine.iter().map(|p| p.area).sum();
+        let culled =
+            repair.and_then(|r| r.faces.iter().find(|x| x.face == f.index)).map_or(0.0, |x| x.culled_area);
         let allowed = area_tol(mine.len(), edge.min(f.polygons[0].diameter()), c, f.area);
         assert!(
-            (sum - f.area).abs() <= allowed,
-            "face {}: patch areas {sum} vs face {} (allowed {allowed})",
+            (sum + culled - f.area).abs() <= allowed,
+            "face {}: patch areas {sum} + culled {culled} vs face {} (allowed {allowed})",
             f.index,
             f.area
         );
@@ -86,7 +94,8 @@ fn check_mesh(s: &Scene, patches: &[Patch], edge: f64) {
 #[test]
 fn no_subdivide_gives_one_patch_per_face() {
     let s = load("cornell-box");
-    let m = mesh(&s, &MeshOptions::no_subdivide(&s)).unwrap();
+    // The faces as loaded (repair, which cuts the floor around the blocks, has its own tests in repair.rs).
+    let m = mesh(&s, &MeshOptions { repair: false, ..MeshOptions::no_subdivide(&s) }).unwrap();
     // 19 faces; the non-planar red wall (face 18, last) is two triangles.
     assert_eq!(m.patches.len(), 20);
     for (k, p) in m.patches.iter().enumerate().take(18) {
@@ -100,6 +109,16 @@ fn no_subdivide_gives_one_patch_per_face() {
     assert_eq!(m.patches[18].vertices, s.faces[18].polygons[0].vertices);
     assert_eq!(m.patches[19].vertices, s.faces[18].polygons[1].vertices);
     check_mesh(&s, &m.patches, f64::INFINITY);
+    // Repaired (the default), only the floor changes: one patch per piece it keeps.
+    let r = mesh(&s, &MeshOptions::no_subdivide(&s)).unwrap();
+    let report = r.repair.as_ref().expect("repair is on by default");
+    assert_eq!(report.faces.len(), 1);
+    assert_eq!(
+        r.patches.iter().filter(|p| p.face != 0).cloned().collect::<Vec<_>>(),
+        m.patches[1..].to_vec()
+    );
+    assert_eq!(r.patches.iter().filter(|p| p.face == 0).count(), report.faces[0].polygons);
+    check_repaired_mesh(&s, &r.patches, f64::INFINITY, Some(report));
     for name in ["facing-squares", "perpendicular-squares", "furnace", "cornell-box-closed"] {
         let s = load(name);
         let m = mesh(&s, &MeshOptions::no_subdivide(&s)).unwrap();
@@ -112,7 +131,8 @@ fn no_subdivide_gives_one_patch_per_face() {
 #[test]
 fn uniform_subdivision_respects_the_edge_limit() {
     let s = load("cornell-box");
-    let opts = MeshOptions::for_scene(&s);
+    // The faces as loaded, so that the counts below are those of the published faces.
+    let opts = MeshOptions { repair: false, ..MeshOptions::for_scene(&s) };
     assert_eq!((opts.max_patch_edge, opts.patch_budget), (100.0, 1000));
     let m = mesh(&s, &opts).unwrap();
     assert_eq!(m.max_patch_edge, 100.0, "the budget holds the mesh at the requested limit");
@@ -128,13 +148,18 @@ fn uniform_subdivision_respects_the_edge_limit() {
     // A smaller limit gives more, smaller patches, still exact.
     let fine = mesh(&s, &MeshOptions { max_patch_edge: 40.0, patch_budget: 100_000, ..opts }).unwrap();
     assert!(fine.patches.len() > m.patches.len());
+    // Repaired, the floor's pieces are subdivided alike.
+    let r = mesh(&s, &MeshOptions::for_scene(&s)).unwrap();
+    assert_eq!(r.max_patch_edge, 100.0);
+    check_repaired_mesh(&s, &r.patches, 100.0, r.repair.as_ref());
     check_mesh(&s, &fine.patches, 40.0);
 }
 
 #[test]
 fn the_budget_raises_the_edge_limit_or_fails() {
     let s = load("cornell-box");
-    let opts = MeshOptions { patch_budget: 200, ..MeshOptions::for_scene(&s) };
+    // The faces as loaded: 20 polygons.
+    let opts = MeshOptions { patch_budget: 200, repair: false, ..MeshOptions::for_scene(&s) };
     let m = mesh(&s, &opts).unwrap();
     assert!(m.patches.len() <= 200, "{} patches", m.patches.len());
     assert!(m.max_patch_edge > 100.0);
@@ -191,8 +216,11 @@ fn write_polygons() -> Scene {
 fn general_convex_polygons_subdivide_into_convex_pieces() {
     let s = write_polygons();
     for edge in [0.9, 0.3, 0.07] {
-        let m =
-            mesh(&s, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: 100_000 }).unwrap();
+        let m = mesh(
+            &s,
+            &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: 100_000, repair: true },
+        )
+        .unwrap();
         check_mesh(&s, &m.patches, edge);
         // The thin triangle (longest edge 3.0267): either the regular k x k subdivision (k^2 similar triangles)
         // or three gridded quadrilaterals around its centroid, whichever has fewer patches.
@@ -210,7 +238,7 @@ fn general_convex_polygons_subdivide_into_convex_pieces() {
 #[test]
 fn refine_splits_selected_patches_and_keeps_area() {
     let s = load("cornell-box");
-    let base = mesh(&s, &MeshOptions::no_subdivide(&s)).unwrap().patches;
+    let base = mesh(&s, &MeshOptions { repair: false, ..MeshOptions::no_subdivide(&s) }).unwrap().patches;
     // Patch 0 (floor quad, listed twice: split once), 18 (a red-wall triangle).
     let refined = refine(&base, &[18, 0, 0]).unwrap();
     assert_eq!(refined.len(), base.len() + 3 + 3);
@@ -237,7 +265,11 @@ fn refine_splits_selected_patches_and_keeps_area() {
 #[test]
 fn adjacency_links_patches_sharing_an_edge_within_a_face() {
     let s = load("facing-squares");
-    let m = mesh(&s, &MeshOptions { subdivide: true, max_patch_edge: 1.0 / 3.0, patch_budget: 100 }).unwrap();
+    let m = mesh(
+        &s,
+        &MeshOptions { subdivide: true, max_patch_edge: 1.0 / 3.0, patch_budget: 100, repair: true },
+    )
+    .unwrap();
     assert_eq!(m.patches.len(), 18);
     let adj = adjacency(&m.patches);
     // Each square is a 3 x 3 grid (row-major from its first vertex): corners 2, edges 3, centre 4 neighbours.
@@ -323,7 +355,7 @@ proptest! {
         prop_assume!(polygon.area > 1e-3);
         let s = one_face_scene(polygon);
         let edge = limit_fraction * s.faces[0].polygons[0].diameter();
-        let m = mesh(&s, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: 1_000_000 }).unwrap();
+        let m = mesh(&s, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: 1_000_000, repair: true }).unwrap();
         check_mesh(&s, &m.patches, edge);
         let all: Vec<usize> = (0..m.patches.len()).collect();
         let r = refine(&m.patches, &all).unwrap();

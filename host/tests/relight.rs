@@ -18,6 +18,7 @@ fn prepared(name: &str) -> Prepared {
         no_subdivide: true,
         max_patch_edge: None,
         max_patches: None,
+        repair: true,
         form_factors: FormFactorOptions { progress: false, ..FormFactorOptions::default() },
         verbose: false,
     };

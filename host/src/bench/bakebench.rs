@@ -102,9 +102,13 @@ pub fn bake_throughput(options: &BenchOptions, target: usize) -> Result<BakeThro
     let path = options.scenes.join("cornell-box.obj");
     let scene = Scene::load(&path)?;
     let (edge, _) = edge_for_patches(&scene, target)?;
-    let m =
-        mesh(&scene, &MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: usize::MAX / 4 })
-            .map_err(|e| BenchError::Options(format!("meshing: {e}")))?;
+    let mesh_options = MeshOptions {
+        subdivide: true,
+        max_patch_edge: edge,
+        patch_budget: usize::MAX / 4,
+        ..MeshOptions::for_scene(&scene)
+    };
+    let m = mesh(&scene, &mesh_options).map_err(|e| BenchError::Options(format!("meshing: {e}")))?;
     // Interleaved rounds: form factors on 1 and 2 threads, then raw Embree on 1 and 2 threads, so both rates of
     // a ratio are measured minutes apart at most, not in separate blocks (the shared machine's speed drifts).
     // The first 1-thread run also gives the matrix whose pairs the raw rays join.

@@ -83,13 +83,24 @@ pub struct HierarchySection {
     pub peak_rss: Option<u64>,
 }
 
-/// Area-averaged radiosity per OBJ face of `patches` carrying `b` (faces without patches are `None`).
-fn face_means(patches: &[Patch], b: &[Rgb], faces: usize) -> Vec<Option<Rgb>> {
+/// Area-averaged radiosity per OBJ face of `patches` carrying `b` (faces without patches are `None`), over the
+/// whole face as `reference` has it: area the patches do not cover (fragments mesh repair culled, which no point
+/// sees) counts with `B = E`, as in the continuous reference.
+fn face_means(patches: &[Patch], b: &[Rgb], reference: &ContinuousReference) -> Vec<Option<Rgb>> {
+    let faces = reference.faces.iter().map(|f| f.face).max().map_or(0, |m| m + 1);
     let mut sums = vec![(0.0, Rgb::ZERO); faces];
     for (p, v) in patches.iter().zip(b) {
         if let Some(s) = sums.get_mut(p.face) {
             s.0 += p.area;
             s.1 += p.area * *v;
+        }
+    }
+    for f in &reference.faces {
+        let s = &mut sums[f.face];
+        if s.0 > 0.0 {
+            let hidden = (f.area - s.0).max(0.0);
+            s.0 += hidden;
+            s.1 += hidden * f.emission;
         }
     }
     sums.into_iter().map(|(a, s)| (a > 0.0).then(|| s / a)).collect()
@@ -178,7 +189,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         let sol = solve_hierarchical(&scene, &HierarchyOptions { epsilon, ..HierarchyOptions::default() })
             .map_err(|e| BenchError::Options(format!("hierarchical solve at epsilon {epsilon}: {e}")))?;
         let seconds = start.elapsed().as_secs_f64();
-        let got = face_means(&sol.leaves, &sol.b, faces);
+        let got = face_means(&sol.leaves, &sol.b, &reference);
         let vs_dense = if sol.leaves.len() <= DENSE_LIMIT {
             let (ff, _) = compute_form_factors(
                 &sol.leaves,
@@ -190,7 +201,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             let rho_max = sol.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
             let system = RadiositySystem::with_row_sum_tolerance(&sol.rho, &ff, 0.5 * (1.0 / rho_max - 1.0))?;
             let dense = solve_many(system, &[&sol.emission], &Method::for_size(sol.leaves.len()))?.remove(0);
-            Some(face_errors(&got, &face_means(&sol.leaves, &dense.b, faces), &judged))
+            Some(face_errors(&got, &face_means(&sol.leaves, &dense.b, &reference), &judged))
         } else {
             None
         };
@@ -229,7 +240,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             seconds,
             rays: prepared.stats.rays_cast,
             vs_dense: None,
-            vs_continuous: face_errors(&face_means(&prepared.patches, &b, faces), &want, &judged),
+            vs_continuous: face_errors(&face_means(&prepared.patches, &b, &reference), &want, &judged),
             claimed: None,
         });
     }

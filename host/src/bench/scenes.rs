@@ -83,7 +83,7 @@ pub(super) fn bake_prepared(p: &Prepared, options: &BakeOptions) -> Result<bake:
 pub fn edge_for_patches(scene: &Scene, target: usize) -> Result<(f64, usize), BenchError> {
     let base = MeshOptions::for_scene(scene);
     let count = |edge: f64| -> Result<usize, BenchError> {
-        let o = MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: usize::MAX / 4 };
+        let o = MeshOptions { subdivide: true, max_patch_edge: edge, patch_budget: usize::MAX / 4, ..base };
         mesh(scene, &o)
             .map(|m| m.patches.len())
             .map_err(|e| BenchError::Options(format!("meshing {}: {e}", scene.path.display())))
@@ -119,6 +119,7 @@ fn prepare_at(
         no_subdivide: false,
         max_patch_edge: Some(edge),
         max_patches: Some(count),
+        repair: true,
         form_factors: ff.clone(),
         verbose: false,
     };

@@ -90,7 +90,21 @@ pub fn discretization(
         s.0 += p.area;
         s.1 += p.area * v;
     }
-    let mesh: Vec<Rgb> = sums.iter().map(|&(a, s)| if a > 0.0 { s / a } else { Rgb::ZERO }).collect();
+    // A face's area the mesh does not cover (fragments mesh repair culled: no point of the scene sees them, so
+    // they receive nothing and their radiosity is their emission) counts with `B = E`, as the continuous
+    // reference, which samples the whole face, counts it.
+    let mesh: Vec<Rgb> = sums
+        .iter()
+        .zip(&continuous.faces)
+        .map(|(&(a, s), f)| {
+            let hidden = (f.area - a).max(0.0);
+            if a + hidden > 0.0 {
+                (s + hidden * f.emission) / (a + hidden)
+            } else {
+                Rgb::ZERO
+            }
+        })
+        .collect();
     let reference: Vec<Rgb> = continuous.faces.iter().map(|f| f.radiosity).collect();
     let area: Vec<f64> = sums.iter().map(|&(a, _)| a).collect();
     let error = metrics::compare(&mesh, &reference, &area)?;

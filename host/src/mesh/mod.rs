@@ -1,6 +1,12 @@
 //! Meshing: a [`Scene`](crate::scene::Scene)'s faces turned into [`Patch`](crate::patch::Patch)es, plus the
 //! adjacency and refinement steps that adaptive meshing builds on.
 //!
+//! # Repair
+//! Unless [`MeshOptions::repair`] is off (`--no-repair`, or `repair = false` in the scene's TOML), the faces are
+//! repaired first ([`repair()`], module [`mod@repair`]): cut where other faces touch or pass through them, and
+//! the pieces no point can see (the floor under a block, a wall inside another solid) culled. Everything below
+//! then works on the repaired polygons; [`Mesh::repair`] says what changed.
+//!
 //! # Patches and faces
 //! Every patch keeps its parent face (`Patch::face`, the OBJ face index) and material, so results map back to
 //! OBJ faces. Patches come out in face order: all patches of face 0, then of face 1, and so on.
@@ -8,8 +14,10 @@
 //! - **`--no-subdivide`** ([`MeshOptions::no_subdivide`]): one patch per planar face, so patch `k` is OBJ face `k`
 //!   as long as no earlier face was split. A face the loader split into triangles for being non-planar (see
 //!   [`crate::scene`]) gives one patch per triangle, all with the same `face`, in fan order; the patches after it
-//!   shift by the number of extra triangles. Map patches to faces with `Patch::face`, never by position. (The
-//!   shipped Cornell box puts its non-planar red wall last, so there patch `k` is face `k` for every other face.)
+//!   shift by the number of extra triangles; a face that repair cut gives one patch per piece it kept (none if
+//!   all of it was culled). Map patches to faces with `Patch::face`, never by position. (The
+//!   shipped Cornell box puts its non-planar red wall last, so with `--no-repair` patch `k` is face `k` for every
+//!   other face; repaired, its floor, face 0, is several pieces and the faces after it shift.)
 //! - **Uniform subdivision** ([`mesh`] with `subdivide: true`): each planar convex polygon of a face is cut into
 //!   convex pieces whose edges are all at most `max_patch_edge`:
 //!   - a polygon whose edges already fit stays one patch;
@@ -43,6 +51,7 @@
 //! # Where things are
 //! Each submodule uses only those before it; all of them read the scene ([`crate::scene`]), which knows nothing
 //! of meshing (the scene file's refinement limit, [`crate::scene::MAX_REFINE_PASSES`], is the scene's).
+//! - `repair`: faces cut where others meet them, hidden pieces culled ([`repair()`], [`RepairReport`]).
 //! - `pieces`: the cuts (triangle grid, quadrilateral grid, centroid quadrilaterals) and pieces -> patches.
 //! - `uniform`: [`mesh`], [`MeshOptions`] and the patch-budget search.
 //! - `adjacency`: neighbours within a face ([`adjacency`]) and contact edges between faces.
@@ -51,6 +60,7 @@
 mod adjacency;
 mod pieces;
 mod refine;
+pub mod repair;
 mod uniform;
 
 pub use adjacency::adjacency;
@@ -58,6 +68,7 @@ pub use refine::{
     patch_area_distribution, refine, refine_scores, select_for_refinement, RefineInput, RefineOptions,
     RefineScore, DEFAULT_REFINE_PASSES, DEFAULT_REFINE_TOLERANCE,
 };
+pub use repair::{repair, FaceRepair, Meeting, RepairReport, Repaired, REPAIR_TOLERANCE};
 pub use uniform::{mesh, Mesh, MeshOptions, DEFAULT_EDGE_DIVISIONS, DEFAULT_PATCH_BUDGET};
 
 /// Why meshing or refinement failed.
@@ -67,7 +78,7 @@ pub enum MeshError {
     /// The budget is smaller than one patch per face polygon.
     #[error(
         "patch budget {budget} cannot hold one patch per face: the scene needs at least {needed} patches \
-         ({faces} faces, non-planar ones split into triangles)"
+         ({faces} faces, non-planar ones split into triangles, repaired ones into pieces)"
     )]
     BudgetTooSmall {
         /// The budget asked for.

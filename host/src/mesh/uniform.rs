@@ -5,6 +5,7 @@
 use glam::DVec3;
 
 use super::pieces::{centroid_quads, make_patch, quad_grid, triangle_grid};
+use super::repair::{repair, RepairReport};
 use super::MeshError;
 use crate::patch::Patch;
 use crate::scene::{Polygon, Scene};
@@ -24,6 +25,9 @@ pub struct MeshOptions {
     pub max_patch_edge: f64,
     /// Most patches the mesh may have.
     pub patch_budget: usize,
+    /// Repair the faces first ([`super::repair()`]): cut them where other faces meet them and cull what no point
+    /// can see. `false` (`--no-repair`) meshes the faces as loaded.
+    pub repair: bool,
 }
 
 impl MeshOptions {
@@ -43,16 +47,19 @@ impl MeshOptions {
             subdivide: true,
             max_patch_edge: scene.meshing.max_patch_edge.unwrap_or(extent / DEFAULT_EDGE_DIVISIONS),
             patch_budget: scene.meshing.patch_budget.unwrap_or(DEFAULT_PATCH_BUDGET),
+            repair: scene.meshing.repair.unwrap_or(true),
         }
     }
 
-    /// One patch per face (`--no-subdivide`), with the scene's patch budget.
+    /// One patch per face polygon (`--no-subdivide`; after repair, one per repaired polygon), with the scene's
+    /// patch budget and repair setting.
     #[must_use]
     pub fn no_subdivide(scene: &Scene) -> MeshOptions {
         MeshOptions {
             subdivide: false,
             max_patch_edge: f64::INFINITY,
             patch_budget: scene.meshing.patch_budget.unwrap_or(DEFAULT_PATCH_BUDGET),
+            repair: scene.meshing.repair.unwrap_or(true),
         }
     }
 }
@@ -65,6 +72,8 @@ pub struct Mesh {
     /// The edge limit actually used: the requested one, raised if needed to fit the budget (infinite for
     /// `--no-subdivide`).
     pub max_patch_edge: f64,
+    /// What repair changed (`None` when [`MeshOptions::repair`] is off).
+    pub repair: Option<RepairReport>,
 }
 
 /// Meshes `scene` into patches.
@@ -73,8 +82,20 @@ pub struct Mesh {
 /// [`MeshError::BudgetTooSmall`] if one patch per face polygon exceeds the budget, [`MeshError::BadMaxEdge`] for a
 /// non-positive edge limit, [`MeshError::ZeroAreaPatch`] if a piece degenerates.
 pub fn mesh(scene: &Scene, options: &MeshOptions) -> Result<Mesh, MeshError> {
-    let polygons: Vec<(usize, usize, &Polygon)> =
-        scene.faces.iter().flat_map(|f| f.polygons.iter().map(move |p| (f.index, f.material, p))).collect();
+    let repaired = options.repair.then(|| repair(scene));
+    let polygons: Vec<(usize, usize, &Polygon)> = match &repaired {
+        Some(r) => scene
+            .faces
+            .iter()
+            .zip(&r.polygons)
+            .flat_map(|(f, polys)| polys.iter().map(move |p| (f.index, f.material, p)))
+            .collect(),
+        None => scene
+            .faces
+            .iter()
+            .flat_map(|f| f.polygons.iter().map(move |p| (f.index, f.material, p)))
+            .collect(),
+    };
     let needed = polygons.len();
     if options.patch_budget < needed {
         return Err(MeshError::BudgetTooSmall {
@@ -122,7 +143,7 @@ pub fn mesh(scene: &Scene, options: &MeshOptions) -> Result<Mesh, MeshError> {
             patches.push(make_patch(face, material, vertices, poly.normal)?);
         }
     }
-    Ok(Mesh { patches, max_patch_edge: limit })
+    Ok(Mesh { patches, max_patch_edge: limit, repair: repaired.map(|r| r.report) })
 }
 
 fn divisions(length: f64, limit: f64) -> usize {

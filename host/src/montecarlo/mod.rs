@@ -236,7 +236,13 @@ pub fn validate_options(options: &ReferenceOptions) -> Result<(), MonteCarloErro
 /// # Errors
 /// [`MonteCarloError::Mesh`] if a polygon cannot be made a patch.
 pub fn reference_patches(scene: &Scene) -> Result<Vec<Patch>, MonteCarloError> {
-    let options = MeshOptions { subdivide: false, max_patch_edge: f64::INFINITY, patch_budget: usize::MAX };
+    // The faces as loaded: the tracer samples whole OBJ faces (a fragment no point can see gets B = E there).
+    let options = MeshOptions {
+        subdivide: false,
+        max_patch_edge: f64::INFINITY,
+        patch_budget: usize::MAX,
+        repair: false,
+    };
     Ok(mesh(scene, &options)?.patches)
 }
 

@@ -23,6 +23,9 @@ pub struct MeshingLimits {
     /// Smallest radiosity change across a patch, relative to the scene's mean radiosity, that makes the patch a
     /// candidate for refinement; see [`crate::mesh`].
     pub refine_tolerance: Option<f64>,
+    /// Whether meshing repairs the faces first (cuts where faces meet, culls hidden pieces; default on); see
+    /// [`crate::mesh::repair()`].
+    pub repair: Option<bool>,
 }
 
 #[derive(Default, Deserialize)]
@@ -40,6 +43,7 @@ pub(super) struct TomlMeshing {
     patch_budget: Option<i64>,
     refine_passes: Option<i64>,
     refine_tolerance: Option<f64>,
+    repair: Option<bool>,
 }
 
 #[derive(Deserialize)]
@@ -107,5 +111,6 @@ pub(super) fn check_meshing(file: &Path, m: Option<&TomlMeshing>) -> Result<Mesh
         patch_budget,
         refine_passes,
         refine_tolerance: m.refine_tolerance,
+        repair: m.repair,
     })
 }

@@ -15,6 +15,7 @@
 //!   patch_budget = 2000      # most patches the mesh may have (uniform plus adaptive)
 //!   refine_passes = 3        # adaptive refinement passes after uniform subdivision (0: uniform only)
 //!   refine_tolerance = 0.05  # refine where radiosity changes by more than this times the mean radiosity
+//!   repair = true            # cut faces where others meet them, cull hidden pieces (default true)
 //!
 //!   [[light_group]]
 //!   name = "light"

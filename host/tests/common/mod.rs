@@ -19,6 +19,7 @@ pub fn coarse_cornell() -> Prepared {
         no_subdivide: false,
         max_patch_edge: Some(140.0),
         max_patches: Some(400),
+        repair: true,
         form_factors: FormFactorOptions {
             samples_per_patch: 4,
             rays_per_pair: 4,

@@ -482,7 +482,8 @@ pub enum RenderModeArg {
 pub struct SceneArgs {
     /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
     pub scene: PathBuf,
-    /// One patch per OBJ face: patch k is face k, so results can be checked against hand computations.
+    /// One patch per OBJ face polygon: with `--no-repair` (and no non-planar face before it) patch k is face k,
+    /// so results can be checked against hand computations; the `face` column maps patches to faces always.
     #[arg(long)]
     pub no_subdivide: bool,
     /// Longest patch edge after uniform subdivision, in scene units (default: the scene's TOML, or 1/8 of its
@@ -492,6 +493,10 @@ pub struct SceneArgs {
     /// Most patches the mesh may have, at most 16384 (default: the scene's TOML, or 4096).
     #[arg(long, value_name = "N")]
     pub max_patches: Option<usize>,
+    /// Mesh the faces as loaded: no cuts where faces touch or pass through each other, no culling of what no
+    /// point can see (by default each changed face is reported on stderr, by OBJ line).
+    #[arg(long)]
+    pub no_repair: bool,
     /// Sample points on each patch for the form-factor integral (1 to 1024).
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
     pub samples: usize,
@@ -516,6 +521,7 @@ impl SceneArgs {
             no_subdivide: self.no_subdivide,
             max_patch_edge: self.max_patch_edge,
             max_patches: self.max_patches,
+            repair: !self.no_repair,
             form_factors: FormFactorOptions {
                 samples_per_patch: self.samples,
                 rays_per_pair: self.rays,

@@ -106,10 +106,19 @@ fn solve_hierarchical_command(
         progress: !scene.quiet,
         ..HierarchyOptions::default()
     };
-    let loaded = Scene::load(&scene.scene)?;
+    let mut loaded = Scene::load(&scene.scene)?;
     if !scene.quiet {
         for w in &loaded.warnings {
             eprintln!("warning: {w}");
+        }
+    }
+    // The hierarchy meshes its roots with the scene's own setting, so --no-repair goes there.
+    if scene.no_repair {
+        loaded.meshing.repair = Some(false);
+    }
+    if !scene.quiet && loaded.meshing.repair.unwrap_or(true) {
+        for note in radiosity_host::mesh::repair(&loaded).report.notes(&scene.scene) {
+            eprintln!("repair: {note}");
         }
     }
     let start = std::time::Instant::now();
@@ -601,6 +610,7 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
         no_subdivide: false,
         max_patch_edge: None,
         max_patches: None,
+        repair: true,
         form_factors: FormFactorOptions::default(),
         verbose: true,
     };
