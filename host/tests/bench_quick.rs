@@ -98,6 +98,14 @@ fn quick_bench_writes_a_well_formed_report() {
             assert!(r.vs_dense.is_some_and(|e| e.worst.is_finite()), "{r:?}");
         }
     }
+    // Two flat rows at different budgets give the discretization slope (a finite number, reported).
+    assert_eq!(h.rows.iter().filter(|r| r.epsilon.is_none()).count(), 2);
+    assert!(
+        h.discretization.len() == 1 && h.discretization[0].1.is_some_and(f64::is_finite),
+        "{:?}",
+        h.discretization
+    );
+    assert!(md.contains("Discretization error of the flat rows"));
     if std::env::var_os("RADIOSITY_KEEP_BENCH").is_none() {
         let _ = std::fs::remove_dir_all(&out);
     }

@@ -79,6 +79,10 @@ pub struct HierarchySection {
     pub references: Vec<(String, u64, f64, f64)>,
     /// Log-log slopes over the hierarchical rows of one scene: links and seconds against leaves.
     pub exponents: Vec<(String, Option<f64>, Option<f64>)>,
+    /// Log-log slopes over the flat rows of one scene: the mean and the worst face's error against the continuous
+    /// reference, against the patch count (how fast the discretization error falls with the mesh; a slope near 0
+    /// is a bias that refinement does not remove).
+    pub discretization: Vec<(String, Option<f64>, Option<f64>)>,
     /// The process's peak resident memory after the section (bytes), if the system reports it.
     pub peak_rss: Option<u64>,
 }
@@ -150,14 +154,16 @@ fn peak_rss() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// Runs the section on the Cornell box: the hierarchy at each epsilon (quick: one), the flat solve at its default
-/// mesh and (full run) a finer one, each judged by one continuous reference.
+/// Runs the section on the Cornell box: the hierarchy at each epsilon (quick: one), the flat solve at several
+/// patch budgets (full run: 500, its default, 2,000 and 4,000; quick: 100 and 200), each judged by one continuous
+/// reference.
 ///
 /// # Errors
 /// Loading, meshing, the solves and the reference; a failure is the bench's.
 pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     let epsilons: &[f64] = if options.quick { &[0.3] } else { &[0.3, 0.1, 0.03, 0.01] };
-    let flat_sizes: &[Option<usize>] = if options.quick { &[Some(200)] } else { &[None, Some(3000)] };
+    let flat_sizes: &[Option<usize>] =
+        if options.quick { &[Some(100), Some(200)] } else { &[Some(500), None, Some(2000), Some(4000)] };
     let name = "cornell-box";
     let path = options.scenes.join(format!("{name}.obj"));
     let scene = Scene::load(&path)?;
@@ -253,10 +259,19 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     } else {
         Vec::new()
     };
+    let flat: Vec<&HierarchyRow> = rows.iter().filter(|r| r.epsilon.is_none()).collect();
+    let discretization = if flat.len() >= 2 {
+        let mean: Vec<(f64, f64)> = flat.iter().map(|r| (r.elements as f64, r.vs_continuous.mean)).collect();
+        let worst: Vec<(f64, f64)> = flat.iter().map(|r| (r.elements as f64, r.vs_continuous.worst)).collect();
+        vec![(name.to_owned(), loglog_slope(&mean), loglog_slope(&worst))]
+    } else {
+        Vec::new()
+    };
     Ok(HierarchySection {
         rows,
         references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
         exponents,
+        discretization,
         peak_rss: peak_rss(),
     })
 }

@@ -362,6 +362,17 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
             f(time)
         );
     }
+    for (scene, mean, worst) in &h.discretization {
+        let f = |k: &Option<f64>| k.map_or("-".to_owned(), |k| format!("{k:.2}"));
+        let _ = writeln!(
+            s,
+            "\nDiscretization error of the flat rows of `{scene}` against the patch count (log-log least squares, \
+             `error ~ patches^k`; 0 would be a bias that refinement does not remove, -0.5 is first order in the \
+             patch edge): mean face {}, worst face {}.",
+            f(mean),
+            f(worst)
+        );
+    }
     if let Some(rss) = h.peak_rss {
         let _ = writeln!(
             s,
