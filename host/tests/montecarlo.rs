@@ -1,6 +1,6 @@
 //! The continuous reference (`radiosity_host::montecarlo`) against closed forms: the white furnace, facing and
 //! perpendicular unit squares, and parallel rectangles in an open scene; determinism across thread counts; bad
-//! options.
+//! options; point probes (the furnace, a point opposite a square) and bad probes.
 //!
 //! Every comparison allows 3 standard errors of the estimate (the reference's own, per channel), plus the
 //! closed form's tabulated precision where the expected value comes from a table: the chance that a correct
@@ -13,8 +13,8 @@ use std::path::PathBuf;
 
 use radiosity_host::formfactor::occluder_bvh;
 use radiosity_host::montecarlo::{
-    continuous_reference, continuous_reference_with, reference_patches, ContinuousReference, MonteCarloError,
-    ReferenceOptions, SampleCount,
+    continuous_reference, continuous_reference_with, probe_radiosity, reference_patches, ContinuousReference,
+    MonteCarloError, Probe, ReferenceOptions, SampleCount,
 };
 use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::Scene;
@@ -228,4 +228,91 @@ fn command_line_refuses_bad_options() {
     assert_eq!(lines[0], radiosity_host::montecarlo::FACE_CSV_HEADER);
     assert_eq!(lines.len(), 7);
     assert!(lines[1].starts_with("0,1,0.9,0.9,0.9,1,1,1,") && lines[1].ends_with(",64"), "{}", lines[1]);
+}
+
+/// The differential-area-to-rectangle form factor, point over a corner of an `a x b` rectangle parallel to its
+/// plane at distance `c` (Howell's catalog, B-3): `F = 1/(2 pi) [A/sqrt(1+A^2) atan(B/sqrt(1+A^2)) +
+/// B/sqrt(1+B^2) atan(A/sqrt(1+B^2))]`, `A = a / c`, `B = b / c`.
+fn point_to_rectangle_corner(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a / c, b / c);
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / (2.0 * std::f64::consts::PI)
+}
+
+/// Point probes against closed forms: in the white furnace `B = E / (1 - rho)` at every point, corners and
+/// edges included (where the lifted ray origins matter most); opposite the centre of the facing squares' emitter
+/// (reflecting nothing) `B = rho E F`, `F` the point-to-square form factor (four corner rectangles of
+/// 0.5 x 0.5 at distance 1), and at the receiver's corner one such rectangle of 1 x 1. Each within 3 standard
+/// errors plus the rounding of the closed form.
+#[test]
+fn point_probes_match_closed_forms() {
+    let furnace = Scene::load(common::scene("furnace.obj")).unwrap();
+    let faces = &furnace.faces;
+    // The furnace's faces: a corner of face 0, the midpoint of one of its edges, its centroid.
+    let corners = reference_patches(&furnace).unwrap()[0].vertices.clone();
+    let centroid = corners.iter().copied().sum::<glam::DVec3>() / corners.len() as f64;
+    let probes: Vec<Probe> = [corners[0], 0.5 * (corners[1] + corners[2]), centroid]
+        .into_iter()
+        .map(|point| Probe { point, face: 0 })
+        .collect();
+    assert!(faces.len() == 6);
+    let got = probe_radiosity(&furnace, &probes, 4096, 7).unwrap();
+    for (k, e) in got.iter().enumerate() {
+        assert_eq!(e.paths, 4096);
+        for c in 0..3 {
+            let allowed = 3.0 * e.standard_error[c];
+            assert!(
+                (e.radiosity[c] - 10.0).abs() <= allowed && allowed < 0.5,
+                "furnace probe {k} channel {c}: B {} vs 10, 3 SE {allowed}",
+                e.radiosity[c]
+            );
+        }
+    }
+
+    let obj = std::fs::read_to_string(common::scene("facing-squares.obj"))
+        .unwrap()
+        .replace("mtllib facing-squares.mtl", "");
+    let s = scene("facing-probe", &obj, "newmtl emitter\nKd 0 0 0\nKe 1 1 1\nnewmtl grey\nKd 0.5 0.5 0.5\n");
+    let probes = [
+        Probe { point: glam::DVec3::new(0.5, 0.5, 1.0), face: 1 },
+        Probe { point: glam::DVec3::new(0.0, 0.0, 1.0), face: 1 },
+    ];
+    let expected = [4.0 * point_to_rectangle_corner(0.5, 0.5, 1.0), point_to_rectangle_corner(1.0, 1.0, 1.0)];
+    let got = probe_radiosity(&s, &probes, 20_000, 7).unwrap();
+    for (k, (e, f)) in got.iter().zip(expected).enumerate() {
+        for c in 0..3 {
+            let (b, allowed) = (e.radiosity[c], 3.0 * e.standard_error[c] + 1e-12);
+            assert!(
+                (b - 0.5 * f).abs() <= allowed,
+                "facing probe {k}: B {b} vs rho F E {}, 3 SE {allowed}",
+                0.5 * f
+            );
+            assert!(e.standard_error[c] < 0.01 * b, "probe {k}: SE {} of {b}", e.standard_error[c]);
+        }
+    }
+    // The same seed gives the same answer.
+    assert_eq!(probe_radiosity(&s, &probes, 20_000, 7).unwrap(), got);
+}
+
+/// Probes off their face, on a face that does not exist, at a non-finite point, or with zero paths are refused
+/// before any ray, naming the probe.
+#[test]
+fn bad_probes_are_refused() {
+    let s = Scene::load(common::scene("facing-squares.obj")).unwrap();
+    let on = Probe { point: glam::DVec3::new(0.5, 0.5, 1.0), face: 1 };
+    let cases = [
+        (vec![on, Probe { point: glam::DVec3::new(0.5, 0.5, 0.9), face: 1 }], 10, "probe 1: point"),
+        (vec![Probe { point: glam::DVec3::new(1.5, 0.5, 1.0), face: 1 }], 10, "is not on face 1"),
+        (vec![Probe { face: 2, ..on }], 10, "face 2 does not exist"),
+        (vec![Probe { point: glam::DVec3::new(f64::NAN, 0.5, 1.0), face: 1 }], 10, "is not finite"),
+        (vec![on], 0, "0 paths per probe"),
+    ];
+    for (probes, paths, expect) in cases {
+        match probe_radiosity(&s, &probes, paths, 1) {
+            Err(e @ MonteCarloError::InvalidOption { .. }) => {
+                assert!(e.to_string().contains(expect), "{e} lacks {expect:?}");
+            }
+            other => panic!("{probes:?} with {paths} paths: expected an invalid option, got {other:?}"),
+        }
+    }
 }

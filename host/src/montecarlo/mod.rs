@@ -64,8 +64,10 @@
 //!
 //! # Files
 //! `tracer` (the scene as paths see it, one batch of paths) -> `report` (the result types, text and CSV) ->
-//! this module (options, rounds, threads).
+//! this module (options, rounds, threads); `probe` starts the same paths from given points
+//! ([`probe_radiosity`]).
 
+mod probe;
 mod report;
 mod tracer;
 
@@ -75,6 +77,7 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
+pub use probe::{probe_radiosity, Probe, ProbeEstimate, ON_FACE};
 pub use report::{ContinuousReference, FaceReference, FACE_CSV_HEADER};
 
 use crate::embree::EmbreeError;

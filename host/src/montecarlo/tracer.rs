@@ -16,6 +16,8 @@ use crate::rng::SplitMix64;
 const PATH_STREAM: u64 = 0x4D43_5041_5448_0000;
 /// Mixed into the seed of the strata streams (keyed by face and batch index).
 const STRATA_STREAM: u64 = 0x4D43_5354_5241_0000;
+/// Mixed into the seed of the path streams of probes (keyed by probe and sample index).
+const PROBE_STREAM: u64 = 0x4D43_5052_4F42_0000;
 
 /// One face as the estimator samples it: its polygons (patches of the unsubdivided mesh) with their cumulative
 /// area fractions.
@@ -224,7 +226,7 @@ impl<'a> TraceScene<'a> {
         let (a, b) = grid(count);
         let mut cells: Vec<usize> = (0..a * b).collect();
         SplitMix64::for_stream(seed ^ STRATA_STREAM, face as u64, batch).shuffle(&mut cells);
-        let mut paths: Vec<Path> = (0..count)
+        let paths: Vec<Path> = (0..count)
             .map(|k| {
                 let mut rng = SplitMix64::for_stream(seed ^ PATH_STREAM, face as u64, first + k as u64);
                 let cell = cells[k];
@@ -235,6 +237,42 @@ impl<'a> TraceScene<'a> {
                 Path { point, normal, patch, throughput: Rgb::ONE, sum: Rgb::ZERO, rng }
             })
             .collect();
+        self.trace(caster, paths)
+    }
+
+    /// Traces the samples `first..first + count` of probe number `probe`: paths from `point`, a point of
+    /// `patch` (its surface), and returns the moments of their irradiance estimates.
+    ///
+    /// # Errors
+    /// [`MonteCarloError::CasterMismatch`] if the caster reports a triangle the occluder mesh does not have.
+    #[allow(clippy::too_many_arguments)] // the probe's identity, its place and its share of the samples
+    pub fn trace_probe<C: RayCaster + ?Sized>(
+        &self,
+        caster: &C,
+        seed: u64,
+        probe: usize,
+        point: DVec3,
+        patch: usize,
+        first: u64,
+        count: usize,
+    ) -> Result<Moments, MonteCarloError> {
+        let normal = self.patches[patch].normal;
+        let paths = (0..count)
+            .map(|k| {
+                let rng = SplitMix64::for_stream(seed ^ PROBE_STREAM, probe as u64, first + k as u64);
+                Path { point, normal, patch, throughput: Rgb::ONE, sum: Rgb::ZERO, rng }
+            })
+            .collect();
+        self.trace(caster, paths)
+    }
+
+    /// Runs `paths` to their ends and returns the moments of their irradiance estimates, in path order.
+    fn trace<C: RayCaster + ?Sized>(
+        &self,
+        caster: &C,
+        mut paths: Vec<Path>,
+    ) -> Result<Moments, MonteCarloError> {
+        let count = paths.len();
         let mut finished = vec![Rgb::ZERO; count];
         let mut index: Vec<usize> = (0..count).collect();
         let mut rays = 0u64;
