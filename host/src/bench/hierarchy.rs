@@ -262,7 +262,8 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     let flat: Vec<&HierarchyRow> = rows.iter().filter(|r| r.epsilon.is_none()).collect();
     let discretization = if flat.len() >= 2 {
         let mean: Vec<(f64, f64)> = flat.iter().map(|r| (r.elements as f64, r.vs_continuous.mean)).collect();
-        let worst: Vec<(f64, f64)> = flat.iter().map(|r| (r.elements as f64, r.vs_continuous.worst)).collect();
+        let worst: Vec<(f64, f64)> =
+            flat.iter().map(|r| (r.elements as f64, r.vs_continuous.worst)).collect();
         vec![(name.to_owned(), loglog_slope(&mean), loglog_slope(&worst))]
     } else {
         Vec::new()
