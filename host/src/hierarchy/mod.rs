@@ -28,7 +28,8 @@
 //!
 //!   A link whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) or the node
 //!   limit is kept and counted.
-//! - **Solve** (`solve`): Jacobi sweeps with push-pull. Passes alternate solve and budget refinement until no
+//! - **Solve** (`solve`): Jacobi sweeps with push-pull, or (`shoot`, [`HierarchySolver::Shooting`]) progressive
+//!   refinement: the nodes with the most unshot power shoot over their links. Passes alternate solve and budget refinement until no
 //!   link is split or the passes run out.
 //! - **Claimed error**. After the last solve, each leaf's chain charge `c` (what it may gather wrongly per bounce)
 //!   is propagated through the same operator, `e = c + rho H e`: the oracle's claimed bound on each leaf's
@@ -48,6 +49,7 @@
 
 mod budget;
 mod link;
+mod shoot;
 mod solve;
 mod tree;
 
@@ -82,6 +84,17 @@ pub const DEFAULT_SOLVE_TOLERANCE: f64 = 1e-7;
 /// Most push-pull sweeps of one solve.
 pub const MAX_SWEEPS: usize = 100_000;
 
+/// How the linear system on the links is solved (both reach the same answer; see the tests of `shoot`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HierarchySolver {
+    /// Jacobi sweeps over all links with push-pull (`solve`).
+    #[default]
+    Gathering,
+    /// Progressive refinement: rounds in which the nodes with the most unshot power shoot over their links
+    /// (`shoot`), the order a device relights in.
+    Shooting,
+}
+
 /// Settings of the hierarchical solver.
 #[derive(Clone, Debug)]
 pub struct HierarchyOptions {
@@ -96,8 +109,11 @@ pub struct HierarchyOptions {
     pub cluster_samples: usize,
     /// Refinement passes.
     pub passes: usize,
-    /// Relative change `sum A |dB| / sum A B` at which the iteration stops.
+    /// Relative change `sum A |dB| / sum A B` at which the gathering iteration stops; for shooting, the unshot
+    /// power over the total at which it stops.
     pub solve_tolerance: f64,
+    /// Gathering or shooting.
+    pub solver: HierarchySolver,
     /// The form-factor estimator's rules (samples per element, rays per pair, seed) for surface pairs.
     pub form_factors: FormFactorOptions,
     /// Print one line per pass on stderr.
@@ -113,6 +129,7 @@ impl Default for HierarchyOptions {
             cluster_samples: DEFAULT_CLUSTER_SAMPLES,
             passes: DEFAULT_PASSES,
             solve_tolerance: DEFAULT_SOLVE_TOLERANCE,
+            solver: HierarchySolver::Gathering,
             form_factors: FormFactorOptions { progress: false, ..FormFactorOptions::default() },
             progress: false,
         }
@@ -385,7 +402,10 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 &mut counts,
             )?;
         }
-        solution = solve::solve(&tree, &links, options.solve_tolerance, MAX_SWEEPS);
+        solution = match options.solver {
+            HierarchySolver::Gathering => solve::solve(&tree, &links, options.solve_tolerance, MAX_SWEEPS),
+            HierarchySolver::Shooting => shoot::shoot(&tree, &links, options.solve_tolerance, MAX_SWEEPS),
+        };
         // NaN or infinity (a diverging iteration: some leaf gathers more than it can reflect away) fails too.
         if solution.change.is_nan() || solution.change > options.solve_tolerance {
             return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });

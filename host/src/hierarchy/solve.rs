@@ -57,7 +57,7 @@ fn emission(tree: &Tree) -> Vec<Rgb> {
 }
 
 /// Area-weighted means and maxima from the leaves' values in `b`, in reverse index order.
-fn pull(tree: &Tree, b: &mut [Rgb], e: &[Rgb], spans: &mut [Span]) {
+pub(super) fn pull(tree: &Tree, b: &mut [Rgb], e: &[Rgb], spans: &mut [Span]) {
     for n in (0..tree.nodes.len()).rev() {
         let node = &tree.nodes[n];
         if node.children.is_empty() {
