@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use super::report::loglog_slope;
+use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
 use crate::formfactor::{compute_form_factors, FormFactorOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions};

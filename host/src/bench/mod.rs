@@ -26,6 +26,7 @@
 pub mod bakebench;
 mod curves;
 pub mod device;
+pub mod fit;
 mod growth;
 pub mod hierarchy;
 pub mod report;

@@ -26,7 +26,7 @@
 use rayon::prelude::*;
 
 use super::link::{can_split, refine, split_end, Estimator, Limits, Link, RefineCounts};
-use super::solve::Span;
+use super::span::Span;
 use super::tree::{Tree, NONE};
 use super::HierarchyError;
 use crate::formfactor::point_to_polygon;
@@ -377,7 +377,7 @@ mod tests {
     use glam::DVec3;
 
     use super::super::link::Estimator;
-    use super::super::solve::Span;
+    use super::super::span::Span;
     use super::super::tree::Tree;
     use super::systematic;
     use crate::formfactor::{occluder_bvh, ElementRules, FormFactorOptions};

@@ -6,7 +6,7 @@ use std::f64::consts::PI;
 
 use rayon::prelude::*;
 
-use super::solve::Span;
+use super::span::Span;
 use super::tree::{Kind, Tree};
 use super::HierarchyError;
 use crate::formfactor::{point_to_polygon, Element, ElementRules};

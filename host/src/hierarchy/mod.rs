@@ -43,14 +43,16 @@
 //! [`HierarchyError::NotConverged`].
 
 //! # Files
-//! `tree` (nodes, clusters, splits, sampling) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve`
-//! (push-pull iteration, error propagation) -> `budget` (per-leaf charges, budget refinement) -> this module
-//! (options, the driver, results).
+//! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
+//! node) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve` (push-pull iteration, error
+//! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
+//! -> this module (options, the driver, results).
 
 mod budget;
 mod link;
 mod shoot;
 mod solve;
+mod span;
 mod tree;
 
 use std::fmt;

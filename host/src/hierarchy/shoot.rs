@@ -19,7 +19,8 @@
 //! leaf has received, through every link on its chain, the sender's full radiosity.
 
 use super::link::Link;
-use super::solve::{pull, NodeRadiosity, Span};
+use super::solve::{pull, NodeRadiosity};
+use super::span::Span;
 use super::tree::{Kind, Tree, NONE};
 use crate::rgb::{max_channel, Rgb};
 
