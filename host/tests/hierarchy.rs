@@ -9,6 +9,7 @@ use radiosity_host::hierarchy::{
     solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions, HierarchySolver,
 };
 use radiosity_host::reference::{solve_many, Method, RadiositySystem};
+use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::Scene;
 
 /// Writes `obj` and `mtl` into a fresh folder and loads the scene.
@@ -190,4 +191,36 @@ fn bad_options_and_dark_scenes_are_refused() {
         solve_hierarchical(&dark, &HierarchyOptions::default()),
         Err(HierarchyError::NoEmission)
     ));
+}
+
+/// The answer split by light source on the same links: the two-rooms scene has a static light (room B) and a
+/// dynamic lamp (room A). Relit at the default intensities, the split answer is the solve's own: each of the
+/// `1 + groups` source solves and the main one stop at a relative change of at most `tol`, leaving an error of
+/// at most `tol q / (1 - q)` each (`q` the iteration's contraction, observed from the main solve's sweeps), so
+/// the two differ by at most `(2 + groups) tol / (1 - q)` relative. Each source lights something, and the lamp's
+/// vector scales: intensity 2 doubles its share exactly (the relight is linear).
+#[test]
+fn the_answer_splits_by_light_source_and_relights() {
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/two-rooms.obj")).unwrap();
+    let options = HierarchyOptions { epsilon: 0.1, ..HierarchyOptions::default() };
+    let sol = solve_hierarchical(&s, &options).unwrap();
+    let transfer = sol.transfer.as_ref().expect("the scene's split answer");
+    assert_eq!(transfer.t.len(), 1, "one dynamic group (the lamp)");
+    let total = |b: &[Rgb]| sol.leaves.iter().zip(b).map(|(p, v)| p.area * v.max_element()).sum::<f64>();
+    assert!(total(&transfer.b_static) > 0.0 && total(&transfer.t[0]) > 0.0, "both sources light something");
+    let relit = transfer.relight(&[Rgb::ONE]).unwrap();
+    let tol = options.solve_tolerance;
+    let q = tol.powf(1.0 / sol.stats.sweeps as f64);
+    let diff: f64 = sol
+        .leaves
+        .iter()
+        .zip(relit.iter().zip(&sol.b))
+        .map(|(p, (r, b))| p.area * (*r - *b).abs().max_element())
+        .sum();
+    let allowed = (2.0 + transfer.t.len() as f64) * tol / (1.0 - q);
+    assert!(diff / total(&sol.b) <= allowed, "relit vs solved: {:.3e} > {allowed:.3e}", diff / total(&sol.b));
+    let doubled = transfer.relight(&[Rgb::splat(2.0)]).unwrap();
+    for ((d, r), t) in doubled.iter().zip(&relit).zip(&transfer.t[0]) {
+        assert!((*d - *r - *t).abs().max_element() <= 1e-12 * d.max_element().max(1.0));
+    }
 }

@@ -62,6 +62,7 @@ use crate::lighting::PatchLighting;
 use crate::mesh::{mesh, MeshError, MeshOptions};
 use crate::patch::Patch;
 use crate::raycast::RayCaster;
+use crate::reference::TransferVectors;
 use crate::rgb::{max_channel, Rgb};
 use crate::scene::Scene;
 
@@ -269,11 +270,19 @@ pub struct HierarchicalSolution {
     /// factor is their area average), so to first order an area average of radiosity (a face's, say) is off by
     /// at most the area average of this (W/m^2, largest channel).
     pub average_error_bound: Option<Vec<f64>>,
+    /// The answer split by light source, on the same leaves (see [`solve_hierarchy_sources`]): the static
+    /// emission's radiosity and one vector per dynamic light group at unit intensity, so that
+    /// [`TransferVectors::relight`] gives the radiosity at any intensities without a new solve. The links were
+    /// refined for the emission the solve was given (the default intensities), so other intensities are solved
+    /// on links chosen for those. `None` when no sources were given.
+    pub transfer: Option<TransferVectors>,
     /// What it took.
     pub stats: HierarchyStats,
 }
 
-/// Solves `scene` hierarchically with every light group at its default intensity, with Embree occluders.
+/// Solves `scene` hierarchically with every light group at its default intensity, with Embree occluders; the
+/// answer is also split by light source ([`HierarchicalSolution::transfer`]: the static lights, then the scene's
+/// dynamic groups in order).
 ///
 /// # Errors
 /// See [`solve_hierarchy`]; also meshing and occluder errors.
@@ -285,7 +294,15 @@ pub fn solve_hierarchical(
         mesh(scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(scene) })?.patches;
     let lighting = PatchLighting::new(scene, &roots);
     let caster = occluder_scene(&roots, true)?;
-    solve_hierarchy(&roots, &lighting.rho, &lighting.default_emission(), &caster, options)
+    let mut sources = vec![lighting.static_emission.clone()];
+    for g in 0..lighting.dynamic_groups.len() {
+        sources.push(
+            (0..roots.len())
+                .map(|k| if lighting.group[k] == Some(g) { lighting.unit_emission[k] } else { Rgb::ZERO })
+                .collect(),
+        );
+    }
+    solve_hierarchy_sources(&roots, &lighting.rho, &lighting.default_emission(), &sources, &caster, options)
 }
 
 fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
@@ -325,14 +342,38 @@ pub fn solve_hierarchy<C: RayCaster + ?Sized>(
     caster: &C,
     options: &HierarchyOptions,
 ) -> Result<HierarchicalSolution, HierarchyError> {
+    solve_hierarchy_sources(roots, rho, emission, &[], caster, options)
+}
+
+/// [`solve_hierarchy`], and after it the same system solved once per light source on the final links:
+/// `sources[0]` is the emission per face polygon of the static lights, `sources[1..]` each dynamic group's at
+/// unit intensity ([`HierarchicalSolution::transfer`]; none if `sources` is empty).
+///
+/// # Errors
+/// As [`solve_hierarchy`]; [`HierarchyError::InvalidOption`] if a source does not have one emission per
+/// polygon; [`HierarchyError::NotConverged`] if a source's solve does not converge.
+pub fn solve_hierarchy_sources<C: RayCaster + ?Sized>(
+    roots: &[Patch],
+    rho: &[Rgb],
+    emission: &[Rgb],
+    sources: &[Vec<Rgb>],
+    caster: &C,
+    options: &HierarchyOptions,
+) -> Result<HierarchicalSolution, HierarchyError> {
     check_options(options)?;
+    if let Some(k) = sources.iter().position(|s| s.len() != roots.len()) {
+        return Err(HierarchyError::InvalidOption {
+            name: "sources",
+            problem: format!("source {k} has {} emissions for {} polygons", sources[k].len(), roots.len()),
+        });
+    }
     match options.form_factors.threads {
         Some(threads) => rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .map_err(|e| HierarchyError::InvalidOption { name: "threads", problem: e.to_string() })?
-            .install(|| solve_checked(roots, rho, emission, caster, options)),
-        None => solve_checked(roots, rho, emission, caster, options),
+            .install(|| solve_checked(roots, rho, emission, sources, caster, options)),
+        None => solve_checked(roots, rho, emission, sources, caster, options),
     }
 }
 
@@ -341,6 +382,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
     roots: &[Patch],
     rho: &[Rgb],
     emission: &[Rgb],
+    sources: &[Vec<Rgb>],
     caster: &C,
     options: &HierarchyOptions,
 ) -> Result<HierarchicalSolution, HierarchyError> {
@@ -404,14 +446,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 &mut counts,
             )?;
         }
-        solution = match options.solver {
-            HierarchySolver::Gathering => solve::solve(&tree, &links, options.solve_tolerance, MAX_SWEEPS),
-            HierarchySolver::Shooting => shoot::shoot(&tree, &links, options.solve_tolerance, MAX_SWEEPS),
-        };
-        // NaN or infinity (a diverging iteration: some leaf gathers more than it can reflect away) fails too.
-        if solution.change.is_nan() || solution.change > options.solve_tolerance {
-            return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });
-        }
+        solution = solve_with(&tree, &links, &solve::emission(&tree), options)?;
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
         passes.push(PassStats {
             links: links.len(),
@@ -443,7 +478,63 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let (charges, persistent) = budget::leaf_charges(&tree, &spans, &limits, &links, rays, options.epsilon);
     let bound = solve::propagate(&tree, &links, &charges, options.solve_tolerance, MAX_SWEEPS)
         .zip(solve::propagate(&tree, &links, &persistent, options.solve_tolerance, MAX_SWEEPS));
-    Ok(finish(&tree, &links, &solution, bound, counts, passes, &limits, brightest_power, roots.len()))
+    let mut out =
+        finish(&tree, &links, &solution, bound, counts, passes, &limits, brightest_power, roots.len());
+    if !sources.is_empty() {
+        let order = leaf_order(&tree);
+        let (mut residual, mut sweeps) = (0.0f64, 0);
+        let mut per_source = Vec::with_capacity(sources.len());
+        for source in sources {
+            let e: Vec<Rgb> = tree
+                .nodes
+                .iter()
+                .map(|n| if n.root == tree::NONE { Rgb::ZERO } else { source[n.root as usize] })
+                .collect();
+            let s = solve_with(&tree, &links, &e, options)?;
+            residual = residual.max(s.change);
+            sweeps += s.sweeps;
+            per_source.push(order.iter().map(|&k| s.b[k]).collect::<Vec<Rgb>>());
+        }
+        let b_static = per_source.remove(0);
+        out.transfer = Some(TransferVectors { b_static, t: per_source, residual, sweeps });
+    }
+    Ok(out)
+}
+
+/// The system on `links` solved with emission `e` per node by the chosen solver.
+///
+/// # Errors
+/// [`HierarchyError::NotConverged`] if it does not reach the tolerance, diverges (NaN or infinity: some leaf
+/// gathers more than it can reflect away) or runs out of sweeps.
+fn solve_with(
+    tree: &Tree,
+    links: &[link::Link],
+    e: &[Rgb],
+    options: &HierarchyOptions,
+) -> Result<solve::NodeRadiosity, HierarchyError> {
+    let solution = match options.solver {
+        HierarchySolver::Gathering => solve::solve(tree, links, e, options.solve_tolerance, MAX_SWEEPS),
+        HierarchySolver::Shooting => shoot::shoot(tree, links, e, options.solve_tolerance, MAX_SWEEPS),
+    };
+    if solution.change.is_nan() || solution.change > options.solve_tolerance {
+        return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });
+    }
+    Ok(solution)
+}
+
+/// The leaves' node indices in the answer's order: by face, then by node index (when they were made).
+fn leaf_order(tree: &Tree) -> Vec<usize> {
+    let mut leaves: Vec<(usize, usize)> = tree
+        .nodes
+        .iter()
+        .enumerate()
+        .filter_map(|(k, node)| match &node.kind {
+            Kind::Surface { element, .. } if node.children.is_empty() => Some((element.patch().face, k)),
+            _ => None,
+        })
+        .collect();
+    leaves.sort_unstable();
+    leaves.into_iter().map(|(_, k)| k).collect()
 }
 
 /// The smallest and largest total form factor over the leaves (pushed down like irradiance).
@@ -480,20 +571,9 @@ fn finish(
     brightest_power: f64,
     polygons: usize,
 ) -> HierarchicalSolution {
-    let mut leaves: Vec<(usize, usize)> = Vec::new();
-    let (mut clusters, mut surfaces) = (0, 0);
-    for (k, node) in tree.nodes.iter().enumerate() {
-        match &node.kind {
-            Kind::Cluster { .. } => clusters += 1,
-            Kind::Surface { element, .. } => {
-                surfaces += 1;
-                if node.children.is_empty() {
-                    leaves.push((element.patch().face, k));
-                }
-            }
-        }
-    }
-    leaves.sort_unstable();
+    let leaves = leaf_order(tree);
+    let clusters = tree.nodes.iter().filter(|n| matches!(n.kind, Kind::Cluster { .. })).count();
+    let surfaces = tree.nodes.len() - clusters;
     let (surface_links, cluster_links) = links.iter().fold((0, 0), |(s, c), l| {
         if tree.is_cluster(l.a) || tree.is_cluster(l.b) {
             (s, c + 1)
@@ -508,6 +588,7 @@ fn finish(
         b: Vec::with_capacity(leaves.len()),
         error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
         average_error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
+        transfer: None,
         stats: HierarchyStats {
             polygons,
             clusters,
@@ -527,7 +608,7 @@ fn finish(
         },
     };
     let (mut radiosity, mut claimed) = (0.0, 0.0);
-    for &(_, k) in &leaves {
+    for &k in &leaves {
         let node = &tree.nodes[k];
         if let Kind::Surface { element, rho, emission } = &node.kind {
             out.leaves.push(element.patch().clone());

@@ -27,18 +27,26 @@ use crate::rgb::{max_channel, Rgb};
 /// A node shoots in a round when its unshot power is at least this share of the round's largest.
 pub const ROUND_SHARE: f64 = 0.25;
 
-/// Shooting rounds until the unshot power is at most `tolerance` of the total, or `max_rounds` ran. The returned
-/// `sweeps` counts shots, `change` is the remaining unshot power over the total (infinite or NaN if it diverged).
-pub(super) fn shoot(tree: &Tree, links: &[Link], tolerance: f64, max_rounds: usize) -> NodeRadiosity {
+/// Shooting rounds with emission `e` per node (zero on clusters) until the unshot power is at most `tolerance`
+/// of the total, or `max_rounds` ran. The returned `sweeps` counts shots, `change` is the remaining unshot power
+/// over the total (infinite or NaN if it diverged).
+pub(super) fn shoot(
+    tree: &Tree,
+    links: &[Link],
+    e: &[Rgb],
+    tolerance: f64,
+    max_rounds: usize,
+) -> NodeRadiosity {
     let n = tree.nodes.len();
-    let (rho, e): (Vec<Rgb>, Vec<Rgb>) = tree
+    let e = e.to_vec();
+    let rho: Vec<Rgb> = tree
         .nodes
         .iter()
         .map(|node| match &node.kind {
-            Kind::Surface { rho, emission, .. } => (*rho, *emission),
-            Kind::Cluster { .. } => (Rgb::ZERO, Rgb::ZERO),
+            Kind::Surface { rho, .. } => *rho,
+            Kind::Cluster { .. } => Rgb::ZERO,
         })
-        .unzip();
+        .collect();
     // Outgoing links per node, as (receiver, form factor at the receiver).
     let mut start = vec![0usize; n + 1];
     for l in links {
@@ -129,7 +137,7 @@ pub(super) fn shoot(tree: &Tree, links: &[Link], tolerance: f64, max_rounds: usi
 #[cfg(test)]
 mod tests {
     use super::super::link::{expand_self, refine, Estimator, Limits, RefineCounts};
-    use super::super::solve::{emission_bound, solve};
+    use super::super::solve::{emission as node_emission, emission_bound, solve};
     use super::super::tree::Tree;
     use super::shoot;
     use crate::formfactor::{occluder_scene, ElementRules, FormFactorOptions};
@@ -169,8 +177,9 @@ mod tests {
         assert!(links.len() > 100, "{} links", links.len());
 
         let tol = 1e-10;
-        let gathered = solve(&tree, &links, tol, 100_000);
-        let shot = shoot(&tree, &links, tol, 100_000);
+        let e = node_emission(&tree);
+        let gathered = solve(&tree, &links, &e, tol, 100_000);
+        let shot = shoot(&tree, &links, &e, tol, 100_000);
         assert!(gathered.change <= tol && shot.change <= tol, "{} {}", gathered.change, shot.change);
         // The iteration's contraction per sweep, as observed: from a change of at most 1 to `tol` in `sweeps`.
         let q = tol.powf(1.0 / gathered.sweeps as f64);

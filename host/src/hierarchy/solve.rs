@@ -21,7 +21,7 @@ pub(super) struct NodeRadiosity {
 }
 
 /// Emission per node (its surface's for surfaces, zero for clusters).
-fn emission(tree: &Tree) -> Vec<Rgb> {
+pub(super) fn emission(tree: &Tree) -> Vec<Rgb> {
     tree.nodes
         .iter()
         .map(|n| match &n.kind {
@@ -63,10 +63,17 @@ pub(super) fn emission_bound(tree: &Tree) -> Vec<Span> {
     spans
 }
 
-/// Jacobi sweeps until the relative change is at most `tolerance` or `max_sweeps` ran.
-pub(super) fn solve(tree: &Tree, links: &[Link], tolerance: f64, max_sweeps: usize) -> NodeRadiosity {
+/// Jacobi sweeps with emission `e` per node (zero on clusters) until the relative change is at most `tolerance`
+/// or `max_sweeps` ran.
+pub(super) fn solve(
+    tree: &Tree,
+    links: &[Link],
+    e: &[Rgb],
+    tolerance: f64,
+    max_sweeps: usize,
+) -> NodeRadiosity {
     let n = tree.nodes.len();
-    let e = emission(tree);
+    let e = e.to_vec();
     let rho: Vec<Rgb> = tree
         .nodes
         .iter()

@@ -37,6 +37,8 @@ pub(super) struct Node {
     pub(super) radius: f64,
     /// Largest reflectance per channel of any surface in the node.
     pub(super) rho_max: Rgb,
+    /// The face polygon (index into the roots) a surface was cut from; [`NONE`] for a cluster.
+    pub(super) root: u32,
 }
 
 impl Node {
@@ -113,6 +115,7 @@ impl Tree {
                 center,
                 radius,
                 rho_max: rho[*root],
+                root: *root as u32,
             });
             self.order[first] = index;
             return index;
@@ -126,6 +129,7 @@ impl Tree {
             center,
             radius,
             rho_max: Rgb::ZERO,
+            root: NONE,
         });
         let (lo, hi) = bounding_box(ids.iter().map(|&k| roots[k].centroid));
         let axis = (hi - lo).max_position();
@@ -163,7 +167,7 @@ impl Tree {
             return Ok(());
         }
         let Kind::Surface { element, rho, emission } = &node.kind else { return Ok(()) };
-        let (rho, emission) = (*rho, *emission);
+        let (rho, emission, root) = (*rho, *emission, node.root);
         let pieces = refine(std::slice::from_ref(element.patch()), &[0])?;
         let first = self.nodes.len() as u32;
         for piece in pieces {
@@ -175,6 +179,7 @@ impl Tree {
                 center,
                 radius,
                 rho_max: rho,
+                root,
                 kind: Kind::Surface { element: Box::new(rules.element(piece)), rho, emission },
             });
         }
