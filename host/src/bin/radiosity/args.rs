@@ -23,7 +23,7 @@ pub enum SolveMethod {
     Hierarchical,
 }
 
-/// Output format of a command.
+/// Output format of a command whose output is a table (one CSV row per patch, face, pair or frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
     /// Human-readable text (the default).
@@ -32,6 +32,17 @@ pub enum Format {
     /// Comma-separated values with a header line.
     Csv,
     /// JSON.
+    Json,
+}
+
+/// Output format of a command whose output is a report with no one table to put in CSV (`bake`, `inspect`,
+/// `check`, `regress`): `--format csv` is refused by the parser, naming the formats it accepts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReportFormat {
+    /// Human-readable text (the default).
+    #[default]
+    Text,
+    /// JSON: everything the text shows.
     Json,
 }
 
@@ -247,17 +258,17 @@ pub enum Command {
         /// relight error.
         #[arg(long)]
         transfer: bool,
-        /// Output format of the summary.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        /// Output format of the summary (`text` or `json`; JSON adds the paths written as `files`).
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Validate a table with the device's own parser and print its header and statistics.
     Inspect {
         /// The table file (.rft).
         table: PathBuf,
-        /// Output format.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
     /// render it (view, light-map atlas, device error map, mesh histogram), then bake a table within 400 patches
@@ -277,7 +288,9 @@ pub enum Command {
     Solve {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output format (`text` prints a summary per light group; `csv` the patch table; `json` both).
+        /// Output format: `csv` the patch table; `text` a summary (patches, residual, mean radiosity, the mean
+        /// response to each dynamic light group); `json` the summary and the patch table with each patch's
+        /// vertices (`patch_table`).
         #[arg(long, value_enum, default_value_t = Format::Csv)]
         format: Format,
         /// Solver: `flat` (a form factor for every pair of patches) or `hierarchical` (links between clusters
@@ -360,7 +373,8 @@ pub enum Command {
         /// legend).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
-        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
+        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything). With `csv`
+        /// and `json` the paths of the files written (`--frames`, `--csv`, `--plot`) go to stderr.
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
@@ -391,9 +405,9 @@ pub enum Command {
         /// (their folder must exist).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
-        /// Output format (`text` or `json`).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        /// Output format (`text` or `json`; with `json` the plot's paths go to stderr).
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Quantization regression: recompute every shipped scene's error components (16- and 8-bit codecs) and
     /// compare them with the checked-in baseline (fails when one exceeds baseline + k * noise);
@@ -402,8 +416,8 @@ pub enum Command {
         #[command(flatten)]
         regress: RegressArgs,
         /// Output format (`text` or `json`).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Measure speed against error for every relighting method (core shooting with and without overshooting,
     /// Gauss-Seidel, Jacobi, warm and cold relighting, the precomputed transfer basis, f64 dense LU and

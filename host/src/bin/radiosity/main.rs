@@ -11,10 +11,10 @@ use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON};
 use radiosity_host::inspect::inspect_file;
-use radiosity_host::output::write_patch_csv;
+use radiosity_host::output::{patch_json, write_patch_csv};
 
 mod args;
-use args::{Cli, Command, Format, RenderModeArg, SolveMethod};
+use args::{Cli, Command, Format, RenderModeArg, ReportFormat, SolveMethod};
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
@@ -146,6 +146,7 @@ fn solve_hierarchical_command(
                 "mean_radiosity": mean,
                 "b": solution.b,
                 "error_bound": solution.error_bound,
+                "patch_table": patch_json(&solution.leaves, &solution.rho, &solution.emission, &solution.b),
             });
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)?;
@@ -257,11 +258,11 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         Command::Inspect { table, format } => {
             let report = inspect_file(&table)?;
             match format {
-                Format::Json => {
+                ReportFormat::Json => {
                     serde_json::to_writer_pretty(&mut out, &report)?;
                     writeln!(out)?;
                 }
-                Format::Text | Format::Csv => writeln!(out, "{report}")?,
+                ReportFormat::Text => writeln!(out, "{report}")?,
             }
         }
         Command::Demo { out: dir } => {
@@ -292,43 +293,54 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             let tv = exact_transfer(l, &p.form_factors, &Method::for_size(p.patches.len()))?;
             let b = tv.relight(&l.default_intensity)?;
             let e = l.default_emission();
+            let area: f64 = p.patches.iter().map(|q| q.area).sum();
+            let mean = |v: &[Rgb]| -> Rgb {
+                p.patches.iter().zip(v).fold(Rgb::ZERO, |m, (q, &x)| m + q.area * x / area)
+            };
+            let groups: Vec<(&str, Rgb)> = l
+                .dynamic_groups
+                .iter()
+                .zip(&tv.t)
+                .map(|(&g, t)| (p.scene.light_groups[g].name.as_str(), mean(t)))
+                .collect();
             match format {
                 Format::Csv => write_patch_csv(&mut out, &p.patches, &l.rho, &e, &b)?,
-                Format::Text | Format::Json => {
-                    let area: f64 = p.patches.iter().map(|q| q.area).sum();
-                    let mean = |v: &[Rgb]| -> Rgb {
-                        let mut m = Rgb::ZERO;
-                        for (q, &x) in p.patches.iter().zip(v) {
-                            m += q.area * x / area;
-                        }
-                        m
-                    };
-                    let groups: Vec<serde_json::Value> = l
-                        .dynamic_groups
+                Format::Text => {
+                    let rgb = |v: Rgb| format!("{:.6e} {:.6e} {:.6e}", v.x, v.y, v.z);
+                    writeln!(out, "patches                {}", p.patches.len())?;
+                    writeln!(out, "relative residual      {:.3e}", tv.residual)?;
+                    writeln!(
+                        out,
+                        "mean radiosity         {} W/m^2 (area-weighted, default intensities)",
+                        rgb(mean(&b))
+                    )?;
+                    writeln!(out, "mean static radiosity  {} W/m^2", rgb(mean(&tv.b_static)))?;
+                    for (name, response) in &groups {
+                        writeln!(
+                            out,
+                            "dynamic group {name:?}: mean response at unit intensity {} W/m^2",
+                            rgb(*response)
+                        )?;
+                    }
+                    writeln!(out, "(--format csv prints the patch table, --format json both)")?;
+                }
+                Format::Json => {
+                    let groups: Vec<serde_json::Value> = groups
                         .iter()
-                        .zip(&tv.t)
-                        .map(|(&g, t)| {
-                            serde_json::json!({
-                                "group": p.scene.light_groups[g].name,
-                                "mean_unit_response": mean(t),
-                            })
-                        })
+                        .map(|(name, response)| serde_json::json!({ "group": name, "mean_unit_response": response }))
                         .collect();
                     let doc = serde_json::json!({
+                        "method": "flat",
                         "patches": p.patches.len(),
                         "relative_residual": tv.residual,
                         "mean_radiosity": mean(&b),
                         "mean_static_radiosity": mean(&tv.b_static),
                         "dynamic_groups": groups,
+                        "b": b,
+                        "patch_table": patch_json(&p.patches, &l.rho, &e, &b),
                     });
-                    if format == Format::Json {
-                        let mut full = doc;
-                        full["b"] = serde_json::json!(b);
-                        serde_json::to_writer_pretty(&mut out, &full)?;
-                        writeln!(out)?;
-                    } else {
-                        writeln!(out, "{}", serde_json::to_string_pretty(&doc)?)?;
-                    }
+                    serde_json::to_writer_pretty(&mut out, &doc)?;
+                    writeln!(out)?;
                 }
             }
         }
@@ -413,6 +425,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
             out.flush()?;
+            // The paths of the files written follow the text; they would break a CSV or JSON document.
+            let mut stderr = io::stderr();
+            let paths: &mut dyn Write = if format == Format::Text { &mut out } else { &mut stderr };
             write_relight_outputs(
                 &p,
                 &report,
@@ -420,7 +435,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 frame_size,
                 csv.as_deref(),
                 plot.as_deref(),
-                &mut out,
+                paths,
             )?;
         }
         Command::Lightmap { scene, output } => {
@@ -457,14 +472,18 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 )?,
             };
             match format {
-                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
-                _ => write!(out, "{report}")?,
+                ReportFormat::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                ReportFormat::Text => write!(out, "{report}")?,
             }
             if let Some(stem) = plot {
                 let title =
                     format!("Error decomposition: {} ({} patches)", scene.scene.display(), report.patches);
                 let (svg, png) = report.decomposition_plot(&title).write(&stem, 800, 500)?;
-                writeln!(out, "{}\n{}", svg.display(), png.display())?;
+                // After JSON the paths would break the document: they go to stderr.
+                match format {
+                    ReportFormat::Text => writeln!(out, "{}\n{}", svg.display(), png.display())?,
+                    ReportFormat::Json => eprintln!("{}\n{}", svg.display(), png.display()),
+                }
             }
         }
         Command::Regress { regress, format } => {
@@ -473,8 +492,8 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
             let report = radiosity_host::regress::run(&regress.options())?;
             match format {
-                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
-                _ => write!(out, "{report}")?,
+                ReportFormat::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                ReportFormat::Text => write!(out, "{report}")?,
             }
             if !report.passed() {
                 out.flush()?;
@@ -498,7 +517,7 @@ fn bake_to_files(
     bits: u32,
     threshold: f64,
     transfer: bool,
-    format: Format,
+    format: ReportFormat,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
     let options = BakeOptions { threshold, codec: codec_for_bits(bits)?, transfer, ..BakeOptions::default() };
@@ -516,11 +535,13 @@ fn bake_to_files(
         serde_json::to_string_pretty(&baked.capacities)?.as_bytes(),
     )?;
     match format {
-        Format::Json => {
-            serde_json::to_writer_pretty(&mut *out, &summary)?;
+        ReportFormat::Json => {
+            let mut doc = serde_json::to_value(&summary)?;
+            doc["files"] = serde_json::json!({ "table": table, "capacities": json });
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)?;
         }
-        Format::Text | Format::Csv => {
+        ReportFormat::Text => {
             writeln!(out, "{summary}")?;
             writeln!(out, "wrote {}, {}", table.display(), json.display())?;
         }
@@ -556,7 +577,7 @@ fn write_relight_outputs(
     frame_size: u32,
     csv: Option<&std::path::Path>,
     plot: Option<&std::path::Path>,
-    out: &mut impl Write,
+    out: &mut dyn Write,
 ) -> Result<(), BoxError> {
     if let Some(dir) = frames {
         let paths = relight::write_frames(p, report, dir, frame_size, frame_size)?;
@@ -617,7 +638,7 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let p = prepare(&scene, &options)?;
     writeln!(out, "\n== bake (16-bit codes)")?;
     let table = dir.join("cornell-box.rft");
-    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, Format::Text, out)?;
+    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, ReportFormat::Text, out)?;
     writeln!(out, "\n== inspect {} (validated by the device's own parser)", table.display())?;
     writeln!(out, "{}", inspect_file(&table)?)?;
     writeln!(out, "\n== pictures (exact f64 solve, published camera)")?;
@@ -671,7 +692,7 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let device_options = PrepareOptions { max_patches: Some(DEVICE_PATCH_BUDGET), verbose: false, ..options };
     let p = prepare(&scene, &device_options)?;
     let table = dir.join("cornell-box-m4.rft");
-    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, Format::Text, out)?;
+    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, ReportFormat::Text, out)?;
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
 
     let scripts = scene.with_extension("relight.toml");
