@@ -29,6 +29,7 @@ use crate::mesh::{
 use crate::patch::{FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
 use crate::reference::{solve_many, RadiositySystem};
 use crate::scene::Scene;
+use crate::text::counted;
 
 /// How to turn a scene into patches and form factors.
 #[derive(Clone, Debug)]
@@ -187,12 +188,12 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             }
         }
         eprintln!(
-            "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {})",
+            "{}: {}, {}, {} -> {} (max edge {})",
             path.display(),
-            scene.faces.len(),
-            scene.materials.len(),
-            scene.light_groups.len(),
-            meshed.patches.len(),
+            counted(scene.faces.len(), "face", "faces"),
+            counted(scene.materials.len(), "material", "materials"),
+            counted(scene.light_groups.len(), "light group", "light groups"),
+            counted(meshed.patches.len(), "patch", "patches"),
             crate::scene::length(meshed.max_patch_edge)
         );
     }
@@ -254,6 +255,12 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         };
         if options.verbose {
             report_form_factors(&stats, reciprocity_change, &clamp);
+            if stats.closure.is_none() && stats.escaped_rays > 0 {
+                eprintln!(
+                    "form factors: {}",
+                    leak_note(path, &scene, &leaks(&patches, &stats.escapes_per_patch))
+                );
+            }
         }
         if split.is_empty() {
             if options.verbose && mesh_passes.len() > 1 {
@@ -277,13 +284,71 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         mesh_passes.push(MeshPass { patches: patches.len(), split: split.len() });
         if options.verbose {
             eprintln!(
-                "adaptive meshing pass {}: split {} patches where light changes fast -> {} patches (budget {budget})",
+                "adaptive meshing pass {}: split {} where light changes fast -> {} (budget {budget})",
                 mesh_passes.len() - 1,
-                split.len(),
-                patches.len()
+                counted(split.len(), "patch", "patches"),
+                counted(patches.len(), "patch", "patches")
             );
         }
     }
+}
+
+/// Faces listed by [`leak_note`].
+pub const LEAKS_LISTED: usize = 5;
+
+/// Where an open scene leaks: light that leaves a face and hits nothing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Leak {
+    /// The OBJ face (index in OBJ order).
+    pub face: usize,
+    /// Area of the face that sees the void: each patch's area times the fraction of its cosine-distributed
+    /// rays that hit nothing (an estimate of `A_i (1 - sum_j F_ij)`), summed over the face's patches, in scene
+    /// units squared.
+    pub open_area: f64,
+}
+
+/// The faces from which light leaves the scene, most first (ties by face index), from the per-patch counts
+/// of [`FormFactorStats::escapes_per_patch`].
+#[must_use]
+pub fn leaks(patches: &[Patch], escapes_per_patch: &[(u64, u64)]) -> Vec<Leak> {
+    let mut per_face: Vec<Leak> = Vec::new();
+    for (p, &(cast, escaped)) in patches.iter().zip(escapes_per_patch) {
+        if escaped == 0 || cast == 0 {
+            continue;
+        }
+        let open_area = p.area * escaped as f64 / cast as f64;
+        match per_face.iter_mut().find(|l| l.face == p.face) {
+            Some(l) => l.open_area += open_area,
+            None => per_face.push(Leak { face: p.face, open_area }),
+        }
+    }
+    per_face.sort_by(|a, b| b.open_area.total_cmp(&a.open_area).then(a.face.cmp(&b.face)));
+    per_face
+}
+
+/// One line naming where the open scene at `path` leaks: the [`LEAKS_LISTED`] faces that lose the most light,
+/// by OBJ line, with their share of the light lost ([`Leak::open_area`]).
+#[must_use]
+pub fn leak_note(path: &Path, scene: &Scene, leaks: &[Leak]) -> String {
+    let total: f64 = leaks.iter().map(|l| l.open_area).sum();
+    let listed: Vec<String> = leaks
+        .iter()
+        .take(LEAKS_LISTED)
+        .map(|l| {
+            let line = scene.faces.get(l.face).map_or(0, |f| f.line);
+            format!("face {} ({}:{line}, {:.0}%)", l.face, path.display(), 100.0 * l.open_area / total)
+        })
+        .collect();
+    let more = if leaks.len() > LEAKS_LISTED {
+        format!(" and {} more", counted(leaks.len() - LEAKS_LISTED, "face", "faces"))
+    } else {
+        String::new()
+    };
+    format!(
+        "light leaves the scene from {}{more} (share of the light lost, at equal radiosity); it escapes through \
+         whatever these faces look at (a missing wall, a gap, a face turned the wrong way)",
+        listed.join(", ")
+    )
 }
 
 fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityChange, clamp: &RowClamp) {
@@ -304,17 +369,17 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     );
     match &stats.closure {
         Some(c) => eprintln!(
-            "form factors: closed scene (none of {} hemisphere rays escaped): {} rows closed by correcting their \
-             {} partly visible entries in proportion to their variance (largest change of an entry {:.2e}, \
-             {} entries zeroed), row sums now {:.12}..{:.12}; {} rows left as estimated (off by up to {:.2e})",
+            "form factors: closed scene (none of {} hemisphere rays escaped): {} closed by correcting their \
+             {} in proportion to their variance (largest change of an entry {:.2e}, {} zeroed), row sums now \
+             {:.12}..{:.12}; {} left as estimated (off by up to {:.2e})",
             stats.escape_rays,
-            c.balance.rows_closed,
-            stats.partly_visible_entries,
+            counted(c.balance.rows_closed, "row", "rows"),
+            counted(stats.partly_visible_entries, "partly visible entry", "partly visible entries"),
             c.balance.max_entry_change,
-            c.balance.entries_zeroed,
+            counted(c.balance.entries_zeroed, "entry", "entries"),
             stats.row_sum_min,
             stats.row_sum_max,
-            c.balance.rows_left,
+            counted(c.balance.rows_left, "row", "rows"),
             c.balance.max_residual_left
         ),
         None if stats.escape_rays > 0 => eprintln!(
@@ -325,8 +390,10 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     }
     let one_sided = if reciprocity_change.one_sided > 0 {
         format!(
-            "; {} pairs seen from one side only, {:.1e} of the exchanged energy, were mirrored",
-            reciprocity_change.one_sided, reciprocity_change.one_sided_share
+            "; {} seen from one side only, {:.1e} of the exchanged energy, {} mirrored",
+            counted(reciprocity_change.one_sided, "pair", "pairs"),
+            reciprocity_change.one_sided_share,
+            if reciprocity_change.one_sided == 1 { "was" } else { "were" }
         )
     } else {
         String::new()
@@ -338,9 +405,10 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     );
     if clamp.rows > 0 {
         eprintln!(
-            "form factors: {} rows summed to more than 1 (within their sampling noise; largest excess {:.2e}) and \
-             were scaled to 1",
-            clamp.rows, clamp.max_excess
+            "form factors: {} to more than 1 (within sampling noise; largest excess {:.2e}) and {} scaled to 1",
+            if clamp.rows == 1 { "1 row summed".to_owned() } else { format!("{} rows summed", clamp.rows) },
+            clamp.max_excess,
+            if clamp.rows == 1 { "was" } else { "were" }
         );
     }
 }

@@ -228,3 +228,72 @@ fn scene_warnings_reach_stderr() {
     assert!(stderr.contains("warning: ") && stderr.contains("light group 'lamp' has no faces"), "{stderr}");
     assert!(stderr.contains("no face emits light"), "{stderr}");
 }
+
+#[test]
+fn an_error_says_its_cause_once() {
+    // The message already names the OS error; a `caused by:` line repeating it would say it twice.
+    let out = radiosity(&["solve", MISSING]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot read /nonexistent-scene/none.obj: No such file"), "{stderr}");
+    assert_eq!(stderr.matches("No such file").count(), 1, "the cause is repeated: {stderr}");
+    assert!(!stderr.contains("caused by"), "{stderr}");
+}
+
+/// The stderr of a quick `solve` of the shipped scene `name` (one patch per face, few samples).
+fn quick_solve_stderr(name: &str) -> String {
+    let out = radiosity(&["solve", &scene(name), "--no-subdivide", "--samples", "4", "--rays", "4"]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    stderr
+}
+
+#[test]
+fn an_open_scene_says_where_light_leaves_it() {
+    // The published Cornell box has no front wall: light leaves through z = 0. Its largest faces looking at the
+    // opening are listed by OBJ line (the walls, ceiling and floor, at lines 18 to 147); the blocks are not first.
+    let stderr = quick_solve_stderr("cornell-box.obj");
+    let line = stderr.lines().find(|l| l.contains("light leaves the scene from")).unwrap_or_else(|| {
+        panic!("no leak location: {stderr}");
+    });
+    let first = line.split("from face ").nth(1).and_then(|r| r.split(' ').next()).unwrap();
+    let walls = ["0", "2", "3", "4", "5", "6", "7", "18"];
+    assert!(walls.contains(&first), "the first face listed is a block's ({first}): {line}");
+    assert!(line.contains("cornell-box.obj:") && line.contains('%'), "{line}");
+    assert!(line.contains(" more"), "the rest are counted: {line}");
+    // The closed variant leaks nowhere and says nothing of it.
+    let stderr = quick_solve_stderr("cornell-box-closed.obj");
+    assert!(stderr.contains("closed scene") && !stderr.contains("light leaves"), "{stderr}");
+}
+
+#[test]
+fn counts_of_one_are_singular() {
+    let stderr = quick_solve_stderr("cornell-box.obj");
+    assert!(stderr.contains("1 light group ->"), "{stderr}");
+    for wrong in ["1 light groups", "1 members", "1 pairs", "1 rows", "1 faces", "1 patches"] {
+        assert!(!stderr.contains(&format!(" {wrong}")), "{wrong:?} in {stderr}");
+    }
+    let dir = folder("plural");
+    let table = dir.join("t.rft");
+    let out = radiosity(&[
+        "bake",
+        &scene("facing-squares.obj"),
+        "--no-subdivide",
+        "-q",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "-o",
+        table.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("1 dynamic, 1 member\n") && stdout.contains("  1 member  "), "{stdout}");
+    // Energy dropped is a fraction of all power, not a sum over rows that reads like one.
+    let dropped = stdout.lines().find(|l| l.starts_with("energy dropped")).unwrap();
+    assert!(dropped.contains("of all power transported") && !dropped.contains("total"), "{dropped}");
+    let out = radiosity(&["inspect", table.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("(1 member)") && !stdout.contains("1 members"), "{stdout}");
+}

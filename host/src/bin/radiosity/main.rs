@@ -22,6 +22,7 @@ use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
 use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::Scene;
+use radiosity_host::text::counted;
 use radiosity_host::view;
 
 fn main() -> ExitCode {
@@ -29,10 +30,18 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            let message = e.to_string();
+            eprintln!("error: {message}");
+            // Many errors show their source in their own message as well: a cause already said is not repeated.
+            let mut said = message;
             let mut source = e.source();
             while let Some(s) = source {
-                eprintln!("  caused by: {s}");
+                let cause = s.to_string();
+                if !said.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    said.push('\n');
+                    said.push_str(&cause);
+                }
                 source = s.source();
             }
             ExitCode::FAILURE
@@ -498,9 +507,10 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             if !report.passed() {
                 out.flush()?;
                 return Err(format!(
-                    "regression: {} values over their limits, {} problems",
-                    report.failures().len(),
-                    report.problems.len()
+                    "regression: {} over {} limit, {}",
+                    counted(report.failures().len(), "value", "values"),
+                    if report.failures().len() == 1 { "its" } else { "their" },
+                    counted(report.problems.len(), "problem", "problems")
                 )
                 .into());
             }
