@@ -12,6 +12,12 @@
 //! passes can still split the children of earlier ones). Evenly lit patches stay as the uniform mesh made them.
 //! The form factors of the final mesh are the ones returned. Every patch keeps its parent face.
 //!
+//! # Cost, said before and after
+//! With `verbose`, [`cost_estimate`] goes to stderr after meshing and before the first form factor (patches now
+//! and at most, pairs and occlusion rays per pass, the table's size bound and the device's flash); after the
+//! last pass, one line says the patches, passes, form factors and rays it took, and [`MeshStop::note`] why
+//! refinement stopped where it did (budget spent, light resolved to the tolerance, or passes used up).
+//!
 //! # Repair
 //! Meshing repairs the faces first unless [`PrepareOptions::repair`] is off or the scene's TOML says
 //! `repair = false` ([`crate::mesh::repair()`]); with `verbose`, one `repair:` line per changed face goes to
@@ -24,7 +30,8 @@ use crate::formfactor::{
 };
 use crate::lighting::PatchLighting;
 use crate::mesh::{
-    mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions, RepairReport,
+    mesh, refine, refine_scores, refinement_candidates, select_for_refinement, MeshOptions, RefineInput,
+    RefineOptions, RepairReport, DEFAULT_PATCH_BUDGET,
 };
 use crate::patch::{FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
 use crate::reference::{solve_many, RadiositySystem};
@@ -92,6 +99,8 @@ pub struct Prepared {
     pub mesh_passes: Vec<MeshPass>,
     /// What mesh repair changed (`None` when repair was off).
     pub repair: Option<RepairReport>,
+    /// Why adaptive meshing stopped where it did (`None` with `--no-subdivide`).
+    pub mesh_stop: Option<MeshStop>,
 }
 
 /// One meshing pass of [`prepare`].
@@ -101,6 +110,99 @@ pub struct MeshPass {
     pub patches: usize,
     /// Patches the pass split (0 for the uniform mesh).
     pub split: usize,
+    /// Patches the pass found worth splitting ([`crate::mesh::refinement_candidates`]); more than `split` when
+    /// the budget held the pass back (0 for the uniform mesh).
+    pub candidates: usize,
+}
+
+/// Why adaptive meshing stopped, so a mesh below its patch budget says why ([`MeshStop::note`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MeshStop {
+    /// The budget is spent: no split of a patch worth splitting fits in what is left (a split adds about 3).
+    Budget {
+        /// Patches still worth splitting.
+        candidates: usize,
+    },
+    /// No patch's radiosity changes across it by more than the refinement tolerance: the mesh resolves the
+    /// light to that tolerance, and more budget would not be spent.
+    Converged {
+        /// The refinement tolerance (fraction of the mean radiosity).
+        tolerance: f64,
+    },
+    /// Every refinement pass ran (0 passes: refinement is off) and the last split every patch worth splitting;
+    /// their children may still be worth splitting with more passes.
+    Passes {
+        /// Refinement passes allowed.
+        passes: usize,
+    },
+}
+
+impl MeshStop {
+    /// One line for stderr: `patches` of `budget` patches (the budget set by `budget_source`) and why.
+    #[must_use]
+    pub fn note(&self, patches: usize, budget: usize, budget_source: &str) -> String {
+        let head = format!("adaptive meshing: {patches} of {budget} patches (budget: {budget_source})");
+        match *self {
+            MeshStop::Budget { candidates: 0 } => format!("{head}: the budget is spent"),
+            MeshStop::Budget { candidates } => format!(
+                "{head}: the budget is spent ({} still worth splitting, none fits in what is left)",
+                counted(candidates, "patch", "patches")
+            ),
+            MeshStop::Converged { tolerance } => format!(
+                "{head}: below the budget because no patch's radiosity changes across it by more than {tolerance} \
+                 of the mean radiosity (the refinement tolerance, `refine_tolerance` in the scene's TOML): the \
+                 mesh resolves the light to that tolerance"
+            ),
+            MeshStop::Passes { passes: 0 } => format!(
+                "{head}: below the budget because refinement is off (`refine_passes = 0` in the scene's TOML); \
+                 the uniform mesh is sized by the longest patch edge (--max-patch-edge)"
+            ),
+            MeshStop::Passes { passes } => format!(
+                "{head}: below the budget because all {} ran and the last split every patch worth \
+                 splitting (more passes: `refine_passes` in the scene's TOML, at most {})",
+                counted(passes, "refinement pass", "refinement passes"),
+                crate::scene::MAX_REFINE_PASSES
+            ),
+        }
+    }
+}
+
+/// Where a patch budget came from, for messages: the option, the scene's TOML, or the default.
+fn budget_source(options: &PrepareOptions, scene: &Scene) -> String {
+    match (options.max_patches, scene.meshing.patch_budget) {
+        (Some(_), _) => "--max-patches".to_owned(),
+        (None, Some(_)) => "the scene's TOML, `patch_budget`".to_owned(),
+        (None, None) => format!("the default {DEFAULT_PATCH_BUDGET}; set it with --max-patches"),
+    }
+}
+
+/// What a prepare and bake will cost at most, said before the first form factor: the patches now and at most
+/// after refinement, the pairs and occlusion rays of the largest pass, the table's size bound
+/// ([`crate::bake::table_bytes_bound`], 16-bit codes as the bake's default) and the most patches that bound
+/// lets fit the flash of [`firmware_sim::qemu::MPS2_AN386`].
+#[must_use]
+pub fn cost_estimate(patches_now: usize, budget: usize, passes: usize, rays_per_pair: usize) -> String {
+    let most = if passes == 0 { patches_now } else { budget.max(patches_now) };
+    let pairs = most as u64 * most.saturating_sub(1) as u64 / 2;
+    let board = firmware_sim::qemu::MPS2_AN386;
+    let bytes = crate::bake::table_bytes_bound(most, 16);
+    let refined = if passes == 0 {
+        "no refinement".to_owned()
+    } else {
+        format!("at most {most} after {}", counted(passes, "refinement pass", "refinement passes"))
+    };
+    format!(
+        "cost estimate: {patches_now} patches now, {refined}; form factors of {most} patches: {pairs} pairs, at \
+         most {:.2e} occlusion rays per pass; table at most {:.3} MB with 16-bit codes (every pair stored); the \
+         {} bytes of flash of a {} hold at most {} patches by that bound ({}; sparse tables hold more, the bake \
+         prints the actual size and fit)",
+        pairs as f64 * rays_per_pair as f64,
+        bytes as f64 / 1e6,
+        board.flash,
+        board.name,
+        crate::bake::patches_within(board.flash, 16),
+        if bytes <= board.flash { "this mesh fits" } else { "this mesh may not fit" }
+    )
 }
 
 /// Why the pipeline stopped; the message names the stage and the input.
@@ -203,12 +305,19 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         RefineOptions::for_scene(&scene)
     };
     let budget = mesh_options.patch_budget;
+    if options.verbose {
+        let (n, passes) = (meshed.patches.len(), refine_options.passes);
+        eprintln!("{}", cost_estimate(n, budget, passes, options.form_factors.rays_per_pair));
+    }
+    let (mut rays, mut seconds) = (0u64, 0f64);
     let repair = meshed.repair;
     let mut patches = meshed.patches;
-    let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0 }];
+    let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0, candidates: 0 }];
     loop {
         let (estimate, stats) = compute_form_factors(&patches, &options.form_factors)
             .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
+        rays += stats.rays_cast;
+        seconds += stats.elapsed.as_secs_f64();
         let mut form_factors = estimate.clone();
         let areas: Vec<f64> = patches.iter().map(|q| q.area).collect();
         let mut reciprocity_change = form_factors.enforce_reciprocity(&areas);
@@ -230,9 +339,10 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         }
         let clamp = form_factors.clamp_rows_to_one();
         let lighting = PatchLighting::new(&scene, &patches);
-        let done = mesh_passes.len() > refine_options.passes || patches.len() >= budget;
-        let split = if done {
-            Vec::new()
+        let passes_done = mesh_passes.len() > refine_options.passes;
+        let done = passes_done || patches.len() >= budget;
+        let (split, candidates) = if done {
+            (Vec::new(), 0)
         } else {
             let system = RadiositySystem::new(&lighting.rho, &form_factors)
                 .map_err(|source| PipelineError::Solve { path: path.into(), source })?;
@@ -251,7 +361,8 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             let scores = refine_scores(&input);
             let passes_left = refine_options.passes + 1 - mesh_passes.len();
             let share = patches.len() + (budget - patches.len()) / passes_left.max(1);
-            select_for_refinement(&input, &scores, refine_options.tolerance, share)
+            let candidates = refinement_candidates(&input, &scores, refine_options.tolerance);
+            (select_for_refinement(&input, &scores, refine_options.tolerance, share), candidates)
         };
         if options.verbose {
             report_form_factors(&stats, reciprocity_change, &clamp);
@@ -263,9 +374,36 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             }
         }
         if split.is_empty() {
-            if options.verbose && mesh_passes.len() > 1 {
-                let counts: Vec<String> = mesh_passes.iter().map(|p| p.patches.to_string()).collect();
-                eprintln!("adaptive meshing: patches per pass {}", counts.join(" -> "));
+            let last = mesh_passes[mesh_passes.len() - 1];
+            let mesh_stop = if options.no_subdivide {
+                None
+            } else if patches.len() >= budget
+                || (passes_done && last.candidates > last.split)
+                || candidates > 0
+            {
+                Some(MeshStop::Budget {
+                    candidates: if passes_done { last.candidates - last.split } else { candidates },
+                })
+            } else if passes_done {
+                Some(MeshStop::Passes { passes: refine_options.passes })
+            } else {
+                Some(MeshStop::Converged { tolerance: refine_options.tolerance })
+            };
+            if options.verbose {
+                if mesh_passes.len() > 1 {
+                    let counts: Vec<String> = mesh_passes.iter().map(|p| p.patches.to_string()).collect();
+                    eprintln!("adaptive meshing: patches per pass {}", counts.join(" -> "));
+                }
+                if let Some(stop) = mesh_stop {
+                    eprintln!("{}", stop.note(patches.len(), budget, &budget_source(options, &scene)));
+                }
+                eprintln!(
+                    "cost: {} after {}, {} nonzero form factors, {rays} occlusion rays, {seconds:.2} s of form \
+                     factors",
+                    counted(patches.len(), "patch", "patches"),
+                    counted(mesh_passes.len(), "form-factor pass", "form-factor passes"),
+                    stats.nonzeros
+                );
             }
             return Ok(Prepared {
                 scene,
@@ -277,11 +415,12 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
                 reciprocity_change,
                 mesh_passes,
                 repair,
+                mesh_stop,
             });
         }
         patches =
             refine(&patches, &split).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
-        mesh_passes.push(MeshPass { patches: patches.len(), split: split.len() });
+        mesh_passes.push(MeshPass { patches: patches.len(), split: split.len(), candidates });
         if options.verbose {
             eprintln!(
                 "adaptive meshing pass {}: split {} where light changes fast -> {} (budget {budget})",

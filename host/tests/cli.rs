@@ -297,3 +297,67 @@ fn counts_of_one_are_singular() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("(1 member)") && !stdout.contains("1 members"), "{stdout}");
 }
+
+#[test]
+fn a_bake_says_what_it_will_cost_and_why_the_mesh_stops_below_its_budget() {
+    // No TOML: the default budget, which refinement does not reach because the light is resolved.
+    let out = radiosity(&[
+        "solve",
+        &scene("facing-squares.obj"),
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "--format",
+        "text",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let estimate = stderr.lines().position(|l| l.starts_with("cost estimate: ")).expect(&stderr);
+    let first_ff = stderr.lines().position(|l| l.starts_with("form factors: ")).expect(&stderr);
+    assert!(estimate < first_ff, "the estimate comes before the form factors: {stderr}");
+    assert!(stderr.contains("at most 4096 after 2 refinement passes") && stderr.contains(" MB "), "{stderr}");
+    assert!(
+        stderr.contains("of 4096 patches (budget: the default 4096; set it with --max-patches)"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("below the budget because no patch's radiosity changes across it"), "{stderr}");
+    assert!(stderr.lines().any(|l| l.starts_with("cost: ") && l.contains("occlusion rays")), "{stderr}");
+
+    // A budget the refinement spends: said so, and the bake's table is measured against the device.
+    let dir = folder("budget");
+    let table = dir.join("t.rft");
+    let out = radiosity(&[
+        "bake",
+        &scene("cornell-box.obj"),
+        "--max-patches",
+        "400",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "--format",
+        "json",
+        "-o",
+        table.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let spent = stderr.lines().find(|l| l.contains("(budget: --max-patches)")).expect(&stderr);
+    assert!(spent.contains("of 400 patches") && spent.contains("the budget is spent"), "{spent}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let fit = &doc["device_fit"];
+    let bytes = fit["table_bytes"].as_u64().unwrap();
+    assert_eq!(bytes, std::fs::metadata(&table).unwrap().len(), "{fit}");
+    assert_eq!(fit["flash"].as_u64(), Some(firmware_sim::qemu::MPS2_AN386.flash));
+    let ram_ok = fit["buffer_bytes"].as_u64().unwrap() <= fit["ram"].as_u64().unwrap();
+    assert_eq!(fit["fits"].as_bool(), Some(bytes <= fit["flash"].as_u64().unwrap() && ram_ok), "{fit}");
+    let patches = doc["patches"].as_u64().unwrap() as usize;
+    assert!(patches <= 400, "{patches}");
+    let bound = radiosity_host::bake::table_bytes_bound(patches, 16);
+    assert!(bytes <= bound, "the table ({bytes} bytes) is within the estimate's bound ({bound})");
+    assert!(
+        radiosity_host::bake::table_bytes_bound(radiosity_host::bake::patches_within(bound, 16) + 1, 16)
+            > bound
+    );
+}

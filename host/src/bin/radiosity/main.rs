@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::Parser;
-use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
+use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions, DeviceFit};
 use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
@@ -544,15 +544,18 @@ fn bake_to_files(
         with_suffix(output, ".capacities.json"),
         serde_json::to_string_pretty(&baked.capacities)?.as_bytes(),
     )?;
+    let fit = DeviceFit::of(&baked.capacities, &firmware_sim::qemu::MPS2_AN386);
     match format {
         ReportFormat::Json => {
             let mut doc = serde_json::to_value(&summary)?;
+            doc["device_fit"] = serde_json::to_value(&fit)?;
             doc["files"] = serde_json::json!({ "table": table, "capacities": json });
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)?;
         }
         ReportFormat::Text => {
             writeln!(out, "{summary}")?;
+            writeln!(out, "device fit         {fit}")?;
             writeln!(out, "wrote {}, {}", table.display(), json.display())?;
         }
     }
@@ -694,10 +697,12 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     // The default mesh is sized for the pictures' quality, not for a Cortex-M4's flash (the bake above prints
     // its table size). The device gets its own bake of the same scene within a patch budget whose table plus
     // firmware code fit the 512 KiB of flash of the emulated board (mps2-an386; the QEMU run prints the flash).
+    let board = firmware_sim::qemu::MPS2_AN386;
     writeln!(
         out,
-        "\n== device table: the same scene within {DEVICE_PATCH_BUDGET} patches, for a Cortex-M4 with 512 KiB \
-         flash"
+        "\n== device table: the same scene within {DEVICE_PATCH_BUDGET} patches, for a {} with {} KiB of flash",
+        board.name,
+        board.flash / 1024
     )?;
     let device_options = PrepareOptions { max_patches: Some(DEVICE_PATCH_BUDGET), verbose: false, ..options };
     let p = prepare(&scene, &device_options)?;
