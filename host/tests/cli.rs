@@ -361,3 +361,70 @@ fn a_bake_says_what_it_will_cost_and_why_the_mesh_stops_below_its_budget() {
             > bound
     );
 }
+
+/// `lightmap` on the Cornell box (one patch per face) with `extra` options: stdout and the JSON map's atlas size
+/// and texel size.
+fn light_map(extra: &[&str]) -> (String, u64, u64, f64) {
+    let dir = folder("lightmap");
+    let stem = dir.join("map");
+    let mut args = vec!["lightmap", "--no-subdivide", "-q", "--samples", "4", "--rays", "4", "-o"];
+    let cornell = scene("cornell-box.obj");
+    args.extend([stem.to_str().unwrap(), &cornell]);
+    args.extend(extra);
+    let out = radiosity(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(stem.with_extension("json")).unwrap()).unwrap();
+    let size = |k: &str| json["atlas"][k].as_u64().unwrap();
+    (stdout, size("width"), size("height"), json["texel_size"].as_f64().unwrap())
+}
+
+#[test]
+fn light_map_resolution_is_an_option() {
+    let (stdout, w, h, texel) = light_map(&[]);
+    assert!(stdout.contains(&format!("atlas {w} x {h} texels")), "{stdout}");
+    // Twice the texels across the largest face: about twice the atlas on each side (padding is fixed).
+    let (_, w2, h2, texel2) = light_map(&["--face-texels", "128"]);
+    assert!((texel2 - texel / 2.0).abs() <= 1e-12 * texel, "{texel2} vs {texel}");
+    assert!(w2 > w * 3 / 2 && h2 > h * 3 / 2 && w2 * h2 > 3 * w * h, "{w}x{h} -> {w2}x{h2}");
+    // A texel size in scene units (mm here) is used as given.
+    let (_, w3, h3, texel3) = light_map(&["--texel-size", "4"]);
+    assert_eq!(texel3, 4.0);
+    assert!(w3 > w2 && h3 > h2, "4 mm texels are finer than {texel2}: {w3}x{h3}");
+    // Limits: checked before any work for the options, and for the atlas as for every picture.
+    let out = folder("lightmap-limits").join("map");
+    let out = out.to_str().unwrap();
+    assert_fails(&["lightmap", MISSING, "-o", out, "--face-texels", "5000"], &["--face-texels 5000", "4096"]);
+    assert_fails(&["lightmap", MISSING, "-o", out, "--texel-size", "0"], &["--texel-size 0", "positive"]);
+    let refused = radiosity(&[
+        "lightmap",
+        &scene("cornell-box.obj"),
+        "--no-subdivide",
+        "-q",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "-o",
+        out,
+        "--texel-size",
+        "0.3",
+    ]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("light map") && stderr.contains("4096 x 4096"), "{stderr}");
+}
+
+#[test]
+fn demo_without_qemu_runs_on_the_host_only() {
+    let dir = folder("demo");
+    let out = radiosity(&["demo", "--no-qemu", "--out", dir.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("--no-qemu: the host's device loop only"), "{stdout}");
+    assert!(!stdout.contains("QEMU m4") && !stdout.contains("QEMU run skipped"), "{stdout}");
+    for file in ["cornell-box.rft", "cornell-box-m4.rft", "cornell-box.png", "cornell-box-relight.csv"] {
+        assert!(dir.join(file).exists(), "{file} missing: {stdout}");
+    }
+}

@@ -11,6 +11,7 @@ use radiosity_host::bench::BenchOptions;
 use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::montecarlo::{self, ReferenceOptions, SampleCount};
+use radiosity_host::picture::lightmap::LightMapOptions;
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
@@ -278,6 +279,9 @@ pub enum Command {
         /// Folder for the outputs (created, with its parents, if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Run the relight script on the host only: no Cortex-M4 firmware build, no QEMU (`make demo QEMU=0`).
+        #[arg(long)]
+        no_qemu: bool,
     },
     /// Solve the scene in f64 and print the patch table:
     /// `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. `--method flat` (the
@@ -379,13 +383,23 @@ pub enum Command {
         format: Format,
     },
     /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
-    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths.
+    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths and the
+    /// atlas's size; `--texel-size` or `--face-texels` sets the resolution.
     Lightmap {
         #[command(flatten)]
         scene: SceneArgs,
         /// Output path without extension (its folder must exist).
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
+        /// Texel edge length in scene units (a face `L` units across gets about `L / LENGTH` texels); the
+        /// default sizes texels by `--face-texels` instead.
+        #[arg(long, value_name = "LENGTH", conflicts_with = "face_texels")]
+        texel_size: Option<f64>,
+        /// Texels across the largest face when no `--texel-size` is given (1 to 4096; smaller faces get
+        /// proportionally fewer, at least one). Every face is at most 4096 texels across and the atlas at most
+        /// 4096 x 4096 texels in all.
+        #[arg(long, value_name = "N", default_value_t = LightMapOptions::default().max_face_texels)]
+        face_texels: u32,
     },
     /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
     /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.

@@ -15,6 +15,7 @@ use radiosity_host::output::{patch_json, write_patch_csv};
 
 mod args;
 use args::{Cli, Command, Format, RenderModeArg, ReportFormat, SolveMethod};
+use radiosity_host::picture::lightmap::LightMapOptions;
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
@@ -274,10 +275,10 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 ReportFormat::Text => writeln!(out, "{report}")?,
             }
         }
-        Command::Demo { out: dir } => {
+        Command::Demo { out: dir, no_qemu } => {
             files::check_output_folder(&dir)?;
             files::create_output_folder(&dir)?;
-            demo(&dir, &mut out)?;
+            demo(&dir, !no_qemu, &mut out)?;
         }
         Command::Bench(args) => {
             if let Some(reps) = args.reps {
@@ -447,13 +448,33 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 paths,
             )?;
         }
-        Command::Lightmap { scene, output } => {
+        Command::Lightmap { scene, output, texel_size, face_texels } => {
             check_scene_args(&scene)?;
+            use radiosity_host::picture::lightmap::MAX_FACE_SIDE;
+            radiosity_host::limits::check_count(
+                "--face-texels",
+                face_texels as usize,
+                MAX_FACE_SIDE as usize,
+                "texels across the largest face",
+            )?;
+            if let Some(t) = texel_size {
+                if !(t.is_finite() && t > 0.0) {
+                    return Err(format!("--texel-size {t}: must be a positive length").into());
+                }
+            }
             check_outputs(["hdr", "png", "json"].map(|e| output.with_extension(e)))?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
-            for path in view::write_light_map(&p, &view::solve_default(&p)?, &output)? {
+            let options =
+                LightMapOptions { texel_size, max_face_texels: face_texels, ..LightMapOptions::default() };
+            let files = view::write_light_map(&p, &view::solve_default(&p)?, &output, &options)?;
+            for path in &files.paths {
                 writeln!(out, "{}", path.display())?;
             }
+            writeln!(
+                out,
+                "atlas {} x {} texels, texel {:.4e} scene units",
+                files.width, files.height, files.texel_size
+            )?;
         }
         Command::Check { scene, table_scene, check, plot, format } => {
             if table_scene.is_none() && scene.scene.extension().is_some_and(|e| e == "rft") {
@@ -636,8 +657,9 @@ fn cornell_box_path() -> PathBuf {
 /// flash of the emulated Cortex-M4 board (`make demo` prints both sizes).
 const DEVICE_PATCH_BUDGET: usize = 400;
 
-/// The main job on the Cornell box: prepare, bake, validate the table with the device's parser.
-fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
+/// The main job on the Cornell box: prepare, bake, validate the table with the device's parser, draw, bake the
+/// device table and relight it on the host and (with `qemu`) under QEMU.
+fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), BoxError> {
     let scene = cornell_box_path();
     writeln!(out, "== Cornell box: {}", scene.display())?;
     let options = PrepareOptions {
@@ -664,7 +686,9 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let png = dir.join("cornell-box.png");
     write_png(&png, &image)?;
     writeln!(out, "{}", png.display())?;
-    for path in view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"))? {
+    let light_map =
+        view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"), &LightMapOptions::default())?;
+    for path in &light_map.paths {
         writeln!(out, "{}", path.display())?;
     }
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
@@ -719,11 +743,11 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
         scripts.display(),
         table.display()
     )?;
-    let options = relight::RelightOptions {
-        only: Some(script.into()),
-        qemu: true,
-        ..relight::RelightOptions::default()
-    };
+    if !qemu {
+        writeln!(out, "(--no-qemu: the host's device loop only; no firmware build, no QEMU run)")?;
+    }
+    let options =
+        relight::RelightOptions { only: Some(script.into()), qemu, ..relight::RelightOptions::default() };
     let report = match relight::relight(&p, &bytes, &table, &scripts, &options) {
         Ok(r) => r,
         Err(e @ relight::RelightError::Qemu { .. }) => {
