@@ -191,13 +191,15 @@ pub fn cost_estimate(patches_now: usize, budget: usize, passes: usize, rays_per_
     } else {
         format!("at most {most} after {}", counted(passes, "refinement pass", "refinement passes"))
     };
+    let size =
+        if bytes >= 1_000_000 { format!("{:.1} MB", bytes as f64 / 1e6) } else { format!("{bytes} bytes") };
     format!(
-        "cost estimate: {patches_now} patches now, {refined}; form factors of {most} patches: {pairs} pairs, at \
-         most {:.2e} occlusion rays per pass; table at most {:.3} MB with 16-bit codes (every pair stored); the \
-         {} bytes of flash of a {} hold at most {} patches by that bound ({}; sparse tables hold more, the bake \
-         prints the actual size and fit)",
+        "cost estimate: {patches_now} patches now, {refined}; form factors of {most} patches: {}, at most {:.2e} \
+         occlusion rays per pass; table at most {size} with 16-bit codes (every pair stored); the {} bytes of \
+         flash of a {} hold at most {} patches by that bound ({}; sparse tables hold more, the bake prints the \
+         actual size and fit)",
+        counted(pairs as usize, "pair", "pairs"),
         pairs as f64 * rays_per_pair as f64,
-        bytes as f64 / 1e6,
         board.flash,
         board.name,
         crate::bake::patches_within(board.flash, 16),
