@@ -415,8 +415,8 @@ pub enum Command {
         table_scene: Option<PathBuf>,
         #[command(flatten)]
         check: CheckArgs,
-        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png
-        /// (their folder must exist).
+        /// Also plot the error decomposition to STEM.svg and STEM.png (their folder must exist): per arithmetic
+        /// path, every component as its own bar on a log axis beside the measured total (L2 norms do not add).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
         /// Output format (`text` or `json`; with `json` the plot's paths go to stderr).
