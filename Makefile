@@ -1,6 +1,11 @@
 # The two commands a newcomer needs: `make demo` and `make test`. Both install what they need first (`make deps`).
+# `make demo QEMU=0` skips the Cortex-M4 firmware build and QEMU run (and does not install QEMU, the ARM binutils
+# or the embedded Rust targets); the demo's outputs go to out/ (OUT=DIR to change).
 SHELL := /bin/bash
 CARGO ?= cargo
+QEMU ?= 1
+OUT ?= out
+export QEMU
 
 .PHONY: deps demo test bench fuzz fmt-check clippy unit-tests embedded-builds
 
@@ -8,7 +13,7 @@ deps:
 	@bash scripts/deps.sh
 
 demo: deps
-	$(CARGO) run --release -p radiosity-host --bin radiosity -- demo
+	$(CARGO) run --release -p radiosity-host --bin radiosity -- demo --out $(OUT) $(if $(filter 0,$(QEMU)),--no-qemu)
 
 test: deps
 	@bash scripts/test.sh

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs everything the build and the tests need on a fresh Debian 12 machine (run as root).
-# Idempotent: each step checks first and returns at once when already done.
+# Idempotent: each step checks first and returns at once when already done. With QEMU=0 (`make demo QEMU=0`) the
+# firmware's needs are left out: QEMU, the ARM binutils and the embedded Rust targets.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -9,6 +10,10 @@ EMBREE_WHEEL_SHA256="2cd0f7d5c6342e6247e31f700761689cae7829454d8c6de0c41e62124a0
 EMBREE_DIR="third_party/embree/lib"
 APT_PACKAGES=(libclang1-14 libclang-common-14-dev qemu-system-arm binutils-arm-none-eabi unzip fonts-dejavu-core)
 TARGETS=(thumbv7em-none-eabihf thumbv6m-none-eabi)
+if [ "${QEMU:-1}" = 0 ]; then
+    APT_PACKAGES=(libclang1-14 libclang-common-14-dev unzip fonts-dejavu-core)
+    TARGETS=()
+fi
 
 step() { printf '\n==> deps: %s\n' "$1"; }
 fail() {
@@ -32,7 +37,7 @@ fi
 
 # 2. Rust targets: the core must build for Cortex-M4F and for Cortex-M0 (no FPU).
 installed_targets=$(rustup target list --installed 2>/dev/null || true)
-for t in "${TARGETS[@]}"; do
+for t in "${TARGETS[@]+"${TARGETS[@]}"}"; do
     if ! grep -qx "$t" <<<"$installed_targets"; then
         step "rustup target $t"
         rustup target add "$t" || fail "rustup target add $t" "Needs rustup and access to the Rust toolchain server."

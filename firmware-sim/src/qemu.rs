@@ -23,6 +23,36 @@ pub struct Target {
     pub machine: &'static [&'static str],
 }
 
+/// Flash and RAM a board gives the firmware: the budget its linker script (`firmware/memory-*.x`) enforces, so
+/// a table that does not fit fails the build. A test reads the numbers back from the linker scripts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Board {
+    /// What the board is, for messages.
+    pub name: &'static str,
+    /// The linker script, in `firmware/`.
+    pub linker_script: &'static str,
+    /// Flash in bytes: the firmware's code, its constants and the table.
+    pub flash: u64,
+    /// RAM in bytes: the solver's buffers, the firmware's statics and the stack.
+    pub ram: u64,
+}
+
+/// The Cortex-M4 board of `make demo` and `relight --qemu` (QEMU's mps2-an386, budgeted at 512 KiB of flash and
+/// 64 KiB of RAM).
+pub const MPS2_AN386: Board = Board {
+    name: "Cortex-M4 (mps2-an386)",
+    linker_script: "memory-mps2-an386.x",
+    flash: 512 * 1024,
+    ram: 64 * 1024,
+};
+/// The Cortex-M0 board (BBC micro:bit, nRF51: 256 KiB of flash, 16 KiB of RAM).
+pub const MICROBIT: Board = Board {
+    name: "Cortex-M0 (micro:bit)",
+    linker_script: "memory-microbit.x",
+    flash: 256 * 1024,
+    ram: 16 * 1024,
+};
+
 /// Cortex-M4F (mps2-an386), f32.
 pub const M4_F32: Target = Target {
     triple: "thumbv7em-none-eabihf",
@@ -296,4 +326,27 @@ pub fn check_firmware(
         crate::sim::simulate_file(target.arith, table, scripts, None, None).map_err(|e| e.to_string())?;
     let frames_bit_exact = compare(&host, &log)?;
     Ok(Checked { log, sizes, frames_bit_exact })
+}
+
+#[cfg(test)]
+mod board_tests {
+    use super::{firmware_dir, Board, MICROBIT, MPS2_AN386};
+
+    /// `LENGTH = <n>K` of the memory region `region` in a linker script, in bytes.
+    fn length(script: &str, region: &str) -> u64 {
+        let line = script.lines().find(|l| l.trim_start().starts_with(region)).expect("region");
+        let value = line.split("LENGTH").nth(1).expect("LENGTH").trim_start_matches([' ', '=']).trim();
+        let kib: u64 = value.trim_end_matches('K').parse().expect("a size in K");
+        kib * 1024
+    }
+
+    #[test]
+    fn board_budgets_are_the_linker_scripts() {
+        for board in [MPS2_AN386, MICROBIT] {
+            let Board { linker_script, flash, ram, .. } = board;
+            let script = std::fs::read_to_string(firmware_dir().join(linker_script)).expect("linker script");
+            assert_eq!(length(&script, "FLASH"), flash, "{linker_script}");
+            assert_eq!(length(&script, "RAM"), ram, "{linker_script}");
+        }
+    }
 }

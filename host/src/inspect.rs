@@ -7,6 +7,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::rgb::{channel_max, Rgb};
+use crate::text::counted;
 use radiosity_core::codec::decode_emission_f32;
 use radiosity_core::{Table, TableError, FORMAT_VERSION};
 use serde::Serialize;
@@ -236,19 +237,22 @@ impl fmt::Display for InspectReport {
             if c.state < c.patches { " (the others show the static base)" } else { "" }
         )?;
         writeln!(f, "materials    {}", c.materials)?;
-        writeln!(f, "light groups {} ({} members)", c.groups, c.members)?;
+        writeln!(f, "light groups {} ({})", c.groups, counted(c.members, "member", "members"))?;
         for g in &self.groups {
             writeln!(
                 f,
-                "  group {:<3} id {:#010x}  {} members  default {:?}",
-                g.index, g.id, g.members, g.default_intensity
+                "  group {:<3} id {:#010x}  {}  default {:?}",
+                g.index,
+                g.id,
+                counted(g.members as usize, "member", "members"),
+                g.default_intensity
             )?;
         }
         writeln!(
             f,
-            "static base  {} ({} emitting patches)",
+            "static base  {} ({})",
             if self.base_solved { "solved" } else { "unsolved" },
-            self.static_emitters
+            counted(self.static_emitters, "emitting patch", "emitting patches")
         )?;
         writeln!(
             f,
@@ -257,8 +261,11 @@ impl fmt::Display for InspectReport {
         )?;
         writeln!(
             f,
-            "row length   min {} mean {:.2} max {} ({} empty rows)",
-            self.row_len.min, self.row_len.mean, self.row_len.max, self.empty_rows
+            "row length   min {} mean {:.2} max {} ({})",
+            self.row_len.min,
+            self.row_len.mean,
+            self.row_len.max,
+            counted(self.empty_rows, "empty row", "empty rows")
         )?;
         writeln!(
             f,
@@ -268,8 +275,10 @@ impl fmt::Display for InspectReport {
         if let Some(t) = &self.transfer {
             writeln!(
                 f,
-                "transfer     basis for {} groups x {} patches, {} bytes",
-                c.groups, c.patches, t.bytes
+                "transfer     basis for {} x {}, {} bytes",
+                counted(c.groups, "group", "groups"),
+                counted(c.patches, "patch", "patches"),
+                t.bytes
             )?;
             for (g, (scale, max)) in t.scale.iter().zip(&t.max_response).enumerate() {
                 writeln!(

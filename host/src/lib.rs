@@ -4,7 +4,8 @@
 //! pure-Rust BVH for tests and cross-checks), the f64 reference solve, a path-traced continuous reference,
 //! table writing, checks and reports. The physics conventions are those of `radiosity-core`; `rng` is the one random number generator, and
 //! [`rgb::Rgb`] (glam's `DVec3`, `x, y, z` = R, G, B) the one colour type of every per-patch reflectance,
-//! emission, radiosity and intensity.
+//! emission, radiosity and intensity, and [`text::counted`] the one way a message spells a count ("1 patch",
+//! "2 patches").
 //!
 //! # Map
 //! The pipeline, in order, and where a change of each kind goes:
@@ -51,4 +52,5 @@ pub mod relight;
 pub mod rgb;
 pub mod rng;
 pub mod scene;
+pub mod text;
 pub mod view;

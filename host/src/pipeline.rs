@@ -12,6 +12,12 @@
 //! passes can still split the children of earlier ones). Evenly lit patches stay as the uniform mesh made them.
 //! The form factors of the final mesh are the ones returned. Every patch keeps its parent face.
 //!
+//! # Cost, said before and after
+//! With `verbose`, [`cost_estimate`] goes to stderr after meshing and before the first form factor (patches now
+//! and at most, pairs and occlusion rays per pass, the table's size bound and the device's flash); after the
+//! last pass, one line says the patches, passes, form factors and rays it took, and [`MeshStop::note`] why
+//! refinement stopped where it did (budget spent, light resolved to the tolerance, or passes used up).
+//!
 //! # Repair
 //! Meshing repairs the faces first unless [`PrepareOptions::repair`] is off or the scene's TOML says
 //! `repair = false` ([`crate::mesh::repair()`]); with `verbose`, one `repair:` line per changed face goes to
@@ -24,11 +30,13 @@ use crate::formfactor::{
 };
 use crate::lighting::PatchLighting;
 use crate::mesh::{
-    mesh, refine, refine_scores, select_for_refinement, MeshOptions, RefineInput, RefineOptions, RepairReport,
+    mesh, refine, refine_scores, refinement_candidates, select_for_refinement, MeshOptions, RefineInput,
+    RefineOptions, RepairReport, DEFAULT_PATCH_BUDGET,
 };
 use crate::patch::{FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
 use crate::reference::{solve_many, RadiositySystem};
 use crate::scene::Scene;
+use crate::text::counted;
 
 /// How to turn a scene into patches and form factors.
 #[derive(Clone, Debug)]
@@ -91,6 +99,8 @@ pub struct Prepared {
     pub mesh_passes: Vec<MeshPass>,
     /// What mesh repair changed (`None` when repair was off).
     pub repair: Option<RepairReport>,
+    /// Why adaptive meshing stopped where it did (`None` with `--no-subdivide`).
+    pub mesh_stop: Option<MeshStop>,
 }
 
 /// One meshing pass of [`prepare`].
@@ -100,6 +110,101 @@ pub struct MeshPass {
     pub patches: usize,
     /// Patches the pass split (0 for the uniform mesh).
     pub split: usize,
+    /// Patches the pass found worth splitting ([`crate::mesh::refinement_candidates`]); more than `split` when
+    /// the budget held the pass back (0 for the uniform mesh).
+    pub candidates: usize,
+}
+
+/// Why adaptive meshing stopped, so a mesh below its patch budget says why ([`MeshStop::note`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MeshStop {
+    /// The budget is spent: no split of a patch worth splitting fits in what is left (a split adds about 3).
+    Budget {
+        /// Patches still worth splitting.
+        candidates: usize,
+    },
+    /// No patch's radiosity changes across it by more than the refinement tolerance: the mesh resolves the
+    /// light to that tolerance, and more budget would not be spent.
+    Converged {
+        /// The refinement tolerance (fraction of the mean radiosity).
+        tolerance: f64,
+    },
+    /// Every refinement pass ran (0 passes: refinement is off) and the last split every patch worth splitting;
+    /// their children may still be worth splitting with more passes.
+    Passes {
+        /// Refinement passes allowed.
+        passes: usize,
+    },
+}
+
+impl MeshStop {
+    /// One line for stderr: `patches` of `budget` patches (the budget set by `budget_source`) and why.
+    #[must_use]
+    pub fn note(&self, patches: usize, budget: usize, budget_source: &str) -> String {
+        let head = format!("adaptive meshing: {patches} of {budget} patches (budget: {budget_source})");
+        match *self {
+            MeshStop::Budget { candidates: 0 } => format!("{head}: the budget is spent"),
+            MeshStop::Budget { candidates } => format!(
+                "{head}: the budget is spent ({} still worth splitting, none fits in what is left)",
+                counted(candidates, "patch", "patches")
+            ),
+            MeshStop::Converged { tolerance } => format!(
+                "{head}: below the budget because no patch's radiosity changes across it by more than {tolerance} \
+                 of the mean radiosity (the refinement tolerance, `refine_tolerance` in the scene's TOML): the \
+                 mesh resolves the light to that tolerance"
+            ),
+            MeshStop::Passes { passes: 0 } => format!(
+                "{head}: below the budget because refinement is off (`refine_passes = 0` in the scene's TOML); \
+                 the uniform mesh is sized by the longest patch edge (--max-patch-edge)"
+            ),
+            MeshStop::Passes { passes } => format!(
+                "{head}: below the budget because all {} ran and the last split every patch worth \
+                 splitting (more passes: `refine_passes` in the scene's TOML, at most {})",
+                counted(passes, "refinement pass", "refinement passes"),
+                crate::scene::MAX_REFINE_PASSES
+            ),
+        }
+    }
+}
+
+/// Where a patch budget came from, for messages: the option, the scene's TOML, or the default.
+fn budget_source(options: &PrepareOptions, scene: &Scene) -> String {
+    match (options.max_patches, scene.meshing.patch_budget) {
+        (Some(_), _) => "--max-patches".to_owned(),
+        (None, Some(_)) => "the scene's TOML, `patch_budget`".to_owned(),
+        (None, None) => format!("the default {DEFAULT_PATCH_BUDGET}; set it with --max-patches"),
+    }
+}
+
+/// What a prepare and bake will cost at most, said before the first form factor: the patches now and at most
+/// after refinement, the pairs and occlusion rays of the largest pass, the table's size bound
+/// ([`crate::bake::table_bytes_bound`], 16-bit codes as the bake's default) and the most patches that bound
+/// lets fit the flash of [`firmware_sim::qemu::MPS2_AN386`].
+#[must_use]
+pub fn cost_estimate(patches_now: usize, budget: usize, passes: usize, rays_per_pair: usize) -> String {
+    let most = if passes == 0 { patches_now } else { budget.max(patches_now) };
+    let pairs = most as u64 * most.saturating_sub(1) as u64 / 2;
+    let board = firmware_sim::qemu::MPS2_AN386;
+    let bytes = crate::bake::table_bytes_bound(most, 16);
+    let refined = if passes == 0 {
+        "no refinement".to_owned()
+    } else {
+        format!("at most {most} after {}", counted(passes, "refinement pass", "refinement passes"))
+    };
+    let size =
+        if bytes >= 1_000_000 { format!("{:.1} MB", bytes as f64 / 1e6) } else { format!("{bytes} bytes") };
+    format!(
+        "cost estimate: {patches_now} patches now, {refined}; form factors of {most} patches: {}, at most {:.2e} \
+         occlusion rays per pass; table at most {size} with 16-bit codes (every pair stored); the {} bytes of \
+         flash of a {} hold at most {} patches by that bound ({}; sparse tables hold more, the bake prints the \
+         actual size and fit)",
+        counted(pairs as usize, "pair", "pairs"),
+        pairs as f64 * rays_per_pair as f64,
+        board.flash,
+        board.name,
+        crate::bake::patches_within(board.flash, 16),
+        if bytes <= board.flash { "this mesh fits" } else { "this mesh may not fit" }
+    )
 }
 
 /// Why the pipeline stopped; the message names the stage and the input.
@@ -187,12 +292,12 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             }
         }
         eprintln!(
-            "{}: {} faces, {} materials, {} light groups -> {} patches (max edge {})",
+            "{}: {}, {}, {} -> {} (max edge {})",
             path.display(),
-            scene.faces.len(),
-            scene.materials.len(),
-            scene.light_groups.len(),
-            meshed.patches.len(),
+            counted(scene.faces.len(), "face", "faces"),
+            counted(scene.materials.len(), "material", "materials"),
+            counted(scene.light_groups.len(), "light group", "light groups"),
+            counted(meshed.patches.len(), "patch", "patches"),
             crate::scene::length(meshed.max_patch_edge)
         );
     }
@@ -202,12 +307,19 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         RefineOptions::for_scene(&scene)
     };
     let budget = mesh_options.patch_budget;
+    if options.verbose {
+        let (n, passes) = (meshed.patches.len(), refine_options.passes);
+        eprintln!("{}", cost_estimate(n, budget, passes, options.form_factors.rays_per_pair));
+    }
+    let (mut rays, mut seconds) = (0u64, 0f64);
     let repair = meshed.repair;
     let mut patches = meshed.patches;
-    let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0 }];
+    let mut mesh_passes = vec![MeshPass { patches: patches.len(), split: 0, candidates: 0 }];
     loop {
         let (estimate, stats) = compute_form_factors(&patches, &options.form_factors)
             .map_err(|source| PipelineError::FormFactors { path: path.into(), source })?;
+        rays += stats.rays_cast;
+        seconds += stats.elapsed.as_secs_f64();
         let mut form_factors = estimate.clone();
         let areas: Vec<f64> = patches.iter().map(|q| q.area).collect();
         let mut reciprocity_change = form_factors.enforce_reciprocity(&areas);
@@ -229,9 +341,10 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
         }
         let clamp = form_factors.clamp_rows_to_one();
         let lighting = PatchLighting::new(&scene, &patches);
-        let done = mesh_passes.len() > refine_options.passes || patches.len() >= budget;
-        let split = if done {
-            Vec::new()
+        let passes_done = mesh_passes.len() > refine_options.passes;
+        let done = passes_done || patches.len() >= budget;
+        let (split, candidates) = if done {
+            (Vec::new(), 0)
         } else {
             let system = RadiositySystem::new(&lighting.rho, &form_factors)
                 .map_err(|source| PipelineError::Solve { path: path.into(), source })?;
@@ -250,15 +363,49 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
             let scores = refine_scores(&input);
             let passes_left = refine_options.passes + 1 - mesh_passes.len();
             let share = patches.len() + (budget - patches.len()) / passes_left.max(1);
-            select_for_refinement(&input, &scores, refine_options.tolerance, share)
+            let candidates = refinement_candidates(&input, &scores, refine_options.tolerance);
+            (select_for_refinement(&input, &scores, refine_options.tolerance, share), candidates)
         };
         if options.verbose {
             report_form_factors(&stats, reciprocity_change, &clamp);
+            if stats.closure.is_none() && stats.escaped_rays > 0 {
+                eprintln!(
+                    "form factors: {}",
+                    leak_note(path, &scene, &leaks(&patches, &stats.escapes_per_patch))
+                );
+            }
         }
         if split.is_empty() {
-            if options.verbose && mesh_passes.len() > 1 {
-                let counts: Vec<String> = mesh_passes.iter().map(|p| p.patches.to_string()).collect();
-                eprintln!("adaptive meshing: patches per pass {}", counts.join(" -> "));
+            let last = mesh_passes[mesh_passes.len() - 1];
+            let mesh_stop = if options.no_subdivide {
+                None
+            } else if patches.len() >= budget
+                || (passes_done && last.candidates > last.split)
+                || candidates > 0
+            {
+                Some(MeshStop::Budget {
+                    candidates: if passes_done { last.candidates - last.split } else { candidates },
+                })
+            } else if passes_done {
+                Some(MeshStop::Passes { passes: refine_options.passes })
+            } else {
+                Some(MeshStop::Converged { tolerance: refine_options.tolerance })
+            };
+            if options.verbose {
+                if mesh_passes.len() > 1 {
+                    let counts: Vec<String> = mesh_passes.iter().map(|p| p.patches.to_string()).collect();
+                    eprintln!("adaptive meshing: patches per pass {}", counts.join(" -> "));
+                }
+                if let Some(stop) = mesh_stop {
+                    eprintln!("{}", stop.note(patches.len(), budget, &budget_source(options, &scene)));
+                }
+                eprintln!(
+                    "cost: {} after {}, {} nonzero form factors, {rays} occlusion rays, {seconds:.2} s of form \
+                     factors",
+                    counted(patches.len(), "patch", "patches"),
+                    counted(mesh_passes.len(), "form-factor pass", "form-factor passes"),
+                    stats.nonzeros
+                );
             }
             return Ok(Prepared {
                 scene,
@@ -270,20 +417,79 @@ pub fn prepare(path: &Path, options: &PrepareOptions) -> Result<Prepared, Pipeli
                 reciprocity_change,
                 mesh_passes,
                 repair,
+                mesh_stop,
             });
         }
         patches =
             refine(&patches, &split).map_err(|source| PipelineError::Mesh { path: path.into(), source })?;
-        mesh_passes.push(MeshPass { patches: patches.len(), split: split.len() });
+        mesh_passes.push(MeshPass { patches: patches.len(), split: split.len(), candidates });
         if options.verbose {
             eprintln!(
-                "adaptive meshing pass {}: split {} patches where light changes fast -> {} patches (budget {budget})",
+                "adaptive meshing pass {}: split {} where light changes fast -> {} (budget {budget})",
                 mesh_passes.len() - 1,
-                split.len(),
-                patches.len()
+                counted(split.len(), "patch", "patches"),
+                counted(patches.len(), "patch", "patches")
             );
         }
     }
+}
+
+/// Faces listed by [`leak_note`].
+pub const LEAKS_LISTED: usize = 5;
+
+/// Where an open scene leaks: light that leaves a face and hits nothing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Leak {
+    /// The OBJ face (index in OBJ order).
+    pub face: usize,
+    /// Area of the face that sees the void: each patch's area times the fraction of its cosine-distributed
+    /// rays that hit nothing (an estimate of `A_i (1 - sum_j F_ij)`), summed over the face's patches, in scene
+    /// units squared.
+    pub open_area: f64,
+}
+
+/// The faces from which light leaves the scene, most first (ties by face index), from the per-patch counts
+/// of [`FormFactorStats::escapes_per_patch`].
+#[must_use]
+pub fn leaks(patches: &[Patch], escapes_per_patch: &[(u64, u64)]) -> Vec<Leak> {
+    let mut per_face: Vec<Leak> = Vec::new();
+    for (p, &(cast, escaped)) in patches.iter().zip(escapes_per_patch) {
+        if escaped == 0 || cast == 0 {
+            continue;
+        }
+        let open_area = p.area * escaped as f64 / cast as f64;
+        match per_face.iter_mut().find(|l| l.face == p.face) {
+            Some(l) => l.open_area += open_area,
+            None => per_face.push(Leak { face: p.face, open_area }),
+        }
+    }
+    per_face.sort_by(|a, b| b.open_area.total_cmp(&a.open_area).then(a.face.cmp(&b.face)));
+    per_face
+}
+
+/// One line naming where the open scene at `path` leaks: the [`LEAKS_LISTED`] faces that lose the most light,
+/// by OBJ line, with their share of the light lost ([`Leak::open_area`]).
+#[must_use]
+pub fn leak_note(path: &Path, scene: &Scene, leaks: &[Leak]) -> String {
+    let total: f64 = leaks.iter().map(|l| l.open_area).sum();
+    let listed: Vec<String> = leaks
+        .iter()
+        .take(LEAKS_LISTED)
+        .map(|l| {
+            let line = scene.faces.get(l.face).map_or(0, |f| f.line);
+            format!("face {} ({}:{line}, {:.0}%)", l.face, path.display(), 100.0 * l.open_area / total)
+        })
+        .collect();
+    let more = if leaks.len() > LEAKS_LISTED {
+        format!(" and {} more", counted(leaks.len() - LEAKS_LISTED, "face", "faces"))
+    } else {
+        String::new()
+    };
+    format!(
+        "light leaves the scene from {}{more} (share of the light lost, at equal radiosity); it escapes through \
+         whatever these faces look at (a missing wall, a gap, a face turned the wrong way)",
+        listed.join(", ")
+    )
 }
 
 fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityChange, clamp: &RowClamp) {
@@ -304,17 +510,17 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     );
     match &stats.closure {
         Some(c) => eprintln!(
-            "form factors: closed scene (none of {} hemisphere rays escaped): {} rows closed by correcting their \
-             {} partly visible entries in proportion to their variance (largest change of an entry {:.2e}, \
-             {} entries zeroed), row sums now {:.12}..{:.12}; {} rows left as estimated (off by up to {:.2e})",
+            "form factors: closed scene (none of {} hemisphere rays escaped): {} closed by correcting their \
+             {} in proportion to their variance (largest change of an entry {:.2e}, {} zeroed), row sums now \
+             {:.12}..{:.12}; {} left as estimated (off by up to {:.2e})",
             stats.escape_rays,
-            c.balance.rows_closed,
-            stats.partly_visible_entries,
+            counted(c.balance.rows_closed, "row", "rows"),
+            counted(stats.partly_visible_entries, "partly visible entry", "partly visible entries"),
             c.balance.max_entry_change,
-            c.balance.entries_zeroed,
+            counted(c.balance.entries_zeroed, "entry", "entries"),
             stats.row_sum_min,
             stats.row_sum_max,
-            c.balance.rows_left,
+            counted(c.balance.rows_left, "row", "rows"),
             c.balance.max_residual_left
         ),
         None if stats.escape_rays > 0 => eprintln!(
@@ -325,8 +531,10 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     }
     let one_sided = if reciprocity_change.one_sided > 0 {
         format!(
-            "; {} pairs seen from one side only, {:.1e} of the exchanged energy, were mirrored",
-            reciprocity_change.one_sided, reciprocity_change.one_sided_share
+            "; {} seen from one side only, {:.1e} of the exchanged energy, {} mirrored",
+            counted(reciprocity_change.one_sided, "pair", "pairs"),
+            reciprocity_change.one_sided_share,
+            if reciprocity_change.one_sided == 1 { "was" } else { "were" }
         )
     } else {
         String::new()
@@ -338,9 +546,10 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
     );
     if clamp.rows > 0 {
         eprintln!(
-            "form factors: {} rows summed to more than 1 (within their sampling noise; largest excess {:.2e}) and \
-             were scaled to 1",
-            clamp.rows, clamp.max_excess
+            "form factors: {} to more than 1 (within sampling noise; largest excess {:.2e}) and {} scaled to 1",
+            if clamp.rows == 1 { "1 row summed".to_owned() } else { format!("{} rows summed", clamp.rows) },
+            clamp.max_excess,
+            if clamp.rows == 1 { "was" } else { "were" }
         );
     }
 }

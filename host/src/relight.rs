@@ -207,8 +207,8 @@ fn check_match(p: &Prepared, table: &Table<'_>) -> Result<(), RelightError> {
     let groups = p.lighting.dynamic_groups.len();
     if table.group_count() as usize != groups {
         return Err(RelightError::Mismatch(format!(
-            "the table has {} dynamic light groups, the scene {groups}",
-            table.group_count()
+            "the table has {}, the scene {groups}",
+            crate::text::counted(table.group_count() as usize, "dynamic light group", "dynamic light groups")
         )));
     }
     Ok(())

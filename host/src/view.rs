@@ -238,14 +238,33 @@ fn stack(top: &RgbImage, bottom: &RgbImage) -> RgbImage {
     out
 }
 
-/// Bakes the light map of `prepared` with radiosity `b` (smooth shading, default [`LightMapOptions`]) and writes
-/// `<stem>.hdr`, `<stem>.png` and `<stem>.json`; returns their paths. Every OBJ face gets a rectangle.
+/// What [`write_light_map`] wrote: the files and the atlas's resolution.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightMapFiles {
+    /// `<stem>.hdr`, `<stem>.png` and `<stem>.json`.
+    pub paths: [PathBuf; 3],
+    /// Atlas width in texels.
+    pub width: u32,
+    /// Atlas height in texels.
+    pub height: u32,
+    /// Texel edge length in scene units.
+    pub texel_size: f64,
+}
+
+/// Bakes the light map of `prepared` with radiosity `b` (smooth shading, resolution from `options`) and writes
+/// `<stem>.hdr`, `<stem>.png` and `<stem>.json`. Every OBJ face gets a rectangle.
 ///
 /// # Errors
-/// [`ViewError::Picture`] if a face has no patch, `b` has the wrong length or holds a non-finite value, or a file
-/// cannot be written.
-pub fn write_light_map(prepared: &Prepared, b: &[Rgb], stem: &Path) -> Result<[PathBuf; 3], ViewError> {
+/// [`ViewError::Picture`] if a face has no patch, `b` has the wrong length or holds a non-finite value, the
+/// texel size gives a face or the atlas more texels than allowed, or a file cannot be written.
+pub fn write_light_map(
+    prepared: &Prepared,
+    b: &[Rgb],
+    stem: &Path,
+    options: &LightMapOptions,
+) -> Result<LightMapFiles, ViewError> {
     let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
-    let map = bake_light_map(&prepared.patches, &shader, b, &LightMapOptions::default())?;
-    Ok(map.write(stem, None)?)
+    let map = bake_light_map(&prepared.patches, &shader, b, options)?;
+    let paths = map.write(stem, None)?;
+    Ok(LightMapFiles { paths, width: map.atlas.width, height: map.atlas.height, texel_size: map.texel_size })
 }

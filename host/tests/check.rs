@@ -57,18 +57,34 @@ fn cornell_decomposition_is_consistent() {
             assert!(c.error.max_rel.is_finite(), "{}: {}", c.name, c.error.max_rel);
         }
     }
-    // The decomposition plot: one bar per arithmetic path, each stacking every shared component and its own
-    // arithmetic, and it draws.
+    // The decomposition plot: one group per arithmetic path, every component a bar of its own (L2 norms do not
+    // add, so nothing is stacked), then the measured total, which is at most the components' sum (triangle
+    // inequality, with the slack of the telescoping check below); and it draws.
     let plot = r16.decomposition_plot("Cornell box");
-    let radiosity_host::picture::plot::Plot::StackedBars { categories, components, .. } = &plot else {
+    let radiosity_host::picture::plot::Plot::GroupedBars { categories, components, .. } = &plot else {
         panic!("not bars")
     };
     assert_eq!(categories, &["f32", "fixed"]);
-    let total: f64 = components.iter().map(|(_, v)| v[1]).sum();
-    let expected: f64 =
-        r16.components.iter().filter(|c| c.name != "arithmetic (f32)").map(|c| c.error.rel_l2).sum();
-    assert!((total - expected).abs() <= 1e-12 * expected, "{total} vs {expected}");
-    assert!(plot.to_svg(400, 300).expect("svg").contains("<svg"));
+    let (total_name, total) = components.last().expect("a total bar");
+    assert!(total_name.starts_with("total"), "{total_name}");
+    for (k, arith) in categories.iter().enumerate() {
+        let device = r16.settings.iter().find(|s| s.setting == 0 && s.arith.to_string() == *arith).unwrap();
+        assert_eq!(total[k], device.error.rel_l2, "{arith}: the total bar is the measured device error");
+        let sum: f64 = components[..components.len() - 1].iter().map(|(_, v)| v[k]).sum();
+        assert!(
+            total[k] <= sum * (1.0 + sum) * (1.0 + 1e-9) + 1e-12,
+            "{arith}: total {} over sum {sum}",
+            total[k]
+        );
+    }
+    let own = |name: &str| components.iter().find(|(n, _)| n == name).map(|(_, v)| v.clone()).unwrap();
+    assert_eq!(
+        own("arithmetic"),
+        [component(&r16, "arithmetic (f32)"), component(&r16, "arithmetic (fixed)")]
+    );
+    assert_eq!(own(QUANTIZATION), [component(&r16, QUANTIZATION); 2]);
+    let svg = plot.to_svg(400, 300).expect("svg");
+    assert!(svg.contains("<svg") && svg.contains("not the sum"), "the plot says the bars do not add");
     // Expected order: a 5-bit mantissa quantizes coarser than a 12-bit one.
     let (q16, q8) = (component(&r16, QUANTIZATION), component(&r8, QUANTIZATION));
     assert!(q8 > q16, "quantization 8-bit {q8} not above 16-bit {q16}");

@@ -228,3 +228,206 @@ fn scene_warnings_reach_stderr() {
     assert!(stderr.contains("warning: ") && stderr.contains("light group 'lamp' has no faces"), "{stderr}");
     assert!(stderr.contains("no face emits light"), "{stderr}");
 }
+
+#[test]
+fn an_error_says_its_cause_once() {
+    // The message already names the OS error; a `caused by:` line repeating it would say it twice.
+    let out = radiosity(&["solve", MISSING]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot read /nonexistent-scene/none.obj: No such file"), "{stderr}");
+    assert_eq!(stderr.matches("No such file").count(), 1, "the cause is repeated: {stderr}");
+    assert!(!stderr.contains("caused by"), "{stderr}");
+}
+
+/// The stderr of a quick `solve` of the shipped scene `name` (one patch per face, few samples).
+fn quick_solve_stderr(name: &str) -> String {
+    let out = radiosity(&["solve", &scene(name), "--no-subdivide", "--samples", "4", "--rays", "4"]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    stderr
+}
+
+#[test]
+fn an_open_scene_says_where_light_leaves_it() {
+    // The published Cornell box has no front wall: light leaves through z = 0. Its largest faces looking at the
+    // opening are listed by OBJ line (the walls, ceiling and floor, at lines 18 to 147); the blocks are not first.
+    let stderr = quick_solve_stderr("cornell-box.obj");
+    let line = stderr.lines().find(|l| l.contains("light leaves the scene from")).unwrap_or_else(|| {
+        panic!("no leak location: {stderr}");
+    });
+    let first = line.split("from face ").nth(1).and_then(|r| r.split(' ').next()).unwrap();
+    let walls = ["0", "2", "3", "4", "5", "6", "7", "18"];
+    assert!(walls.contains(&first), "the first face listed is a block's ({first}): {line}");
+    assert!(line.contains("cornell-box.obj:") && line.contains('%'), "{line}");
+    assert!(line.contains(" more"), "the rest are counted: {line}");
+    // The closed variant leaks nowhere and says nothing of it.
+    let stderr = quick_solve_stderr("cornell-box-closed.obj");
+    assert!(stderr.contains("closed scene") && !stderr.contains("light leaves"), "{stderr}");
+}
+
+#[test]
+fn counts_of_one_are_singular() {
+    let stderr = quick_solve_stderr("cornell-box.obj");
+    assert!(stderr.contains("1 light group ->"), "{stderr}");
+    for wrong in ["1 light groups", "1 members", "1 pairs", "1 rows", "1 faces", "1 patches"] {
+        assert!(!stderr.contains(&format!(" {wrong}")), "{wrong:?} in {stderr}");
+    }
+    let dir = folder("plural");
+    let table = dir.join("t.rft");
+    let out = radiosity(&[
+        "bake",
+        &scene("facing-squares.obj"),
+        "--no-subdivide",
+        "-q",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "-o",
+        table.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("1 dynamic, 1 member\n") && stdout.contains("  1 member  "), "{stdout}");
+    // Energy dropped is a fraction of all power, not a sum over rows that reads like one.
+    let dropped = stdout.lines().find(|l| l.starts_with("energy dropped")).unwrap();
+    assert!(dropped.contains("of all power transported") && !dropped.contains("total"), "{dropped}");
+    let out = radiosity(&["inspect", table.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("(1 member)") && !stdout.contains("1 members"), "{stdout}");
+}
+
+#[test]
+fn a_bake_says_what_it_will_cost_and_why_the_mesh_stops_below_its_budget() {
+    // No TOML: the default budget, which refinement does not reach because the light is resolved.
+    let out = radiosity(&[
+        "solve",
+        &scene("facing-squares.obj"),
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "--format",
+        "text",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let estimate = stderr.lines().position(|l| l.starts_with("cost estimate: ")).expect(&stderr);
+    let first_ff = stderr.lines().position(|l| l.starts_with("form factors: ")).expect(&stderr);
+    assert!(estimate < first_ff, "the estimate comes before the form factors: {stderr}");
+    assert!(
+        stderr.contains("at most 4096 after 2 refinement passes") && stderr.contains("67.2 MB"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("of 4096 patches (budget: the default 4096; set it with --max-patches)"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("below the budget because no patch's radiosity changes across it"), "{stderr}");
+    assert!(stderr.lines().any(|l| l.starts_with("cost: ") && l.contains("occlusion rays")), "{stderr}");
+
+    // A budget the refinement spends: said so, and the bake's table is measured against the device.
+    let dir = folder("budget");
+    let table = dir.join("t.rft");
+    let out = radiosity(&[
+        "bake",
+        &scene("cornell-box.obj"),
+        "--max-patches",
+        "400",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "--format",
+        "json",
+        "-o",
+        table.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let spent = stderr.lines().find(|l| l.contains("(budget: --max-patches)")).expect(&stderr);
+    assert!(spent.contains("of 400 patches") && spent.contains("the budget is spent"), "{spent}");
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let fit = &doc["device_fit"];
+    let bytes = fit["table_bytes"].as_u64().unwrap();
+    assert_eq!(bytes, std::fs::metadata(&table).unwrap().len(), "{fit}");
+    assert_eq!(fit["flash"].as_u64(), Some(firmware_sim::qemu::MPS2_AN386.flash));
+    let ram_ok = fit["buffer_bytes"].as_u64().unwrap() <= fit["ram"].as_u64().unwrap();
+    assert_eq!(fit["fits"].as_bool(), Some(bytes <= fit["flash"].as_u64().unwrap() && ram_ok), "{fit}");
+    let patches = doc["patches"].as_u64().unwrap() as usize;
+    assert!(patches <= 400, "{patches}");
+    let bound = radiosity_host::bake::table_bytes_bound(patches, 16);
+    assert!(bytes <= bound, "the table ({bytes} bytes) is within the estimate's bound ({bound})");
+    assert!(
+        radiosity_host::bake::table_bytes_bound(radiosity_host::bake::patches_within(bound, 16) + 1, 16)
+            > bound
+    );
+}
+
+/// `lightmap` on the Cornell box (one patch per face) with `extra` options: stdout and the JSON map's atlas size
+/// and texel size.
+fn light_map(extra: &[&str]) -> (String, u64, u64, f64) {
+    let dir = folder("lightmap");
+    let stem = dir.join("map");
+    let mut args = vec!["lightmap", "--no-subdivide", "-q", "--samples", "4", "--rays", "4", "-o"];
+    let cornell = scene("cornell-box.obj");
+    args.extend([stem.to_str().unwrap(), &cornell]);
+    args.extend(extra);
+    let out = radiosity(&args);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(stem.with_extension("json")).unwrap()).unwrap();
+    let size = |k: &str| json["atlas"][k].as_u64().unwrap();
+    (stdout, size("width"), size("height"), json["texel_size"].as_f64().unwrap())
+}
+
+#[test]
+fn light_map_resolution_is_an_option() {
+    let (stdout, w, h, texel) = light_map(&[]);
+    assert!(stdout.contains(&format!("atlas {w} x {h} texels")), "{stdout}");
+    // Twice the texels across the largest face: about twice the atlas on each side (padding is fixed).
+    let (_, w2, h2, texel2) = light_map(&["--face-texels", "128"]);
+    assert!((texel2 - texel / 2.0).abs() <= 1e-12 * texel, "{texel2} vs {texel}");
+    assert!(w2 > w * 3 / 2 && h2 > h * 3 / 2 && w2 * h2 > 3 * w * h, "{w}x{h} -> {w2}x{h2}");
+    // A texel size in scene units (mm here) is used as given.
+    let (_, w3, h3, texel3) = light_map(&["--texel-size", "4"]);
+    assert_eq!(texel3, 4.0);
+    assert!(w3 > w2 && h3 > h2, "4 mm texels are finer than {texel2}: {w3}x{h3}");
+    // Limits: checked before any work for the options, and for the atlas as for every picture.
+    let out = folder("lightmap-limits").join("map");
+    let out = out.to_str().unwrap();
+    assert_fails(&["lightmap", MISSING, "-o", out, "--face-texels", "5000"], &["--face-texels 5000", "4096"]);
+    assert_fails(&["lightmap", MISSING, "-o", out, "--texel-size", "0"], &["--texel-size 0", "positive"]);
+    let refused = radiosity(&[
+        "lightmap",
+        &scene("cornell-box.obj"),
+        "--no-subdivide",
+        "-q",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "-o",
+        out,
+        "--texel-size",
+        "0.3",
+    ]);
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("light map") && stderr.contains("4096 x 4096"), "{stderr}");
+}
+
+#[test]
+fn demo_without_qemu_runs_on_the_host_only() {
+    let dir = folder("demo");
+    let out = radiosity(&["demo", "--no-qemu", "--out", dir.to_str().unwrap()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("--no-qemu: the host's device loop only"), "{stdout}");
+    assert!(!stdout.contains("QEMU m4") && !stdout.contains("QEMU run skipped"), "{stdout}");
+    for file in ["cornell-box.rft", "cornell-box-m4.rft", "cornell-box.png", "cornell-box-relight.csv"] {
+        assert!(dir.join(file).exists(), "{file} missing: {stdout}");
+    }
+}

@@ -167,7 +167,7 @@ fn patch_and_error_views() {
 fn light_map_maps_every_face() {
     let (p, b) = cornell();
     let stem = scratch("cornell-lightmap");
-    let paths = write_light_map(p, b, &stem).unwrap();
+    let paths = write_light_map(p, b, &stem, &Default::default()).unwrap().paths;
     for path in &paths {
         assert!(std::fs::metadata(path).unwrap().len() > 0, "{} is empty", path.display());
     }

@@ -133,6 +133,8 @@ fn cornell_box_loads_as_published() {
         text.contains("cornell-box.obj") && text.contains("non-planar") && text.contains("2 triangles"),
         "{text}"
     );
+    // The limits it states are the ones that apply: split within 1% of the diameter, refused beyond.
+    assert!(text.contains("within 1% is split") && text.contains("beyond 1% is refused"), "{text}");
     let red = &s.faces[18];
     assert!(red.is_split());
     assert_eq!(red.polygons.len(), 2);
@@ -274,6 +276,23 @@ fn missing_files() {
 }
 
 #[test]
+fn a_single_value_colour_is_grey() {
+    // Legal MTL: one number for all three channels. A later error still names its own line.
+    let mtl = "newmtl grey\nKa 0\nKd 0.5\nKs 0\n\nnewmtl lamp\nKd 0.25\nKe 2\n";
+    let path = write_scene(&obj_with("v 0 0 1\nv 1 0 1\nv 0 1 1\nusemtl lamp\nf 5 7 6\n"), mtl, None);
+    let scene = Scene::load(&path).unwrap_or_else(|e| panic!("single-value Kd refused: {e}"));
+    let by_name = |n: &str| scene.materials.iter().find(|m| m.name == n).unwrap().clone();
+    assert_eq!(by_name("grey").reflectance.to_array(), [0.5; 3]);
+    assert_eq!(by_name("grey").emission.to_array(), [0.0; 3]);
+    assert_eq!(by_name("lamp").reflectance.to_array(), [0.25; 3]);
+    assert_eq!(by_name("lamp").emission.to_array(), [2.0; 3]);
+    let (e, msg, _) = error_of(&obj_with(""), "newmtl grey\nKd 0.5\nKe 1\nKe x\n", None);
+    assert!(matches!(e, SceneError::Parse { line: 4, .. }), "{msg}");
+    let (_, msg, _) = error_of(&obj_with(""), "newmtl grey\nKd 1.5\n", None);
+    assert!(msg.contains(":2: material 'grey'") && msg.contains("outside [0, 1)"), "{msg}");
+}
+
+#[test]
 fn syntax_errors_name_the_line() {
     let (e, msg, path) = error_of(&obj_with("v 1 2 x\n"), MTL, None);
     assert!(matches!(e, SceneError::Parse { line: 8, .. }), "{msg}");
@@ -287,6 +306,7 @@ fn syntax_errors_name_the_line() {
     let (e, msg, path) = error_of(&obj_with(""), "newmtl grey\nKd 0.5 0.5\n", None);
     assert!(matches!(e, SceneError::Parse { line: 2, .. }), "{msg}");
     assert_message(&msg, &path.with_file_name("scene.mtl"), &[":2: parse error"]);
+    assert_message(&msg, &path.with_file_name("scene.mtl"), &["three numbers (r g b) or one (grey)"]);
 
     let (_, msg, path) =
         error_of(&obj_with(""), "newmtl grey\nKd 0.5 0.5 0.5\nnewmtl grey\nKd 0.1 0.1 0.1\n", None);

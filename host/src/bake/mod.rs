@@ -70,7 +70,7 @@ use radiosity_core::{
 };
 use thiserror::Error;
 
-pub use capacities::Capacities;
+pub use capacities::{patches_within, table_bytes_bound, Capacities, DeviceFit};
 pub use codec::{codec_for_bits, decoded_row_sum_tolerance};
 pub use decode::{decode_table, Decoded};
 pub use ids::{group_id, group_ids, scene_fingerprint};

@@ -8,6 +8,7 @@ use serde::Serialize;
 use super::{EnergyDropped, RuntimeState};
 use crate::inspect::SectionBytes;
 use crate::rgb::Rgb;
+use crate::text::counted;
 
 /// A dynamic light group as written to the table.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -65,20 +66,34 @@ pub struct BakeReport {
 impl fmt::Display for BakeReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let e = &self.energy_dropped;
-        writeln!(f, "patches            {} ({} materials)", self.patches, self.materials)?;
+        writeln!(
+            f,
+            "patches            {} ({})",
+            self.patches,
+            counted(self.materials, "material", "materials")
+        )?;
         writeln!(f, "scene fingerprint  {:#018x}", self.fingerprint)?;
-        writeln!(f, "light groups       {} dynamic, {} members", self.groups.len(), self.members)?;
+        writeln!(
+            f,
+            "light groups       {} dynamic, {}",
+            self.groups.len(),
+            counted(self.members, "member", "members")
+        )?;
         for g in &self.groups {
             writeln!(
                 f,
-                "  {:<16} id {:#010x}  {} members  default {:?}",
+                "  {:<16} id {:#010x}  {}  default {:?}",
                 g.name,
                 g.id,
-                g.members,
+                counted(g.members, "member", "members"),
                 g.default_intensity.to_array()
             )?;
         }
-        writeln!(f, "static emitters    {} patches (folded into the solved base)", self.static_emitters)?;
+        writeln!(
+            f,
+            "static emitters    {} (folded into the solved base)",
+            counted(self.static_emitters, "patch", "patches")
+        )?;
         writeln!(
             f,
             "form factors       {} -> {} nonzeros (threshold {}), {} stored (rows of patches with state)",
@@ -86,9 +101,10 @@ impl fmt::Display for BakeReport {
         )?;
         writeln!(
             f,
-            "energy dropped     per row max {:.3e} mean {:.3e}; max fraction of a row {:.3e}, of a receiver {:.3e}; \
-             total {:.3e}, area-weighted {:.3e}",
-            e.max_row, e.mean_row, e.max_row_fraction, e.max_receiver_fraction, e.total, e.area_weighted
+            "energy dropped     {:.3e} of all power transported (area-weighted, at uniform radiosity); of a \
+             patch's outgoing power mean {:.3e}, max {:.3e}; largest share of a row {:.3e}, of a receiver's \
+             incoming power {:.3e}",
+            e.area_weighted, e.mean_row, e.max_row, e.max_row_fraction, e.max_receiver_fraction
         )?;
         writeln!(f, "codec              {} ({} bits)", self.codec, self.ff_bits)?;
         writeln!(
@@ -99,9 +115,11 @@ impl fmt::Display for BakeReport {
         writeln!(f, "{}", self.table_bytes)?;
         write!(
             f,
-            "runtime state      {} of {} patches (reachable by a dynamic light; the others show the static \
-             base; {} entries to black stateless receivers dropped)",
-            self.runtime_state.reachable, self.runtime_state.patches, self.runtime_state.entries_to_stateless
+            "runtime state      {} of {} (reachable by a dynamic light; the others show the static base; {} to \
+             black stateless receivers dropped)",
+            self.runtime_state.reachable,
+            counted(self.runtime_state.patches, "patch", "patches"),
+            counted(self.runtime_state.entries_to_stateless, "entry", "entries")
         )
     }
 }

@@ -84,7 +84,8 @@ pub struct EnergyDropped {
     pub max_row_fraction: f64,
     /// Largest fraction of a receiver's incoming power (under uniform radiosity) dropped (`<=` the threshold).
     pub max_receiver_fraction: f64,
-    /// `sum_i d_i`.
+    /// `sum_i d_i`: a sum over rows (it grows with the patch count), not a fraction of anything; the fraction of
+    /// all power is `area_weighted`.
     pub total: f64,
     /// `sum_i A_i d_i / sum_i A_i s_i`: fraction of all transported power under uniform radiosity.
     pub area_weighted: f64,

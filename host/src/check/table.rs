@@ -12,6 +12,7 @@ use super::{
 use crate::bake::{self, decode_table};
 use crate::evaluate;
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
+use crate::text::counted;
 
 /// Reads the table at `table_path`, prepares the scene at `scene_path` and checks the table against it (see
 /// [`check_table`]).
@@ -112,11 +113,14 @@ pub fn match_scene(table: &Table<'_>, p: &Prepared) -> Result<(), String> {
     }
     let (m_t, m_s) = (table.material_count() as usize, p.scene.materials.len());
     if m_t != m_s {
-        return Err(format!("the table has {m_t} materials, the scene {m_s}"));
+        return Err(format!("the table has {}, the scene {m_s}", counted(m_t, "material", "materials")));
     }
     let (g_t, g_s) = (table.group_count() as usize, l.dynamic_groups.len());
     if g_t != g_s {
-        return Err(format!("the table has {g_t} dynamic light groups, the scene {g_s}"));
+        return Err(format!(
+            "the table has {}, the scene {g_s}",
+            counted(g_t, "dynamic light group", "dynamic light groups")
+        ));
     }
     for (i, q) in p.patches.iter().enumerate() {
         let a = f64::from(table.area(i as u32).unwrap_or(f32::NAN));

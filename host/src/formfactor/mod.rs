@@ -163,6 +163,9 @@ pub struct FormFactorStats {
     pub escape_rays: u64,
     /// Of those, rays that hit nothing.
     pub escaped_rays: u64,
+    /// `(rays cast, rays that hit nothing)` per patch they left (empty with [`ClosureMode::Off`]): where an
+    /// open scene leaks.
+    pub escapes_per_patch: Vec<(u64, u64)>,
     /// What closing the rows did; `None` if the scene is open or closure is off.
     pub closure: Option<ClosureReport>,
     /// Occlusion rays cast.
@@ -441,30 +444,27 @@ fn estimate<C: RayCaster + ?Sized>(
             .map(|(i, later)| context.visibility_row(i, &unoccluded[i], later))
             .collect();
         let visibility_time = phase.elapsed();
-        let escapes = match options.closure {
-            ClosureMode::Off => (0, 0),
-            ClosureMode::Detect => (0..patches.len())
-                .into_par_iter()
-                .map(|i| context.escaping_rays(i))
-                .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1)),
+        let escapes: Vec<(u64, u64)> = match options.closure {
+            ClosureMode::Off => Vec::new(),
+            ClosureMode::Detect => {
+                (0..patches.len()).into_par_iter().map(|i| context.escaping_rays(i)).collect()
+            }
         };
         let timing = (kernels.iter().sum::<u64>(), kernel_time, visibility_time);
         (unoccluded, visibility, escapes, timing)
     };
-    let (
-        unoccluded,
-        visibility,
-        (escape_rays, escaped_rays),
-        (kernel_evaluations, kernel_time, visibility_time),
-    ) = match options.threads {
-        None => compute(),
-        Some(threads) => rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .map_err(|e| FormFactorError::ThreadPool { threads, message: e.to_string() })?
-            .install(compute),
-    };
+    let (unoccluded, visibility, escapes, (kernel_evaluations, kernel_time, visibility_time)) =
+        match options.threads {
+            None => compute(),
+            Some(threads) => rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .map_err(|e| FormFactorError::ThreadPool { threads, message: e.to_string() })?
+                .install(compute),
+        };
     progress.finish_and_clear();
+    let escape_rays = escapes.iter().map(|e| e.0).sum::<u64>();
+    let escaped_rays = escapes.iter().map(|e| e.1).sum::<u64>();
 
     // Phase 3: F_ij = U_ij v_{min(i,j), max(i,j)}, flagged where the pair is partly visible (or its visibility
     // was assumed). Visibility is one estimate per pair, so the flags of (i, j) and (j, i) agree, and they stay
@@ -542,6 +542,7 @@ fn estimate<C: RayCaster + ?Sized>(
         partly_visible_entries: matrix.flags().iter().filter(|&&p| p).count(),
         escape_rays,
         escaped_rays,
+        escapes_per_patch: escapes,
         closure,
         rays_cast,
         rays_per_second: rays_cast as f64 / elapsed.as_secs_f64().max(1e-9),

@@ -18,9 +18,9 @@ use crate::patch::Patch;
 use crate::raycast::{unit_factor, Ray, RayCaster};
 use crate::rng::SplitMix64;
 
-/// Unoccluded rows, visibility rows, (escape rays cast, escaped), and (kernel evaluations, wall time of the
-/// kernel phase, wall time of the visibility phase).
-pub(super) type Phases = (Vec<Vec<(u32, f64)>>, Vec<Visibility>, (u64, u64), (u64, Duration, Duration));
+/// Unoccluded rows, visibility rows, (escape rays cast, escaped) per patch (empty without closure detection),
+/// and (kernel evaluations, wall time of the kernel phase, wall time of the visibility phase).
+pub(super) type Phases = (Vec<Vec<(u32, f64)>>, Vec<Visibility>, Vec<(u64, u64)>, (u64, Duration, Duration));
 
 pub(super) struct RowContext<'a, C: RayCaster + ?Sized> {
     pub(super) patches: &'a [Patch],

@@ -65,8 +65,8 @@ mod uniform;
 
 pub use adjacency::adjacency;
 pub use refine::{
-    patch_area_distribution, refine, refine_scores, select_for_refinement, RefineInput, RefineOptions,
-    RefineScore, DEFAULT_REFINE_PASSES, DEFAULT_REFINE_TOLERANCE,
+    patch_area_distribution, refine, refine_scores, refinement_candidates, select_for_refinement,
+    RefineInput, RefineOptions, RefineScore, DEFAULT_REFINE_PASSES, DEFAULT_REFINE_TOLERANCE,
 };
 pub use repair::{repair, FaceRepair, Meeting, RepairReport, Repaired, REPAIR_TOLERANCE};
 pub use uniform::{mesh, Mesh, MeshOptions, DEFAULT_EDGE_DIVISIONS, DEFAULT_PATCH_BUDGET};

@@ -180,6 +180,36 @@ pub fn select_for_refinement(
     budget: usize,
 ) -> Vec<usize> {
     let patches = input.patches;
+    let mut candidates = candidates(input, scores, tolerance);
+    candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    let mut count = patches.len();
+    let mut chosen = Vec::new();
+    for (i, _) in candidates {
+        let added = children(&patches[i]) - 1;
+        if count + added <= budget {
+            count += added;
+            chosen.push(i);
+        }
+    }
+    chosen.sort_unstable();
+    chosen
+}
+
+/// How many patches are worth splitting: those [`select_for_refinement`] would choose from with no budget
+/// (their change above `tolerance` times the mean radiosity). Fewer chosen than this means the budget stopped
+/// refinement; none means the mesh resolves the light to the tolerance.
+///
+/// # Panics
+/// If `scores` or `input` do not match `input.patches`.
+#[must_use]
+pub fn refinement_candidates(input: &RefineInput<'_>, scores: &[RefineScore], tolerance: f64) -> usize {
+    candidates(input, scores, tolerance).len()
+}
+
+/// The patches whose change exceeds `tolerance` times the reference radiosity, with their priority
+/// `change * sqrt(area)`, in patch order.
+fn candidates(input: &RefineInput<'_>, scores: &[RefineScore], tolerance: f64) -> Vec<(usize, f64)> {
+    let patches = input.patches;
     assert_eq!(scores.len(), patches.len(), "one score per patch");
     // Mean radiosity of the non-emitting patches (of all patches if every patch emits, as in a white furnace).
     let mean = |emitting_too: bool| {
@@ -202,24 +232,12 @@ pub fn select_for_refinement(
         mean(true)
     };
     let threshold = tolerance * reference;
-    let mut candidates: Vec<(usize, f64)> = scores
+    scores
         .iter()
         .enumerate()
         .filter(|(_, s)| s.change() > threshold)
         .map(|(i, s)| (i, s.change() * patches[i].area.sqrt()))
-        .collect();
-    candidates.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-    let mut count = patches.len();
-    let mut chosen = Vec::new();
-    for (i, _) in candidates {
-        let added = children(&patches[i]) - 1;
-        if count + added <= budget {
-            count += added;
-            chosen.push(i);
-        }
-    }
-    chosen.sort_unstable();
-    chosen
+        .collect()
 }
 
 /// Number of children [`refine`] makes of a patch.

@@ -146,12 +146,12 @@ impl ContinuousReference {
             None => String::new(),
         };
         format!(
-            "{} faces, {} paths, {} rays in {:.2} s ({} rounds); worst relative standard error {:.2e}{target}",
-            self.faces.len(),
+            "{}, {} paths, {} rays in {:.2} s ({}); worst relative standard error {:.2e}{target}",
+            crate::text::counted(self.faces.len(), "face", "faces"),
             self.paths,
             self.rays,
             self.seconds,
-            self.rounds,
+            crate::text::counted(self.rounds, "round", "rounds"),
             self.worst_relative_error()
         )
     }

@@ -44,7 +44,8 @@ impl Default for LightMapOptions {
     }
 }
 
-/// Largest rectangle side, in texels, a face may get (keeps a tiny `texel_size` from asking for gigabytes).
+/// Largest rectangle side, in texels, a face may get (keeps a tiny `texel_size` from asking for gigabytes); the
+/// whole atlas is held to [`crate::limits::MAX_IMAGE_PIXELS`] like every picture.
 pub const MAX_FACE_SIDE: u32 = 4096;
 
 /// Where one face lives in the atlas, and how to get from a point on the face to its texel.
@@ -225,6 +226,13 @@ pub fn bake_light_map(
         shelf = shelf.max(h);
     }
     let atlas_height = y + shelf;
+    // The atlas is a picture: the same limit as every other ([`crate::limits::check_image_size`]).
+    crate::limits::check_image_size("light map atlas", atlas_width, atlas_height).map_err(|e| {
+        PictureError::invalid(
+            "light map texel size",
+            format!("{atlas_width}x{atlas_height} texels: {}; use a larger texel", e.problem),
+        )
+    })?;
 
     let mut atlas = LinearImage::new(atlas_width, atlas_height);
     let mut rects = Vec::with_capacity(layouts.len());

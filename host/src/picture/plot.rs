@@ -1,5 +1,6 @@
-//! Report plots with `plotters`, as SVG and PNG: error against work, error decomposition bars, and the patch-size
-//! histogram of an adaptive mesh.
+//! Report plots with `plotters`, as SVG and PNG: error against work, error decomposition bars (side by side on a
+//! log axis: L2 norms of error sources do not add, so they are never stacked), and the patch-size histogram of an
+//! adaptive mesh.
 //!
 //! Both outputs come from the same drawing code: SVG through plotters' SVG backend (text stays text), PNG through
 //! its in-memory bitmap backend, encoded with the `png` crate. Text is drawn in the font of [`super::text`].
@@ -11,7 +12,7 @@ use plotters::coord::ranged1d::ValueFormatter;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::text::{ensure_font, format_tick, FONT_FAMILY};
+use super::text::{ensure_font, FONT_FAMILY};
 use super::{write_file, write_png, PictureError, RgbImage};
 
 /// One named curve of an error-against-work plot.
@@ -37,15 +38,16 @@ pub enum Plot {
         /// The curves.
         series: Vec<Series>,
     },
-    /// Stacked bars: one bar per category, one stacked segment per component (e.g. error sources), linear axis.
-    StackedBars {
+    /// Grouped bars: one group per category, one bar per component side by side (e.g. error sources, each on
+    /// its own), logarithmic y axis. Zero values are left out (a log axis has no zero) and counted in the legend.
+    GroupedBars {
         /// Title above the plot.
         title: String,
         /// Y axis label.
         y_label: String,
-        /// Bar names along the x axis.
+        /// Group names along the x axis.
         categories: Vec<String>,
-        /// `(component name, one nonnegative value per category)`.
+        /// `(component name, one nonnegative value per category)`; at least one value must be positive.
         components: Vec<(String, Vec<f64>)>,
     },
     /// Histogram with logarithmic bins (e.g. patch areas of an adaptive mesh): log x, count on a linear y axis.
@@ -116,7 +118,7 @@ impl Plot {
     pub fn title(&self) -> &str {
         match self {
             Plot::ErrorWork { title, .. }
-            | Plot::StackedBars { title, .. }
+            | Plot::GroupedBars { title, .. }
             | Plot::Histogram { title, .. } => title,
         }
     }
@@ -145,7 +147,10 @@ impl Plot {
                     }
                 }
             }
-            Plot::StackedBars { categories, components, .. } => {
+            Plot::GroupedBars { categories, components, .. } => {
+                if !components.iter().any(|(_, v)| v.iter().any(|&x| x > 0.0)) {
+                    return Err(PictureError::invalid("bar plot", "no positive value to draw on a log axis"));
+                }
                 if categories.is_empty() || components.is_empty() {
                     return Err(PictureError::invalid("bar plot", "no categories or no components"));
                 }
@@ -239,59 +244,66 @@ impl Plot {
                 }
                 legend(&mut chart).map_err(&e)?;
             }
-            Plot::StackedBars { title, y_label, categories, components } => {
-                let n = categories.len();
-                let top =
-                    (0..n).map(|i| components.iter().map(|(_, v)| v[i]).sum::<f64>()).fold(0.0, f64::max);
-                // Headroom for the legend box in the upper right (about one text line per component).
-                let top = if top > 0.0 { top * (1.2 + 0.08 * components.len() as f64) } else { 1.0 };
+            Plot::GroupedBars { title, y_label, categories, components } => {
+                let (n, m) = (categories.len(), components.len());
+                let positive = components.iter().flat_map(|(_, v)| v.iter().copied()).filter(|&v| v > 0.0);
+                let (lo, hi) = positive.fold((f64::INFINITY, 0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+                // Headroom above the tallest bar for the legend box (about 20 pixels per component, out of the
+                // plot's height less caption, margins and axis labels), as a share of the log axis.
+                let height = f64::from(root.dim_in_pixel().1);
+                let share = ((m as f64 * 20.0 + 30.0) / (height - 110.0).max(1.0)).min(0.8);
+                let span = (hi.log10() - lo.log10().floor()).max(1.0);
+                let y = decades(lo, hi * 10f64.powf(span * share / (1.0 - share)));
+                let bottom = y.start;
                 let mut chart = ChartBuilder::on(root)
                     .caption(title, caption)
                     .margin(16)
-                    .x_label_area_size(48)
+                    .x_label_area_size(40)
                     .y_label_area_size(80)
-                    .build_cartesian_2d(categories.as_slice().into_segmented(), 0.0..top)
+                    .build_cartesian_2d(0.0..n as f64, y.log_scale())
                     .map_err(&e)?;
                 chart
                     .configure_mesh()
                     .disable_x_mesh()
+                    .x_labels(0)
                     .y_desc(y_label.as_str())
-                    .x_labels(n)
-                    .x_label_formatter(&|v| match v {
-                        SegmentValue::CenterOf(name) => (*name).clone(),
-                        _ => String::new(),
-                    })
-                    .y_label_formatter(&|v| format_tick(*v))
+                    .y_label_formatter(&|v| format!("{v:.0e}"))
                     .label_style((FONT_FAMILY, 14))
                     .axis_desc_style((FONT_FAMILY, 16))
                     .draw()
                     .map_err(&e)?;
-                // A segment's right edge: the next category's left edge, or the axis end after the last one.
-                let right = |i: usize| categories.get(i + 1).map_or(SegmentValue::Last, SegmentValue::Exact);
-                let mut base = vec![0.0; n];
+                // Group i spans [i, i + 1): its bars share the middle 80%, one slot per component.
+                let slot = |i: usize, k: usize| {
+                    let w = 0.8 / m as f64;
+                    (i as f64 + 0.1 + w * k as f64 + 0.1 * w, i as f64 + 0.1 + w * (k + 1) as f64 - 0.1 * w)
+                };
                 for (k, (name, values)) in components.iter().enumerate() {
                     let colour = Palette99::pick(k).to_rgba();
-                    let bars: Vec<Rectangle<(SegmentValue<&String>, f64)>> = (0..n)
-                        .map(|i| {
-                            let (b, t) = (base[i], base[i] + values[i]);
-                            let mut r = Rectangle::new(
-                                [(SegmentValue::Exact(&categories[i]), b), (right(i), t)],
-                                colour.filled(),
-                            );
-                            r.set_margin(0, 0, 12, 12);
-                            r
-                        })
-                        .collect();
-                    for (i, v) in values.iter().enumerate() {
-                        base[i] += v;
-                    }
+                    let bars = values.iter().enumerate().filter(|(_, &v)| v > 0.0).map(|(i, &v)| {
+                        let (x0, x1) = slot(i, k);
+                        Rectangle::new([(x0, bottom), (x1, v)], colour.filled())
+                    });
+                    let zeros = values.iter().filter(|&&v| v == 0.0).count();
+                    let label =
+                        if zeros > 0 { format!("{name} (0 in {zeros}: not drawn)") } else { name.clone() };
                     chart
                         .draw_series(bars)
                         .map_err(&e)?
-                        .label(name.as_str())
+                        .label(label)
                         .legend(move |(x, y)| Rectangle::new([(x, y - 6), (x + 14, y + 6)], colour.filled()));
                 }
                 legend(&mut chart).map_err(&e)?;
+                // Group names under the x axis, centred on their groups.
+                let style = TextStyle::from((FONT_FAMILY, 16).into_font()).pos(
+                    plotters::style::text_anchor::Pos::new(
+                        plotters::style::text_anchor::HPos::Center,
+                        plotters::style::text_anchor::VPos::Top,
+                    ),
+                );
+                for (i, name) in categories.iter().enumerate() {
+                    let (px, py) = chart.backend_coord(&(i as f64 + 0.5, bottom));
+                    root.draw(&Text::new(name.as_str(), (px, py + 8), style.clone())).map_err(&e)?;
+                }
             }
             Plot::Histogram { title, x_label, .. } => {
                 let (edges, counts) = self.histogram_bins().unwrap_or_default();

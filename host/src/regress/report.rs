@@ -101,7 +101,14 @@ impl fmt::Display for RegressReport {
             line(f, key, [&values[0], &values[1], &values[2], &values[3]], status)?;
         }
         if !update {
-            writeln!(f, "{} values, {} over their limit", self.rows.len(), self.failures().len())?;
+            let over = self.failures().len();
+            writeln!(
+                f,
+                "{}, {} over {} limit",
+                crate::text::counted(self.rows.len(), "value", "values"),
+                over,
+                if over == 1 { "its" } else { "their" }
+            )?;
         }
         for p in &self.problems {
             writeln!(f, "problem: {p}")?;

@@ -202,12 +202,15 @@ fn build_face(
             line: Some(line),
             face: Some(index),
             message: format!(
-                "non-planar face (a vertex is {} from the mean plane, {:.3}% of the face diameter {}; planar \
-                 means <= {PLANAR_TOLERANCE:e} of it) split into {} triangles",
+                "non-planar face (a vertex is {} from the mean plane, {:.3}% of the face diameter {}) split into \
+                 {} triangles (a face within {PLANAR_TOLERANCE:e} of its diameter of its mean plane is kept whole, \
+                 one within {}% is split like this one, one beyond {}% is refused)",
                 length(deviation),
                 100.0 * deviation / d,
                 length(d),
-                tris.len()
+                tris.len(),
+                100.0 * NON_PLANAR_LIMIT,
+                100.0 * NON_PLANAR_LIMIT
             ),
         });
         tris

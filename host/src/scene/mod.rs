@@ -7,7 +7,8 @@
 //!   k-th `f` statement of the file. A face's normal follows its vertex order (counter-clockwise seen from the
 //!   side the normal points to, the right-hand rule); only that side emits and receives light.
 //! - Materials: MTL `Kd` is the reflectance (per channel, in `[0, 1)`, required), `Ke` the emission as radiant
-//!   exitance in W/m^2 (per channel, finite and `>= 0`, default 0).
+//!   exitance in W/m^2 (per channel, finite and `>= 0`, default 0). A colour with one number (`Kd 0.5`) is grey:
+//!   the same value on all three channels.
 //! - `NAME.toml` (optional, beside `NAME.obj`):
 //!   ```toml
 //!   [meshing]

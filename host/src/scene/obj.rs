@@ -3,8 +3,8 @@
 //!
 //! `tobj` reports no line numbers: after a syntax error the loader finds its line by re-parsing prefixes of the
 //! file (binary search), and it maps faces to lines by scanning the `f` statements itself. It also checks MTL
-//! colour statements (`Ka`, `Kd`, `Ks`, `Ke`: exactly three numbers) before `tobj` sees them, because `tobj`
-//! panics on fewer than three.
+//! colour statements (`Ka`, `Kd`, `Ks`, `Ke`: three numbers, or one for grey) before `tobj` sees them, because
+//! `tobj` panics on fewer than three: a single value is handed to it as three equal ones.
 
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -89,7 +89,7 @@ pub(super) fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneErro
     let loader = |p: &Path| -> tobj::MTLLoadResult {
         let path = dir.join(p);
         let result = read_text(&path).and_then(|mtl| {
-            scan_mtl(&path, &mtl, &mut sources.borrow_mut())?;
+            let mtl = scan_mtl(&path, &mtl, &mut sources.borrow_mut())?;
             tobj::load_mtl_buf(&mut mtl.as_bytes()).map_err(|e| SceneError::Parse {
                 file: path.clone(),
                 line: first_failing_line(&mtl, |s| tobj::load_mtl_buf(&mut s.as_bytes()).is_err()),
@@ -131,14 +131,19 @@ pub(super) fn load_obj(obj_path: &Path, text: &str) -> Result<ObjData, SceneErro
     Ok(ObjData { file: obj_path.to_path_buf(), models, materials, statements, sources: sources.into_inner() })
 }
 
-/// Records where each material of an MTL file is defined; rejects duplicate names.
+/// Records where each material of an MTL file is defined; rejects duplicate names and colours that are not one
+/// or three numbers. Returns the text for tobj, in which a single-value colour (`Kd 0.5`, legal MTL: grey) is
+/// written out as three equal numbers; every line keeps its number.
 fn scan_mtl(
     path: &Path,
     text: &str,
     sources: &mut HashMap<String, MaterialSource>,
-) -> Result<(), SceneError> {
+) -> Result<String, SceneError> {
     let mut current: Option<String> = None;
+    let mut out = String::with_capacity(text.len());
     for (i, line) in text.lines().enumerate() {
+        out.push_str(line);
+        out.push('\n');
         let line_no = i + 1;
         let trimmed = line.trim();
         match trimmed.split_whitespace().next() {
@@ -167,15 +172,23 @@ fn scan_mtl(
                 );
                 current = Some(name);
             }
-            // tobj panics on a colour with fewer than three numbers and ignores extra ones: check them here.
+            // tobj panics on a colour with fewer than three numbers and ignores extra ones: check them here, and
+            // give it a grey value as three numbers.
             Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) => {
                 let values: Vec<&str> = trimmed.split_whitespace().skip(1).collect();
-                if values.len() != 3 || values.iter().any(|v| v.parse::<f64>().is_err()) {
+                if !matches!(values.len(), 1 | 3) || values.iter().any(|v| v.parse::<f64>().is_err()) {
                     return Err(SceneError::Parse {
                         file: path.to_path_buf(),
                         line: line_no,
-                        problem: format!("{key} needs exactly three numbers, got {:?}", values.join(" ")),
+                        problem: format!(
+                            "{key} needs three numbers (r g b) or one (grey), got {:?}",
+                            values.join(" ")
+                        ),
                     });
+                }
+                if let [grey] = values[..] {
+                    out.truncate(out.len() - line.len() - 1);
+                    out.push_str(&format!("{key} {grey} {grey} {grey}\n"));
                 }
                 if let Some(src) = current.as_ref().and_then(|n| sources.get_mut(n)) {
                     match key {
@@ -188,5 +201,5 @@ fn scan_mtl(
             _ => {}
         }
     }
-    Ok(())
+    Ok(out)
 }

@@ -62,7 +62,7 @@ fn sample_plots() -> Vec<(Plot, Vec<&'static str>)> {
             vec!["gathering", "shooting <f32> & q8", "work units", "relative L2 error", "error against work"],
         ),
         (
-            Plot::StackedBars {
+            Plot::GroupedBars {
                 title: "Error decomposition".into(),
                 y_label: "relative L2 error".into(),
                 categories: vec!["f64".into(), "q16".into(), "q8".into()],
@@ -122,7 +122,7 @@ fn plot_data_is_validated_and_histogram_counts_add_up() {
     };
     let err = bad.to_svg(100, 100).unwrap_err();
     assert!(err.to_string().contains("series \"s\" point 1"), "{err}");
-    let bars = Plot::StackedBars {
+    let bars = Plot::GroupedBars {
         title: "t".into(),
         y_label: "y".into(),
         categories: vec!["a".into(), "b".into()],

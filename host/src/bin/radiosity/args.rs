@@ -11,6 +11,7 @@ use radiosity_host::bench::BenchOptions;
 use radiosity_host::check::CheckOptions;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::montecarlo::{self, ReferenceOptions, SampleCount};
+use radiosity_host::picture::lightmap::LightMapOptions;
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
@@ -23,7 +24,7 @@ pub enum SolveMethod {
     Hierarchical,
 }
 
-/// Output format of a command.
+/// Output format of a command whose output is a table (one CSV row per patch, face, pair or frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
     /// Human-readable text (the default).
@@ -32,6 +33,17 @@ pub enum Format {
     /// Comma-separated values with a header line.
     Csv,
     /// JSON.
+    Json,
+}
+
+/// Output format of a command whose output is a report with no one table to put in CSV (`bake`, `inspect`,
+/// `check`, `regress`): `--format csv` is refused by the parser, naming the formats it accepts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ReportFormat {
+    /// Human-readable text (the default).
+    #[default]
+    Text,
+    /// JSON: everything the text shows.
     Json,
 }
 
@@ -247,17 +259,17 @@ pub enum Command {
         /// relight error.
         #[arg(long)]
         transfer: bool,
-        /// Output format of the summary.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        /// Output format of the summary (`text` or `json`; JSON adds the paths written as `files`).
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Validate a table with the device's own parser and print its header and statistics.
     Inspect {
         /// The table file (.rft).
         table: PathBuf,
-        /// Output format.
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        /// Output format (`text` or `json`).
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
     /// render it (view, light-map atlas, device error map, mesh histogram), then bake a table within 400 patches
@@ -267,6 +279,9 @@ pub enum Command {
         /// Folder for the outputs (created, with its parents, if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Run the relight script on the host only: no Cortex-M4 firmware build, no QEMU (`make demo QEMU=0`).
+        #[arg(long)]
+        no_qemu: bool,
     },
     /// Solve the scene in f64 and print the patch table:
     /// `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. `--method flat` (the
@@ -277,7 +292,9 @@ pub enum Command {
     Solve {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output format (`text` prints a summary per light group; `csv` the patch table; `json` both).
+        /// Output format: `csv` the patch table; `text` a summary (patches, residual, mean radiosity, the mean
+        /// response to each dynamic light group); `json` the summary and the patch table with each patch's
+        /// vertices (`patch_table`).
         #[arg(long, value_enum, default_value_t = Format::Csv)]
         format: Format,
         /// Solver: `flat` (a form factor for every pair of patches) or `hierarchical` (links between clusters
@@ -360,18 +377,29 @@ pub enum Command {
         /// legend).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
-        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything).
+        /// Output format (`text`: a table per frame; `csv`: the per-frame rows; `json`: everything). With `csv`
+        /// and `json` the paths of the files written (`--frames`, `--csv`, `--plot`) go to stderr.
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
     /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
-    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths.
+    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths and the
+    /// atlas's size; `--texel-size` or `--face-texels` sets the resolution.
     Lightmap {
         #[command(flatten)]
         scene: SceneArgs,
         /// Output path without extension (its folder must exist).
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
+        /// Texel edge length in scene units (a face `L` units across gets about `L / LENGTH` texels); the
+        /// default sizes texels by `--face-texels` instead.
+        #[arg(long, value_name = "LENGTH", conflicts_with = "face_texels")]
+        texel_size: Option<f64>,
+        /// Texels across the largest face when no `--texel-size` is given (1 to 4096; smaller faces get
+        /// proportionally fewer, at least one). Every face is at most 4096 texels across and the atlas at most
+        /// 4096 x 4096 texels in all.
+        #[arg(long, value_name = "N", default_value_t = LightMapOptions::default().max_face_texels)]
+        face_texels: u32,
     },
     /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
     /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
@@ -387,13 +415,13 @@ pub enum Command {
         table_scene: Option<PathBuf>,
         #[command(flatten)]
         check: CheckArgs,
-        /// Also plot the error decomposition as stacked bars (one per arithmetic path) to STEM.svg and STEM.png
-        /// (their folder must exist).
+        /// Also plot the error decomposition to STEM.svg and STEM.png (their folder must exist): per arithmetic
+        /// path, every component as its own bar on a log axis beside the measured total (L2 norms do not add).
         #[arg(long, value_name = "STEM")]
         plot: Option<PathBuf>,
-        /// Output format (`text` or `json`).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        /// Output format (`text` or `json`; with `json` the plot's paths go to stderr).
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Quantization regression: recompute every shipped scene's error components (16- and 8-bit codecs) and
     /// compare them with the checked-in baseline (fails when one exceeds baseline + k * noise);
@@ -402,8 +430,8 @@ pub enum Command {
         #[command(flatten)]
         regress: RegressArgs,
         /// Output format (`text` or `json`).
-        #[arg(long, value_enum, default_value_t = Format::Text)]
-        format: Format,
+        #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
+        format: ReportFormat,
     },
     /// Measure speed against error for every relighting method (core shooting with and without overshooting,
     /// Gauss-Seidel, Jacobi, warm and cold relighting, the precomputed transfer basis, f64 dense LU and

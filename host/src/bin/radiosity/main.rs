@@ -5,16 +5,17 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::Parser;
-use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions};
+use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions, DeviceFit};
 use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON};
 use radiosity_host::inspect::inspect_file;
-use radiosity_host::output::write_patch_csv;
+use radiosity_host::output::{patch_json, write_patch_csv};
 
 mod args;
-use args::{Cli, Command, Format, RenderModeArg, SolveMethod};
+use args::{Cli, Command, Format, RenderModeArg, ReportFormat, SolveMethod};
+use radiosity_host::picture::lightmap::LightMapOptions;
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
@@ -22,6 +23,7 @@ use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
 use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::Scene;
+use radiosity_host::text::counted;
 use radiosity_host::view;
 
 fn main() -> ExitCode {
@@ -29,10 +31,18 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e}");
+            let message = e.to_string();
+            eprintln!("error: {message}");
+            // Many errors show their source in their own message as well: a cause already said is not repeated.
+            let mut said = message;
             let mut source = e.source();
             while let Some(s) = source {
-                eprintln!("  caused by: {s}");
+                let cause = s.to_string();
+                if !said.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                    said.push('\n');
+                    said.push_str(&cause);
+                }
                 source = s.source();
             }
             ExitCode::FAILURE
@@ -146,6 +156,7 @@ fn solve_hierarchical_command(
                 "mean_radiosity": mean,
                 "b": solution.b,
                 "error_bound": solution.error_bound,
+                "patch_table": patch_json(&solution.leaves, &solution.rho, &solution.emission, &solution.b),
             });
             serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)?;
@@ -257,17 +268,17 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         Command::Inspect { table, format } => {
             let report = inspect_file(&table)?;
             match format {
-                Format::Json => {
+                ReportFormat::Json => {
                     serde_json::to_writer_pretty(&mut out, &report)?;
                     writeln!(out)?;
                 }
-                Format::Text | Format::Csv => writeln!(out, "{report}")?,
+                ReportFormat::Text => writeln!(out, "{report}")?,
             }
         }
-        Command::Demo { out: dir } => {
+        Command::Demo { out: dir, no_qemu } => {
             files::check_output_folder(&dir)?;
             files::create_output_folder(&dir)?;
-            demo(&dir, &mut out)?;
+            demo(&dir, !no_qemu, &mut out)?;
         }
         Command::Bench(args) => {
             if let Some(reps) = args.reps {
@@ -292,43 +303,54 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             let tv = exact_transfer(l, &p.form_factors, &Method::for_size(p.patches.len()))?;
             let b = tv.relight(&l.default_intensity)?;
             let e = l.default_emission();
+            let area: f64 = p.patches.iter().map(|q| q.area).sum();
+            let mean = |v: &[Rgb]| -> Rgb {
+                p.patches.iter().zip(v).fold(Rgb::ZERO, |m, (q, &x)| m + q.area * x / area)
+            };
+            let groups: Vec<(&str, Rgb)> = l
+                .dynamic_groups
+                .iter()
+                .zip(&tv.t)
+                .map(|(&g, t)| (p.scene.light_groups[g].name.as_str(), mean(t)))
+                .collect();
             match format {
                 Format::Csv => write_patch_csv(&mut out, &p.patches, &l.rho, &e, &b)?,
-                Format::Text | Format::Json => {
-                    let area: f64 = p.patches.iter().map(|q| q.area).sum();
-                    let mean = |v: &[Rgb]| -> Rgb {
-                        let mut m = Rgb::ZERO;
-                        for (q, &x) in p.patches.iter().zip(v) {
-                            m += q.area * x / area;
-                        }
-                        m
-                    };
-                    let groups: Vec<serde_json::Value> = l
-                        .dynamic_groups
+                Format::Text => {
+                    let rgb = |v: Rgb| format!("{:.6e} {:.6e} {:.6e}", v.x, v.y, v.z);
+                    writeln!(out, "patches                {}", p.patches.len())?;
+                    writeln!(out, "relative residual      {:.3e}", tv.residual)?;
+                    writeln!(
+                        out,
+                        "mean radiosity         {} W/m^2 (area-weighted, default intensities)",
+                        rgb(mean(&b))
+                    )?;
+                    writeln!(out, "mean static radiosity  {} W/m^2", rgb(mean(&tv.b_static)))?;
+                    for (name, response) in &groups {
+                        writeln!(
+                            out,
+                            "dynamic group {name:?}: mean response at unit intensity {} W/m^2",
+                            rgb(*response)
+                        )?;
+                    }
+                    writeln!(out, "(--format csv prints the patch table, --format json both)")?;
+                }
+                Format::Json => {
+                    let groups: Vec<serde_json::Value> = groups
                         .iter()
-                        .zip(&tv.t)
-                        .map(|(&g, t)| {
-                            serde_json::json!({
-                                "group": p.scene.light_groups[g].name,
-                                "mean_unit_response": mean(t),
-                            })
-                        })
+                        .map(|(name, response)| serde_json::json!({ "group": name, "mean_unit_response": response }))
                         .collect();
                     let doc = serde_json::json!({
+                        "method": "flat",
                         "patches": p.patches.len(),
                         "relative_residual": tv.residual,
                         "mean_radiosity": mean(&b),
                         "mean_static_radiosity": mean(&tv.b_static),
                         "dynamic_groups": groups,
+                        "b": b,
+                        "patch_table": patch_json(&p.patches, &l.rho, &e, &b),
                     });
-                    if format == Format::Json {
-                        let mut full = doc;
-                        full["b"] = serde_json::json!(b);
-                        serde_json::to_writer_pretty(&mut out, &full)?;
-                        writeln!(out)?;
-                    } else {
-                        writeln!(out, "{}", serde_json::to_string_pretty(&doc)?)?;
-                    }
+                    serde_json::to_writer_pretty(&mut out, &doc)?;
+                    writeln!(out)?;
                 }
             }
         }
@@ -413,6 +435,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
             out.flush()?;
+            // The paths of the files written follow the text; they would break a CSV or JSON document.
+            let mut stderr = io::stderr();
+            let paths: &mut dyn Write = if format == Format::Text { &mut out } else { &mut stderr };
             write_relight_outputs(
                 &p,
                 &report,
@@ -420,16 +445,36 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 frame_size,
                 csv.as_deref(),
                 plot.as_deref(),
-                &mut out,
+                paths,
             )?;
         }
-        Command::Lightmap { scene, output } => {
+        Command::Lightmap { scene, output, texel_size, face_texels } => {
             check_scene_args(&scene)?;
+            use radiosity_host::picture::lightmap::MAX_FACE_SIDE;
+            radiosity_host::limits::check_count(
+                "--face-texels",
+                face_texels as usize,
+                MAX_FACE_SIDE as usize,
+                "texels across the largest face",
+            )?;
+            if let Some(t) = texel_size {
+                if !(t.is_finite() && t > 0.0) {
+                    return Err(format!("--texel-size {t}: must be a positive length").into());
+                }
+            }
             check_outputs(["hdr", "png", "json"].map(|e| output.with_extension(e)))?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
-            for path in view::write_light_map(&p, &view::solve_default(&p)?, &output)? {
+            let options =
+                LightMapOptions { texel_size, max_face_texels: face_texels, ..LightMapOptions::default() };
+            let files = view::write_light_map(&p, &view::solve_default(&p)?, &output, &options)?;
+            for path in &files.paths {
                 writeln!(out, "{}", path.display())?;
             }
+            writeln!(
+                out,
+                "atlas {} x {} texels, texel {:.4e} scene units",
+                files.width, files.height, files.texel_size
+            )?;
         }
         Command::Check { scene, table_scene, check, plot, format } => {
             if table_scene.is_none() && scene.scene.extension().is_some_and(|e| e == "rft") {
@@ -457,14 +502,18 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 )?,
             };
             match format {
-                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
-                _ => write!(out, "{report}")?,
+                ReportFormat::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                ReportFormat::Text => write!(out, "{report}")?,
             }
             if let Some(stem) = plot {
                 let title =
                     format!("Error decomposition: {} ({} patches)", scene.scene.display(), report.patches);
                 let (svg, png) = report.decomposition_plot(&title).write(&stem, 800, 500)?;
-                writeln!(out, "{}\n{}", svg.display(), png.display())?;
+                // After JSON the paths would break the document: they go to stderr.
+                match format {
+                    ReportFormat::Text => writeln!(out, "{}\n{}", svg.display(), png.display())?,
+                    ReportFormat::Json => eprintln!("{}\n{}", svg.display(), png.display()),
+                }
             }
         }
         Command::Regress { regress, format } => {
@@ -473,15 +522,16 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             }
             let report = radiosity_host::regress::run(&regress.options())?;
             match format {
-                Format::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
-                _ => write!(out, "{report}")?,
+                ReportFormat::Json => writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?,
+                ReportFormat::Text => write!(out, "{report}")?,
             }
             if !report.passed() {
                 out.flush()?;
                 return Err(format!(
-                    "regression: {} values over their limits, {} problems",
-                    report.failures().len(),
-                    report.problems.len()
+                    "regression: {} over {} limit, {}",
+                    counted(report.failures().len(), "value", "values"),
+                    if report.failures().len() == 1 { "its" } else { "their" },
+                    counted(report.problems.len(), "problem", "problems")
                 )
                 .into());
             }
@@ -498,7 +548,7 @@ fn bake_to_files(
     bits: u32,
     threshold: f64,
     transfer: bool,
-    format: Format,
+    format: ReportFormat,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
     let options = BakeOptions { threshold, codec: codec_for_bits(bits)?, transfer, ..BakeOptions::default() };
@@ -515,13 +565,18 @@ fn bake_to_files(
         with_suffix(output, ".capacities.json"),
         serde_json::to_string_pretty(&baked.capacities)?.as_bytes(),
     )?;
+    let fit = DeviceFit::of(&baked.capacities, &firmware_sim::qemu::MPS2_AN386);
     match format {
-        Format::Json => {
-            serde_json::to_writer_pretty(&mut *out, &summary)?;
+        ReportFormat::Json => {
+            let mut doc = serde_json::to_value(&summary)?;
+            doc["device_fit"] = serde_json::to_value(&fit)?;
+            doc["files"] = serde_json::json!({ "table": table, "capacities": json });
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
             writeln!(out)?;
         }
-        Format::Text | Format::Csv => {
+        ReportFormat::Text => {
             writeln!(out, "{summary}")?;
+            writeln!(out, "device fit         {fit}")?;
             writeln!(out, "wrote {}, {}", table.display(), json.display())?;
         }
     }
@@ -556,7 +611,7 @@ fn write_relight_outputs(
     frame_size: u32,
     csv: Option<&std::path::Path>,
     plot: Option<&std::path::Path>,
-    out: &mut impl Write,
+    out: &mut dyn Write,
 ) -> Result<(), BoxError> {
     if let Some(dir) = frames {
         let paths = relight::write_frames(p, report, dir, frame_size, frame_size)?;
@@ -602,8 +657,9 @@ fn cornell_box_path() -> PathBuf {
 /// flash of the emulated Cortex-M4 board (`make demo` prints both sizes).
 const DEVICE_PATCH_BUDGET: usize = 400;
 
-/// The main job on the Cornell box: prepare, bake, validate the table with the device's parser.
-fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
+/// The main job on the Cornell box: prepare, bake, validate the table with the device's parser, draw, bake the
+/// device table and relight it on the host and (with `qemu`) under QEMU.
+fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), BoxError> {
     let scene = cornell_box_path();
     writeln!(out, "== Cornell box: {}", scene.display())?;
     let options = PrepareOptions {
@@ -617,7 +673,7 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let p = prepare(&scene, &options)?;
     writeln!(out, "\n== bake (16-bit codes)")?;
     let table = dir.join("cornell-box.rft");
-    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, Format::Text, out)?;
+    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, ReportFormat::Text, out)?;
     writeln!(out, "\n== inspect {} (validated by the device's own parser)", table.display())?;
     writeln!(out, "{}", inspect_file(&table)?)?;
     writeln!(out, "\n== pictures (exact f64 solve, published camera)")?;
@@ -630,7 +686,9 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     let png = dir.join("cornell-box.png");
     write_png(&png, &image)?;
     writeln!(out, "{}", png.display())?;
-    for path in view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"))? {
+    let light_map =
+        view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"), &LightMapOptions::default())?;
+    for path in &light_map.paths {
         writeln!(out, "{}", path.display())?;
     }
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
@@ -663,15 +721,17 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
     // The default mesh is sized for the pictures' quality, not for a Cortex-M4's flash (the bake above prints
     // its table size). The device gets its own bake of the same scene within a patch budget whose table plus
     // firmware code fit the 512 KiB of flash of the emulated board (mps2-an386; the QEMU run prints the flash).
+    let board = firmware_sim::qemu::MPS2_AN386;
     writeln!(
         out,
-        "\n== device table: the same scene within {DEVICE_PATCH_BUDGET} patches, for a Cortex-M4 with 512 KiB \
-         flash"
+        "\n== device table: the same scene within {DEVICE_PATCH_BUDGET} patches, for a {} with {} KiB of flash",
+        board.name,
+        board.flash / 1024
     )?;
     let device_options = PrepareOptions { max_patches: Some(DEVICE_PATCH_BUDGET), verbose: false, ..options };
     let p = prepare(&scene, &device_options)?;
     let table = dir.join("cornell-box-m4.rft");
-    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, Format::Text, out)?;
+    bake_to_files(&p, &table, 16, radiosity_host::bake::DEFAULT_THRESHOLD, false, ReportFormat::Text, out)?;
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
 
     let scripts = scene.with_extension("relight.toml");
@@ -683,11 +743,11 @@ fn demo(dir: &std::path::Path, out: &mut impl Write) -> Result<(), BoxError> {
         scripts.display(),
         table.display()
     )?;
-    let options = relight::RelightOptions {
-        only: Some(script.into()),
-        qemu: true,
-        ..relight::RelightOptions::default()
-    };
+    if !qemu {
+        writeln!(out, "(--no-qemu: the host's device loop only; no firmware build, no QEMU run)")?;
+    }
+    let options =
+        relight::RelightOptions { only: Some(script.into()), qemu, ..relight::RelightOptions::default() };
     let report = match relight::relight(&p, &bytes, &table, &scripts, &options) {
         Ok(r) => r,
         Err(e @ relight::RelightError::Qemu { .. }) => {
