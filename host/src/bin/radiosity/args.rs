@@ -24,6 +24,24 @@ pub enum SolveMethod {
     Hierarchical,
 }
 
+/// How `radiosity solve --method hierarchical` solves the system on its links.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum HierarchySolverArg {
+    /// Jacobi sweeps over all links with push-pull.
+    Gathering,
+    /// Progressive refinement: the elements with the most unshot power shoot over their links first.
+    Shooting,
+}
+
+impl From<HierarchySolverArg> for radiosity_host::hierarchy::HierarchySolver {
+    fn from(s: HierarchySolverArg) -> Self {
+        match s {
+            HierarchySolverArg::Gathering => radiosity_host::hierarchy::HierarchySolver::Gathering,
+            HierarchySolverArg::Shooting => radiosity_host::hierarchy::HierarchySolver::Shooting,
+        }
+    }
+}
+
 /// Output format of a command whose output is a table (one CSV row per patch, face, pair or frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
@@ -306,6 +324,10 @@ pub enum Command {
         /// times the brightest face's emitted power per link) [default: 0.03].
         #[arg(long, value_name = "E")]
         epsilon: Option<f64>,
+        /// Hierarchical only: `gathering` (Jacobi sweeps over all links, the default) or `shooting`
+        /// (progressive refinement, the order a device relights in); both reach the same answer.
+        #[arg(long, value_enum)]
+        solver: Option<HierarchySolverArg>,
     },
     /// Path trace the continuous scene (no mesh) and print every OBJ face's area-averaged radiosity with its
     /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.

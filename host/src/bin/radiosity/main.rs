@@ -103,6 +103,7 @@ fn solve_hierarchical_command(
     scene: &args::SceneArgs,
     format: Format,
     epsilon: Option<f64>,
+    solver: Option<args::HierarchySolverArg>,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
     if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
@@ -112,6 +113,7 @@ fn solve_hierarchical_command(
     }
     let options = HierarchyOptions {
         epsilon: epsilon.unwrap_or(DEFAULT_EPSILON),
+        solver: solver.map_or_else(Default::default, Into::into),
         form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
         progress: !scene.quiet,
         ..HierarchyOptions::default()
@@ -138,22 +140,55 @@ fn solve_hierarchical_command(
         eprintln!("{}: {} in {:.2} s", scene.scene.display(), solution.stats, start.elapsed().as_secs_f64());
     }
     let area: f64 = solution.leaves.iter().map(|q| q.area).sum();
-    let mean = solution.leaves.iter().zip(&solution.b).fold(Rgb::ZERO, |m, (q, &b)| m + q.area * b / area);
+    let mean_of =
+        |v: &[Rgb]| solution.leaves.iter().zip(v).fold(Rgb::ZERO, |m, (q, &b)| m + q.area * b / area);
+    let mean = mean_of(&solution.b);
+    // The answer split by source: the static lights, then each dynamic group at unit intensity.
+    let transfer =
+        solution.transfer.as_ref().ok_or("the hierarchical solve returned no per-source answer")?;
+    let groups: Vec<(&str, Rgb)> = radiosity_host::lighting::PatchLighting::new(&loaded, &[])
+        .dynamic_groups
+        .iter()
+        .zip(&transfer.t)
+        .map(|(&g, t)| (loaded.light_groups[g].name.as_str(), mean_of(t)))
+        .collect();
+    let solver = match options.solver {
+        radiosity_host::hierarchy::HierarchySolver::Gathering => "gathering",
+        radiosity_host::hierarchy::HierarchySolver::Shooting => "shooting",
+    };
     match format {
         Format::Csv => {
             write_patch_csv(out, &solution.leaves, &solution.rho, &solution.emission, &solution.b)?
         }
         Format::Text => {
+            let rgb = |v: Rgb| format!("{:.6e} {:.6e} {:.6e}", v.x, v.y, v.z);
             writeln!(out, "{}", solution.stats)?;
-            writeln!(out, "mean radiosity {:.6e} {:.6e} {:.6e} W/m^2", mean.x, mean.y, mean.z)?;
+            writeln!(out, "solver                 {solver}")?;
+            writeln!(out, "mean radiosity         {} W/m^2 (area-weighted, default intensities)", rgb(mean))?;
+            writeln!(out, "mean static radiosity  {} W/m^2", rgb(mean_of(&transfer.b_static)))?;
+            for (name, response) in &groups {
+                writeln!(
+                    out,
+                    "dynamic group {name:?}: mean response at unit intensity {} W/m^2",
+                    rgb(*response)
+                )?;
+            }
+            writeln!(out, "(--format csv prints the leaves' patch table, --format json both)")?;
         }
         Format::Json => {
+            let groups: Vec<serde_json::Value> = groups
+                .iter()
+                .map(|(name, response)| serde_json::json!({ "group": name, "mean_unit_response": response }))
+                .collect();
             let doc = serde_json::json!({
                 "method": "hierarchical",
+                "solver": solver,
                 "epsilon": options.epsilon,
                 "patches": solution.leaves.len(),
                 "stats": solution.stats,
                 "mean_radiosity": mean,
+                "mean_static_radiosity": mean_of(&transfer.b_static),
+                "dynamic_groups": groups,
                 "b": solution.b,
                 "error_bound": solution.error_bound,
                 "patch_table": patch_json(&solution.leaves, &solution.rho, &solution.emission, &solution.b),
@@ -289,13 +324,20 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon } => {
+        Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon, solver } => {
             check_scene_args(&scene)?;
-            solve_hierarchical_command(&scene, format, epsilon, &mut out)?;
+            solve_hierarchical_command(&scene, format, epsilon, solver, &mut out)?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Flat, epsilon } => {
+        Command::Solve { scene, format, method: SolveMethod::Flat, epsilon, solver } => {
             if epsilon.is_some() {
                 return Err("--epsilon applies to --method hierarchical only".into());
+            }
+            if solver.is_some() {
+                return Err(
+                    "--solver applies to --method hierarchical only (the flat solve is exact: dense LU, \
+                            or Gauss-Seidel above 4096 patches)"
+                        .into(),
+                );
             }
             check_scene_args(&scene)?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
