@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The firmware check: builds the Cortex-M firmware (f32 and fixed point for the Cortex-M4 on mps2-an386, fixed
 # point for the Cortex-M0 on microbit), runs every relight script under QEMU with a timeout, compares every
-# frame with the host simulator bit for bit, and fits and checks the cost model.
+# frame with the host simulator bit for bit, checks that static RAM plus the stack's high-water mark (measured by
+# the firmware) fit the board's RAM, and fits and checks the cost model.
 #   scripts/firmware.sh            check (logs and the cost report go to $CARGO_TARGET_DIR/firmware/)
 #   scripts/firmware.sh --update   also rewrite the committed firmware-sim/COST.md
 # Table and scripts: RADIOSITY_TABLE / RADIOSITY_SCRIPTS (default: the committed synthetic table and
