@@ -28,7 +28,7 @@ for target in m4-f32 m4-fixed m0-fixed; do
 done
 "$sim" cost --log "$out/m4-f32.log" --log "$out/m4-fixed.log" --log "$out/m0-fixed.log" --out "$out/COST.md"
 {
-    printf '\n## Sizes (arm-none-eabi-size)\n\n'
+    printf '\n## Sizes (arm-none-eabi-size) and stack high-water mark (painted stack, scanned under QEMU)\n\n'
     for target in m4-f32 m4-fixed m0-fixed; do
         grep -h '^size:' "$out/$target.txt" | sed "s/^size: /- $target: /"
     done
