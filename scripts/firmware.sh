@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The firmware check: builds the Cortex-M firmware (f32 and fixed point for the Cortex-M4 on mps2-an386, fixed
 # point for the Cortex-M0 on microbit), runs every relight script under QEMU with a timeout, compares every
-# frame with the host simulator bit for bit, and fits and checks the cost model.
+# frame with the host simulator bit for bit, checks that static RAM plus the stack's high-water mark (measured by
+# the firmware) fit the board's RAM, and fits and checks the cost model.
 #   scripts/firmware.sh            check (logs and the cost report go to $CARGO_TARGET_DIR/firmware/)
 #   scripts/firmware.sh --update   also rewrite the committed firmware-sim/COST.md
 # Table and scripts: RADIOSITY_TABLE / RADIOSITY_SCRIPTS (default: the committed synthetic table and
@@ -27,7 +28,7 @@ for target in m4-f32 m4-fixed m0-fixed; do
 done
 "$sim" cost --log "$out/m4-f32.log" --log "$out/m4-fixed.log" --log "$out/m0-fixed.log" --out "$out/COST.md"
 {
-    printf '\n## Sizes (arm-none-eabi-size)\n\n'
+    printf '\n## Sizes (arm-none-eabi-size) and stack high-water mark (painted stack, scanned under QEMU)\n\n'
     for target in m4-f32 m4-fixed m0-fixed; do
         grep -h '^size:' "$out/$target.txt" | sed "s/^size: /- $target: /"
     done

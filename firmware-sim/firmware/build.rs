@@ -5,8 +5,8 @@
 //!   solver's `StaticBuffers`, so a baked table drops in by changing this one path.
 //! - `RADIOSITY_SCRIPTS` (default `../../scenes/cornell-box.relight.toml`): the relight scripts, parsed and
 //!   validated with firmware-sim's parser and written out as const data.
-//! - The linker memory map follows the target: `memory-mps2-an386.x` (Cortex-M4, 512 KiB flash / 64 KiB RAM
-//!   budget) or `memory-microbit.x` (Cortex-M0, 256 KiB / 16 KiB).
+//! - The linker memory map follows the target (`firmware_sim::qemu::memory_map`): `memory-mps2-an386.x`
+//!   (Cortex-M4, 512 KiB flash / 64 KiB RAM budget) or `memory-microbit.x` (Cortex-M0, 256 KiB / 16 KiB).
 use std::path::{Path, PathBuf};
 
 fn main() {
@@ -63,8 +63,9 @@ fn run() -> Result<(), String> {
     // instruction takes 1 ns, so a tick is 40 (resp. 62.5 = 125 / 2) instructions.
     let target = std::env::var("TARGET").unwrap_or_default();
     let m0 = target.starts_with("thumbv6m");
-    let (memory, per_tick) =
-        if m0 { ("memory-microbit.x", (125, 2)) } else { ("memory-mps2-an386.x", (40, 1)) };
+    let per_tick = if m0 { (125, 2) } else { (40, 1) };
+    // The same choice the host makes when it checks RAM use against the board (`qemu::board_ram`).
+    let memory = firmware_sim::qemu::memory_map(&target);
     code.push_str(&format!(
         "/// Instructions per SysTick tick, as a fraction.\npub const INSTRUCTIONS_PER_TICK: (u64, u64) = {per_tick:?};\n"
     ));

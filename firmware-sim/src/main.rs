@@ -52,7 +52,7 @@ enum Command {
         #[arg(long, value_name = "OUT")]
         csv: Option<PathBuf>,
     },
-    /// Build the firmware, run it under QEMU, compare with the host bit for bit.
+    /// Build the firmware, run it under QEMU, compare with the host bit for bit, check RAM use (static + stack).
     Qemu {
         #[command(flatten)]
         input: Input,
@@ -251,13 +251,15 @@ fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -
         None => Ok(()),
     };
     let checked = qemu::check_firmware(target, &table, &loaded.scripts, paths, timeout, write_log)?;
+    let (flash, ram, stack) = (checked.sizes.flash, checked.sizes.ram, checked.stack.high_water);
     println!(
-        "size: {} ({:?}, {} bytes of table): flash {} bytes, RAM {} bytes (static; the stack comes on top)",
+        "size: {} ({:?}, {} bytes of table): flash {flash} bytes, RAM {ram} bytes static + {stack} bytes stack \
+         (high-water mark under QEMU) = {} of the board's {} bytes",
         target.triple,
         target.arith,
         loaded.bytes.len(),
-        checked.sizes.flash,
-        checked.sizes.ram
+        ram + stack,
+        checked.board_ram
     );
     if let Some((expected, measured)) = checked.log.calibration {
         println!("SysTick calibration: loop of {expected} instructions measured as {measured}");

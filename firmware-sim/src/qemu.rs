@@ -4,8 +4,15 @@
 //! - `CAL,<instructions expected>,<instructions measured>`: the SysTick calibration loop at boot;
 //! - `B,<arith>,<script>,<boot units>`: a script's boot solve;
 //! - `F,...`: a frame, as [`crate::device::write_trace`] formats it (the last field is instructions);
-//! - `E,<script>,<message>`: a script failed;
+//! - `E,<script>,<message>`: a script failed; `E,panic,<message>` and `E,hardfault,<registers>` (the
+//!   registers stacked by the fault: `pc=0x... lr=0x... xpsr=0x... r0=...`) end the run with a failure status;
+//! - `STACK,<high-water bytes>,<stack region bytes>`: after the last script, the stack's high-water mark (the
+//!   bytes of the painted stack region whose paint was overwritten, counted from its top) and the size of the
+//!   region (from the end of the statics to the end of RAM);
 //! - `DONE,<failures>`: the end; the exit status is 0 if no script failed.
+//!
+//! [`check_ram`] holds static RAM plus the stack's high-water mark against the board's RAM, as the firmware's
+//! linker memory map (`firmware/memory-*.x`, [`board_ram`]) gives it.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -69,6 +76,17 @@ pub const M4_FIXED: Target = Target {
 pub const M0_FIXED: Target =
     Target { triple: "thumbv6m-none-eabi", arith: Arith::Fixed, machine: &["-machine", "microbit"] };
 
+/// The linker memory map (in `firmware/`) of the board a target triple runs on: the micro:bit's for the
+/// Cortex-M0 (`thumbv6m`), mps2-an386's otherwise. The firmware's build script and [`board_ram`] both ask here.
+#[must_use]
+pub fn memory_map(triple: &str) -> &'static str {
+    if triple.starts_with("thumbv6m") {
+        "memory-microbit.x"
+    } else {
+        "memory-mps2-an386.x"
+    }
+}
+
 /// The firmware's cargo workspace: `firmware-sim/firmware`.
 #[must_use]
 pub fn firmware_dir() -> PathBuf {
@@ -81,6 +99,20 @@ pub fn firmware_dir() -> PathBuf {
 /// # Errors
 /// A message with cargo's output if the build fails.
 pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<PathBuf, String> {
+    cargo_build(target, table, scripts, false)
+}
+
+/// Builds the firmware for `target` with the feature `fault-test`: it executes an undefined instruction right
+/// after the calibration line, so its HardFault handler must report and exit with a failure status. A `dev`
+/// profile build (cheaper than release), whose ELF lies beside the release one, never in its place.
+///
+/// # Errors
+/// A message with cargo's output if the build fails.
+pub fn build_fault_test_firmware(target: Target, table: &Path, scripts: &Path) -> Result<PathBuf, String> {
+    cargo_build(target, table, scripts, true)
+}
+
+fn cargo_build(target: Target, table: &Path, scripts: &Path, fault_test: bool) -> Result<PathBuf, String> {
     let dir = firmware_dir();
     // The firmware's build script runs in the firmware workspace, so relative paths must be made absolute here.
     let absolute =
@@ -88,8 +120,9 @@ pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<Pa
     let (table, scripts) = (absolute(table)?, absolute(scripts)?);
     let target_dir = dir.join("target").join(target.arith.name());
     let mut cmd = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    let profile = if fault_test { "dev" } else { "release" };
     cmd.current_dir(&dir)
-        .args(["build", "--release", "--target", target.triple])
+        .args(["build", "--profile", profile, "--target", target.triple])
         .arg("--target-dir")
         .arg(&target_dir)
         .env("RADIOSITY_TABLE", table)
@@ -98,8 +131,12 @@ pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<Pa
         .env_remove("CARGO_TARGET_DIR")
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS");
-    if target.arith == Arith::Fixed {
-        cmd.args(["--features", "fixed"]);
+    let features: Vec<&str> = [(target.arith == Arith::Fixed, "fixed"), (fault_test, "fault-test")]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect();
+    if !features.is_empty() {
+        cmd.args(["--features", &features.join(",")]);
     }
     let out = cmd.output().map_err(|e| format!("cannot run cargo for the firmware: {e}"))?;
     if !out.status.success() {
@@ -109,7 +146,9 @@ pub fn build_firmware(target: Target, table: &Path, scripts: &Path) -> Result<Pa
             String::from_utf8_lossy(&out.stderr)
         ));
     }
-    Ok(target_dir.join(target.triple).join("release").join("radiosity-firmware"))
+    // Cargo puts the `dev` profile's output in `debug/`.
+    let profile_dir = if fault_test { "debug" } else { "release" };
+    Ok(target_dir.join(target.triple).join(profile_dir).join("radiosity-firmware"))
 }
 
 /// QEMU's `-icount` setting: `shift=0`, one instruction per nanosecond of virtual time, so SysTick (25 MHz on
@@ -168,6 +207,17 @@ pub struct QemuLog {
     pub errors: Vec<String>,
     /// Whether `DONE,0` was seen.
     pub done_ok: bool,
+    /// The stack's use (`STACK` line).
+    pub stack: Option<StackUse>,
+}
+
+/// The stack's use as the firmware measured it by painting (the `STACK` line).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StackUse {
+    /// Bytes from the top of the stack down to the deepest word whose paint was overwritten.
+    pub high_water: u64,
+    /// Bytes of the stack region: RAM above the statics.
+    pub size: u64,
 }
 
 fn field<T: std::str::FromStr>(parts: &[&str], k: usize, line: &str) -> Result<T, String> {
@@ -181,7 +231,7 @@ impl QemuLog {
     /// Parses the firmware's output (other lines are ignored).
     ///
     /// # Errors
-    /// A malformed `F` or `CAL` line.
+    /// A malformed `F`, `CAL` or `STACK` line.
     pub fn parse(text: &str) -> Result<QemuLog, String> {
         let mut log = QemuLog::default();
         for line in text.lines() {
@@ -205,6 +255,10 @@ impl QemuLog {
                     });
                 }
                 "E" => log.errors.push(line.to_string()),
+                "STACK" => {
+                    log.stack =
+                        Some(StackUse { high_water: field(&parts, 1, line)?, size: field(&parts, 2, line)? });
+                }
                 "DONE" => log.done_ok = parts.get(1) == Some(&"0"),
                 _ => {}
             }
@@ -286,6 +340,59 @@ impl Sizes {
     }
 }
 
+/// The length of the `RAM` region in a GNU ld `MEMORY` block (`RAM : ORIGIN = ..., LENGTH = 64K`), in bytes:
+/// decimal or `0x` hexadecimal, with an optional `K` or `M` suffix. `None` if there is no such line.
+#[must_use]
+pub fn parse_ram_length(script: &str) -> Option<u64> {
+    let line = script.lines().find(|l| l.split_whitespace().next() == Some("RAM"))?;
+    let value = line.split("LENGTH").nth(1)?.trim_start().strip_prefix('=')?;
+    let value = value.split([',', '}']).next()?.trim();
+    let (digits, scale) = match value.as_bytes().last()? {
+        b'K' | b'k' => (&value[..value.len() - 1], 1024),
+        b'M' | b'm' => (&value[..value.len() - 1], 1024 * 1024),
+        _ => (value, 1),
+    };
+    let n = match digits.strip_prefix("0x").or_else(|| digits.strip_prefix("0X")) {
+        Some(hex) => u64::from_str_radix(hex, 16).ok()?,
+        None => digits.parse().ok()?,
+    };
+    n.checked_mul(scale)
+}
+
+/// The RAM of the board `target` runs on, in bytes: the `RAM` length of its linker memory map
+/// ([`memory_map`]), the same file the firmware is linked with.
+///
+/// # Errors
+/// The file cannot be read or has no `RAM` length.
+pub fn board_ram(target: Target) -> Result<u64, String> {
+    let path = firmware_dir().join(memory_map(target.triple));
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    parse_ram_length(&text).ok_or_else(|| format!("{}: no `RAM ... LENGTH = ...` line", path.display()))
+}
+
+/// Checks that the firmware fits the board's RAM: static RAM (`.data`, `.bss`, `.uninit`) plus the stack's
+/// high-water mark at most `board_ram`, and paint left at the bottom of the stack region (a stack that
+/// reached the statics may have overwritten them, and the mark only says "all of it").
+///
+/// # Errors
+/// Which of the two failed, with the numbers.
+pub fn check_ram(static_ram: u64, stack: StackUse, board_ram: u64) -> Result<(), String> {
+    if stack.high_water >= stack.size {
+        return Err(format!(
+            "the stack reached the bottom of its {} byte region (the statics): it may have overflowed",
+            stack.size
+        ));
+    }
+    let total = static_ram.saturating_add(stack.high_water);
+    if total > board_ram {
+        return Err(format!(
+            "static RAM {static_ram} bytes + stack {} bytes = {total} bytes exceed the board's {board_ram} bytes",
+            stack.high_water
+        ));
+    }
+    Ok(())
+}
+
 /// What [`check_firmware`] found: the firmware's log, its sizes and how many frames agreed bit for bit with the
 /// host simulator.
 #[derive(Clone, Debug)]
@@ -294,6 +401,10 @@ pub struct Checked {
     pub log: QemuLog,
     /// Flash and static RAM of the ELF.
     pub sizes: Sizes,
+    /// The stack's use under QEMU.
+    pub stack: StackUse,
+    /// The board's RAM ([`board_ram`]), which static RAM plus the stack fit in.
+    pub board_ram: u64,
     /// Frames compared (all of them agreed: a disagreement is an error).
     pub frames_bit_exact: usize,
 }
@@ -304,8 +415,9 @@ pub struct Checked {
 /// `firmware-sim run --qemu` and `radiosity relight --qemu`.
 ///
 /// # Errors
-/// A build, QEMU or size-tool failure, a firmware that reports errors or does not finish, a host simulation
-/// failure, or the first frame where firmware and host disagree.
+/// A build, QEMU or size-tool failure, a firmware that reports errors or does not finish or does not fit the
+/// board's RAM ([`check_ram`]), a host simulation failure, or the first frame where firmware and host
+/// disagree.
 pub fn check_firmware(
     target: Target,
     table: &radiosity_core::Table<'_>,
@@ -322,10 +434,56 @@ pub fn check_firmware(
     if !ok || !log.done_ok || !log.errors.is_empty() {
         return Err(format!("the firmware failed under QEMU (errors: {:?})", log.errors));
     }
+    let stack = log.stack.ok_or("the firmware did not report its stack use (no STACK line)")?;
+    let board_ram = board_ram(target)?;
+    check_ram(sizes.ram, stack, board_ram)
+        .map_err(|e| format!("{} ({:?}): {e}", target.triple, target.arith))?;
     let host =
         crate::sim::simulate_file(target.arith, table, scripts, None, None).map_err(|e| e.to_string())?;
     let frames_bit_exact = compare(&host, &log)?;
-    Ok(Checked { log, sizes, frames_bit_exact })
+    Ok(Checked { log, sizes, stack, board_ram, frames_bit_exact })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ram_length_from_memory_maps() {
+        let script = "MEMORY\n{\n  FLASH : ORIGIN = 0x00000000, LENGTH = 512K\n  RAM   : ORIGIN = 0x20000000, LENGTH = 64K\n}\n";
+        assert_eq!(parse_ram_length(script), Some(64 * 1024));
+        assert_eq!(parse_ram_length("RAM : ORIGIN = 0x20000000, LENGTH = 0x4000\n"), Some(0x4000));
+        assert_eq!(parse_ram_length("RAM (rwx) : ORIGIN = 0x20000000, LENGTH = 1M }"), Some(1 << 20));
+        assert_eq!(parse_ram_length("FLASH : ORIGIN = 0, LENGTH = 512K\n"), None);
+        assert_eq!(parse_ram_length("RAM : ORIGIN = 0x20000000, LENGTH = lots\n"), None);
+        // The committed maps: the budgets the build script's docs state.
+        assert_eq!(board_ram(M4_F32), Ok(64 * 1024));
+        assert_eq!(board_ram(M0_FIXED), Ok(16 * 1024));
+    }
+
+    #[test]
+    fn ram_check_fails_when_static_plus_stack_exceed_the_board() {
+        let ram = 16 * 1024;
+        let stack = |high_water| StackUse { high_water, size: 12 * 1024 };
+        assert_eq!(check_ram(4096, stack(2048), ram), Ok(()));
+        assert_eq!(check_ram(4096, stack(ram - 4096), ram).map_err(|_| ()), Err(()), "bottom reached");
+        assert_eq!(
+            check_ram(4096, stack(12 * 1024 - 4), ram),
+            Ok(()),
+            "exactly the board's RAM minus a word"
+        );
+        let err = check_ram(8192, stack(9000), ram).unwrap_err();
+        assert!(err.contains("exceed the board's 16384 bytes"), "{err}");
+    }
+
+    #[test]
+    fn stack_line_parses() {
+        let log = QemuLog::parse("CAL,10,10\nSTACK,1234,60000\nDONE,0\n").unwrap();
+        assert_eq!(log.stack, Some(StackUse { high_water: 1234, size: 60000 }));
+        assert!(log.done_ok);
+        assert!(QemuLog::parse("STACK,12x,60000\n").is_err());
+        assert_eq!(QemuLog::parse("DONE,0\n").unwrap().stack, None);
+    }
 }
 
 #[cfg(test)]

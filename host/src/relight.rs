@@ -124,6 +124,8 @@ pub struct QemuRun {
     pub flash: u64,
     /// Static RAM use (bytes; the stack comes on top).
     pub ram: u64,
+    /// The stack's high-water mark under QEMU (bytes; painted stack, scanned after the run).
+    pub stack: u64,
     /// Frames whose trace (units, outcome, radiosity hash) matched the host simulator's bit for bit.
     pub frames_bit_exact: usize,
 }
@@ -306,7 +308,7 @@ pub fn relight(
 }
 
 /// Builds the firmware for `target` with the table and scripts, runs it under QEMU, checks it against the host
-/// simulator bit for bit and reads its size.
+/// simulator bit for bit and reads its size and stack use.
 fn run_firmware(
     target: Target,
     name: &'static str,
@@ -324,6 +326,7 @@ fn run_firmware(
         target: name,
         flash: c.sizes.flash,
         ram: c.sizes.ram,
+        stack: c.stack.high_water,
         frames_bit_exact: c.frames_bit_exact,
     };
     Ok((run, c.log))
@@ -438,8 +441,9 @@ impl fmt::Display for RelightReport {
         for q in &self.qemu {
             writeln!(
                 f,
-                "QEMU {}: flash {} bytes, static RAM {} bytes, host and firmware bit-exact on {} frames",
-                q.target, q.flash, q.ram, q.frames_bit_exact
+                "QEMU {}: flash {} bytes, static RAM {} bytes, stack {} bytes (high-water mark), host and \
+                 firmware bit-exact on {} frames",
+                q.target, q.flash, q.ram, q.stack, q.frames_bit_exact
             )?;
         }
         let has_qemu = !self.qemu.is_empty();

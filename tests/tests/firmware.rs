@@ -1,7 +1,9 @@
 //! The firmware end to end: build it for the Cortex-M4 (f32 and fixed point), run every shipped relight script
 //! under QEMU, and check that it agrees with the host simulator bit for bit on every frame, that no frame
-//! spends more than its budget, that the SysTick instruction count is calibrated, and that the cost model
-//! fitted on one script bounds every frame of every script.
+//! spends more than its budget, that the SysTick instruction count is calibrated, that the cost model
+//! fitted on one script bounds every frame of every script, and that static RAM plus the stack's measured
+//! high-water mark fit the board's RAM. A build that faults on purpose checks that the HardFault handler reports
+//! and exits with a failure status instead of hanging.
 //!
 //! Needs `qemu-system-arm` (installed by `make deps`); without it the test fails and says so.
 
@@ -47,6 +49,13 @@ fn run_table(target: Target, table_path: &std::path::Path, cost_model: bool) {
     let expected_frames: usize = scripts.scripts.iter().map(|s| s.frames.len()).sum();
     assert_eq!(frames, expected_frames);
 
+    // Static RAM plus the stack's high-water mark fit the board's RAM (the memory map the firmware links with).
+    let stack = log.stack.expect("no STACK line");
+    assert!(stack.high_water > 0 && stack.high_water < stack.size, "{stack:?}");
+    let sizes = qemu::Sizes::of(&elf).unwrap_or_else(|e| panic!("{e}"));
+    let board_ram = qemu::board_ram(target).unwrap_or_else(|e| panic!("{e}"));
+    qemu::check_ram(sizes.ram, stack, board_ram).unwrap_or_else(|e| panic!("{e}"));
+
     // No frame spends more than its budget, on the device.
     for f in &log.frames {
         assert!(f.used <= f.budget, "{}: used {} > budget {}", f.script, f.used, f.budget);
@@ -89,4 +98,22 @@ fn cortex_m4_f32_partial_state_table_matches_host() {
     // (on this table the fit from `budget-sweep` underestimates one `lights-on` frame by 0.8 %).
     run_table(qemu::M4_F32, &path, false);
     let _ = std::fs::remove_file(&path);
+}
+
+/// The `fault-test` build executes an undefined instruction after boot: the HardFault handler must print the
+/// faulting registers and exit with a failure status (QEMU would otherwise spin until the timeout).
+#[test]
+fn cortex_m4_hard_fault_reports_and_exits_with_failure() {
+    let table_path = root().join("firmware-sim/tables/uniform-enclosure.rft");
+    let scripts_path = root().join("scenes/cornell-box.relight.toml");
+    let elf = qemu::build_fault_test_firmware(qemu::M4_F32, &table_path, &scripts_path)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let (text, ok) = qemu::run_qemu(qemu::M4_F32, &elf, 20).unwrap_or_else(|e| panic!("{e}"));
+    assert!(!ok, "the faulting firmware exited with success:\n{text}");
+    let log = QemuLog::parse(&text).unwrap();
+    assert!(log.calibration.is_some(), "the firmware faulted before booting:\n{text}");
+    assert!(log.frames.is_empty() && !log.done_ok, "the firmware ran past the fault:\n{text}");
+    let report =
+        log.errors.iter().find(|e| e.starts_with("E,hardfault,")).unwrap_or_else(|| panic!("{text}"));
+    assert!(report.starts_with("E,hardfault,pc=0x"), "{report}");
 }

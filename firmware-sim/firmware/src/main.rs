@@ -4,8 +4,22 @@
 //! semihosting, one line per event (format: `firmware_sim::qemu` module docs); the exit status is 0 if every
 //! script ran.
 //!
-//! No `unsafe` here: the buffers are `static mut` locals of the `#[entry]` function, which cortex-m-rt hands
-//! out as `&'static mut` exactly once.
+//! Stack high-water mark: cortex-m-rt's `paint-stack` feature fills the stack region (`_stack_end` up to
+//! `_stack_start`, everything in RAM above the statics) with `STACK_PAINT_VALUE` in the reset handler, before
+//! `main`. After the last script [`stack_use`] scans up from the bottom of the region for the first word that
+//! is no longer paint: everything above it has been used, by the deepest call chain or an exception frame.
+//! A word that happened to be written with the paint value at the very bottom would be missed, so the mark is
+//! exact up to such a coincidence, never an overestimate.
+//!
+//! Faults: a HardFault (every fault on the Cortex-M0; on the Cortex-M4 the configurable faults escalate to it,
+//! since none is enabled) prints the stacked registers as an `E,hardfault,...` line and exits through
+//! semihosting with a failure status, so a QEMU run ends with an error instead of hanging. The feature
+//! `fault-test` executes an undefined instruction after boot to exercise that path.
+//!
+//! `unsafe`, and why: the buffers need none (they are `static mut` locals of the `#[entry]` function, which
+//! cortex-m-rt hands out as `&'static mut` exactly once). Two places need it: cortex-m-rt requires the
+//! HardFault handler to be declared `unsafe fn`, and [`stack_use`] reads the painted words, memory no Rust
+//! object owns, with `read_volatile` (one `unsafe` block; its bounds are the linker's symbols).
 #![no_std]
 #![no_main]
 
@@ -14,7 +28,7 @@ use core::panic::PanicInfo;
 use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
 
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
-use cortex_m_rt::{entry, exception};
+use cortex_m_rt::{entry, exception, ExceptionFrame, STACK_PAINT_VALUE};
 use cortex_m_semihosting::{debug, hio};
 use firmware_sim::device::{run_script, write_trace, Bits, Meter};
 use radiosity_core::Table;
@@ -142,6 +156,10 @@ fn main() -> ! {
     let measured = meter.stop().saturating_sub(empty);
     emit(format_args!("CAL,{},{}", 2 * (u64::from(CAL_CYCLES) + 1), measured));
 
+    if cfg!(feature = "fault-test") {
+        cortex_m::asm::udf();
+    }
+
     let table = match Table::parse(TABLE) {
         Ok(t) => t,
         Err(e) => {
@@ -162,8 +180,68 @@ fn main() -> ! {
             }
         }
     }
+    let stack = stack_use();
+    emit(format_args!("STACK,{},{}", stack.high_water, stack.size));
     emit(format_args!("DONE,{failures}"));
     debug::exit(if failures == 0 { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+extern "C" {
+    /// The bottom of the stack region (cortex-m-rt's `link.x`: the end of `.bss` and `.uninit`, aligned).
+    static _stack_end: u32;
+    /// The top of the stack region: the initial stack pointer (the end of RAM).
+    static _stack_start: u32;
+}
+
+/// The stack's use as the paint shows it, in bytes.
+struct StackUse {
+    /// From the top of the region down to the deepest word that is no longer paint.
+    high_water: usize,
+    /// The whole region, `_stack_start - _stack_end`.
+    size: usize,
+}
+
+/// Scans the painted stack region from the bottom up for the first word that is no longer
+/// `STACK_PAINT_VALUE` (see the crate docs).
+fn stack_use() -> StackUse {
+    // Taking the address of an extern static is safe; only reading through it is not.
+    let bottom = core::ptr::addr_of!(_stack_end) as usize;
+    let top = core::ptr::addr_of!(_stack_start) as usize;
+    let mut addr = bottom;
+    while addr < top {
+        // SAFETY: `bottom..top` is RAM (the linker placed it inside the memory map's RAM region and asserts
+        // `_stack_end <= _stack_start`), both ends are 4-byte aligned (asserted by `link.x` for `_stack_end`,
+        // 8 for `_stack_start`), so every aligned word in between is a valid `u32` to read. Part of it is the
+        // live stack, which this only reads; volatile keeps the compiler from assuming anything about it.
+        let word = unsafe { core::ptr::read_volatile(core::ptr::with_exposed_provenance::<u32>(addr)) };
+        if word != STACK_PAINT_VALUE {
+            break;
+        }
+        addr += 4;
+    }
+    StackUse { high_water: top - addr, size: top - bottom }
+}
+
+/// Reports the fault (the registers the CPU stacked on entry: the faulting instruction is `pc`) and exits
+/// with a failure status. `unsafe` only because cortex-m-rt requires that of a HardFault handler.
+#[exception]
+unsafe fn HardFault(ef: &ExceptionFrame) -> ! {
+    emit(format_args!(
+        "E,hardfault,pc={:#010x} lr={:#010x} xpsr={:#010x} r0={:#010x} r1={:#010x} r2={:#010x} r3={:#010x} \
+         r12={:#010x}",
+        ef.pc(),
+        ef.lr(),
+        ef.xpsr(),
+        ef.r0(),
+        ef.r1(),
+        ef.r2(),
+        ef.r3(),
+        ef.r12()
+    ));
+    debug::exit(debug::EXIT_FAILURE);
     loop {
         cortex_m::asm::wfi();
     }
