@@ -36,7 +36,8 @@
 //!   radiosity error ([`HierarchicalSolution::error_bound`]), against which the tests judge the answer.
 //!
 //! # Status
-//! Not yet the default of any command: `solve --method hierarchical` only, at default light intensities. Scenes
+//! Not yet the default of any command: `solve --method hierarchical` only (links refined for the default light
+//! intensities; the answer is also split by light source, [`HierarchicalSolution::transfer`]). Scenes
 //! with many small, nearly touching surfaces (`scenes/make_office.py`) are not solved yet: the resolution limit
 //! is relative to the whole scene, so small faces cannot be split, and the cluster links' Monte Carlo estimates
 //! between nearly touching surfaces are heavy-tailed; the iteration then diverges, which is reported as
