@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 
 use firmware_sim::qemu::{self, QemuLog, Target};
-use firmware_sim::script::ScriptFile;
+use firmware_sim::script::{ScriptFile, TableGroups};
 use firmware_sim::sim;
 use radiosity_core::Table;
 
@@ -26,7 +26,7 @@ fn run_table(target: Target, table_path: &std::path::Path, cost_model: bool) {
     let scripts_path = root().join("scenes/cornell-box.relight.toml");
     let bytes = std::fs::read(table_path).unwrap();
     let table = Table::parse(&bytes).unwrap();
-    let scripts = ScriptFile::load(&scripts_path).unwrap();
+    let scripts = ScriptFile::load(&scripts_path).and_then(|s| s.resolve(&TableGroups::of(&table))).unwrap();
 
     let elf = qemu::build_firmware(target, table_path, &scripts_path).unwrap_or_else(|e| panic!("{e}"));
     let (text, ok) = qemu::run_qemu(target, &elf, 120).unwrap_or_else(|e| panic!("{e}"));

@@ -336,7 +336,7 @@ pub enum Command {
         /// The table baked from SCENE with the same meshing options (default: bake one at default settings).
         #[arg(long, value_name = "TABLE")]
         table: Option<PathBuf>,
-        /// Relight scripts (TOML, format in firmware-sim/src/script.rs; default: SCENE's stem + .relight.toml).
+        /// Relight scripts (TOML, format in docs/relight-scripts.md; default: SCENE's stem + .relight.toml).
         #[arg(long, value_name = "FILE")]
         scripts: Option<PathBuf>,
         /// Only the script of this name.
