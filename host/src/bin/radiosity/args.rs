@@ -255,6 +255,10 @@ pub enum Command {
     Inspect {
         /// The table file (.rft).
         table: PathBuf,
+        /// The scene the table was baked from (.obj, with its .toml): names the light groups, whose ids are
+        /// hashes of their names.
+        #[arg(long)]
+        scene: Option<PathBuf>,
         /// Output format.
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
