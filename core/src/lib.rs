@@ -205,7 +205,7 @@ pub use codec::{FfCodec, Frac};
 pub use format::write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };
-pub use format::{Row, SectionSizes, Table, TableError, FORMAT_VERSION, MAGIC};
+pub use format::{group_id, Row, SectionSizes, Table, TableError, FORMAT_VERSION, MAGIC};
 pub use scalar::{Fixed, Scalar};
 #[cfg(any(test, feature = "std"))]
 pub use solver::OwnedBuffers;

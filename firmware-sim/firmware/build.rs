@@ -37,8 +37,11 @@ fn run() -> Result<(), String> {
     let bytes = std::fs::read(&table_path)
         .map_err(|e| format!("{}: cannot read table: {e}", table_path.display()))?;
     let table = radiosity_core::Table::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
+    // Scripts that name light groups are resolved by the names' ids (`radiosity_core::group_id`).
     let scripts = firmware_sim::script::ScriptFile::load(&scripts_path).map_err(|e| e.to_string())?;
-    scripts.check_table(table.group_count()).map_err(|e| format!("{}: {e}", scripts_path.display()))?;
+    let scripts = scripts
+        .resolve(&firmware_sim::script::TableGroups::of(&table))
+        .map_err(|e| format!("{}: {e}", scripts_path.display()))?;
 
     let mut code = String::new();
     code.push_str(&format!(

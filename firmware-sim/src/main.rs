@@ -18,7 +18,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use firmware_sim::cost;
 use firmware_sim::qemu::{self, QemuLog, Target};
-use firmware_sim::script::ScriptFile;
+use firmware_sim::script::{ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith, ScriptSummary};
 use radiosity_core::Table;
 
@@ -150,7 +150,9 @@ impl Input {
             .map_err(|e| format!("{}: cannot read table: {e}", table_path.display()))?;
         let table = Table::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
         let scripts = ScriptFile::load(&scripts_path).map_err(|e| e.to_string())?;
-        scripts.check_table(table.group_count()).map_err(|e| format!("{}: {e}", scripts_path.display()))?;
+        let scripts = scripts
+            .resolve(&TableGroups::of(&table))
+            .map_err(|e| format!("{}: {e}", scripts_path.display()))?;
         Ok(Loaded { table_path, bytes, scripts_path, scripts })
     }
 }

@@ -19,8 +19,13 @@ use radiosity_core::{
 /// Patches in the light group of [`uniform_enclosure`].
 pub const LIGHT_PATCHES: u32 = 4;
 
-/// Light-group id of [`uniform_enclosure`]'s light: the ASCII bytes of "lite".
-pub const LIGHT_ID: u32 = u32::from_be_bytes(*b"lite");
+/// Name of [`uniform_enclosure`]'s light group: the Cornell box's, so the box's relight scripts, which name
+/// the group, run on this table too.
+pub const LIGHT_NAME: &str = "light";
+
+/// Light-group id of [`uniform_enclosure`]'s light: [`radiosity_core::group_id`] of [`LIGHT_NAME`], as a bake
+/// writes it.
+pub const LIGHT_ID: u32 = radiosity_core::group_id(LIGHT_NAME);
 
 /// Reflectances (RGB): white, red, green.
 pub const MATERIALS: [[f32; 3]; 3] = [[0.73, 0.73, 0.73], [0.63, 0.06, 0.05], [0.12, 0.45, 0.09]];

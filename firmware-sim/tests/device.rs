@@ -6,7 +6,7 @@ use std::cell::Cell;
 
 use firmware_sim::device::{self, Frame, NoMeter, Script};
 use firmware_sim::qemu::{self, QemuLog};
-use firmware_sim::script::ScriptFile;
+use firmware_sim::script::{ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith};
 use firmware_sim::synthetic;
 use radiosity_core::OwnedBuffers;
@@ -121,7 +121,9 @@ fn uniform_enclosure_matches_its_analytic_answer_in_f32_and_fixed_point() {
 fn device_loop_allocates_nothing() {
     let bytes = committed_table();
     let table = Table::parse(&bytes).unwrap();
-    let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml")).unwrap();
+    let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml"))
+        .and_then(|f| f.resolve(&TableGroups::of(&table)))
+        .unwrap();
     let mut memory = OwnedBuffers::<f32>::for_table(&table);
     // The counter sees this thread's allocations (so the check below can fail).
     let before = ALLOCATIONS.with(Cell::get);
@@ -143,7 +145,9 @@ fn device_loop_allocates_nothing() {
 fn comparison_catches_one_flipped_bit_and_a_missing_frame() {
     let bytes = committed_table();
     let table = Table::parse(&bytes).unwrap();
-    let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml")).unwrap();
+    let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml"))
+        .and_then(|f| f.resolve(&TableGroups::of(&table)))
+        .unwrap();
     let host = sim::simulate_file(Arith::Fixed, &table, &file, Some("flicker"), None).unwrap();
     let text: String = host[0].trace.iter().map(|l| format!("{l}\nB,fixed,flicker,0\n")).collect();
     let log = QemuLog::parse(&format!("{text}DONE,0\n")).unwrap();

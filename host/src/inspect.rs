@@ -168,6 +168,9 @@ pub struct GroupInfo {
     pub index: u32,
     /// Identifier (a bake uses FNV-1a of the group name, [`crate::bake::group_id`]).
     pub id: u32,
+    /// The group's name, when known: a name given to [`InspectReport::name_groups`] whose id is `id` (the table
+    /// itself stores only the id).
+    pub name: Option<String>,
     /// Member patches.
     pub members: u32,
     /// Default intensity (RGB).
@@ -223,6 +226,21 @@ pub struct TransferInfo {
     pub max_response: Vec<Rgb>,
 }
 
+impl InspectReport {
+    /// Names every light group whose id is the [`crate::bake::group_id`] of one of `names` (e.g. the light groups
+    /// of the scene the table was baked from: `radiosity inspect TABLE --scene SCENE.obj`); names that match no
+    /// group are ignored. Returns how many groups have a name afterwards.
+    pub fn name_groups<'a>(&mut self, names: impl IntoIterator<Item = &'a str>) -> usize {
+        for name in names {
+            let id = crate::bake::group_id(name);
+            for g in self.groups.iter_mut().filter(|g| g.id == id) {
+                g.name = Some(name.to_owned());
+            }
+        }
+        self.groups.iter().filter(|g| g.name.is_some()).count()
+    }
+}
+
 impl fmt::Display for InspectReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let c = &self.counts;
@@ -237,11 +255,19 @@ impl fmt::Display for InspectReport {
             if c.state < c.patches { " (the others show the static base)" } else { "" }
         )?;
         writeln!(f, "materials    {}", c.materials)?;
-        writeln!(f, "light groups {} ({})", c.groups, counted(c.members, "member", "members"))?;
+        let unnamed = self.groups.iter().any(|g| g.name.is_none());
+        writeln!(
+            f,
+            "light groups {} ({}{})",
+            c.groups,
+            counted(c.members, "member", "members"),
+            if unnamed { "; names: inspect TABLE --scene SCENE.obj" } else { "" }
+        )?;
         for g in &self.groups {
+            let name = g.name.as_ref().map_or_else(String::new, |n| format!(" {n:?}"));
             writeln!(
                 f,
-                "  group {:<3} id {:#010x}  {}  default {:?}",
+                "  group {:<3} id {:#010x}{name}  {}  default {:?}",
                 g.index,
                 g.id,
                 counted(g.members as usize, "member", "members"),
@@ -347,6 +373,7 @@ fn inspect_named(bytes: &[u8], name: &str) -> Result<InspectReport, InspectError
         .map(|g| GroupInfo {
             index: g,
             id: table.group_id(g).unwrap_or(0),
+            name: None,
             members: table.group_members(g).map_or(0, |r| r.end - r.start),
             default_intensity: table.default_intensity(g).unwrap_or([0.0; 3]),
         })

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use firmware_sim::device::{self, Bits, NoMeter};
 use firmware_sim::qemu::{self, QemuLog, Target};
-use firmware_sim::script::{OwnedScript, ScriptFile};
+use firmware_sim::script::{OwnedScript, ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith};
 use radiosity_core::{Fixed, Table};
 use serde::Serialize;
@@ -146,6 +146,9 @@ pub struct RelightReport {
     pub first_script_frames: Vec<Vec<Rgb>>,
     /// Name of the first selected script.
     pub first_script: String,
+    /// The table's light groups in table order (the order of every intensity vector): the scene's names, or
+    /// position and id for a group the scene does not name.
+    pub light_groups: Vec<String>,
 }
 
 /// One frame of the device loop: what it spent and the radiosity of every patch (f64, table order).
@@ -216,6 +219,12 @@ fn check_match(p: &Prepared, table: &Table<'_>) -> Result<(), RelightError> {
     Ok(())
 }
 
+/// The light groups of `table` (baked from `p`), named after the scene's light groups whose ids they carry.
+#[must_use]
+pub fn table_groups(p: &Prepared, table: &Table<'_>) -> TableGroups {
+    TableGroups::of(table).named(p.scene.light_groups.iter().map(|g| g.name.as_str()))
+}
+
 /// Runs the relight scripts of `scripts_path` on `table_bytes` (baked from `p`) and compares every frame with
 /// the exact answer; with [`RelightOptions::qemu`], also on the firmware under QEMU.
 ///
@@ -231,8 +240,10 @@ pub fn relight(
     let table = Table::parse(table_bytes).map_err(RelightError::Table)?;
     check_match(p, &table)?;
     let script_error = |reason: String| RelightError::Scripts { path: scripts_path.to_path_buf(), reason };
-    let file = ScriptFile::load(scripts_path).map_err(|e| script_error(e.to_string()))?;
-    file.check_table(table.group_count()).map_err(|e| script_error(e.to_string()))?;
+    let groups = table_groups(p, &table);
+    let file = ScriptFile::load(scripts_path)
+        .and_then(|f| f.resolve(&groups))
+        .map_err(|e| script_error(e.to_string()))?;
     let selected: Vec<&OwnedScript> =
         file.scripts.iter().filter(|s| options.only.as_deref().is_none_or(|n| n == s.name)).collect();
     if selected.is_empty() {
@@ -304,6 +315,9 @@ pub fn relight(
         qemu: qemu_runs,
         first_script_frames,
         first_script: selected[0].name.clone(),
+        light_groups: (0..groups.len())
+            .map(|g| groups.name(g).map_or_else(|| groups.label(g), str::to_owned))
+            .collect(),
     })
 }
 
@@ -431,6 +445,7 @@ impl fmt::Display for RelightReport {
              for the frame's intensities",
             self.patches, self.table_bytes
         )?;
+        writeln!(f, "light groups (table order): {}", self.light_groups.join(", "))?;
         if self.frames.iter().any(|r| !r.error.rel_l2.is_finite()) {
             writeln!(
                 f,
@@ -513,6 +528,7 @@ pub fn device_answer(table_bytes: &[u8], intensity: &[[f32; 3]]) -> Result<Vec<R
         description: String::new(),
         tolerance: CONVERGED_TOLERANCE,
         boot_budget: firmware_sim::script::DEFAULT_BOOT_BUDGET,
+        groups: None,
         initial: intensity.to_vec(),
         frames: vec![firmware_sim::script::OwnedFrame { budget: 1, intensity: intensity.to_vec() }],
     };

@@ -124,6 +124,15 @@ fn table_input_matches_bake_path() {
     let from_scene = check(&p, &po, &opts).expect("check scene");
     let bytes = bake_bytes(&p, FfCodec::FLOAT16);
     let from_table = check_table(&bytes, &p, &opts).expect("check table");
+    // Both name the light group, in the group list and the settings' intensity column.
+    for report in [&from_scene, &from_table] {
+        assert_eq!(report.light_groups, vec!["light".to_owned()]);
+        let text = report.to_string();
+        assert!(
+            text.contains("light groups (table order): light\n") && text.contains("intensity (light)"),
+            "{text}"
+        );
+    }
     // Same table bytes, same solver: identical device answers.
     for name in ["arithmetic (f32)", "arithmetic (fixed)"] {
         assert_eq!(component(&from_scene, name), component(&from_table, name), "{name}");

@@ -212,6 +212,46 @@ fn shipped_relight_script_with_dark_frames_prints_its_table_and_plots() {
     assert!(svg.contains("dark frames not plotted"), "the plot marks the frames it leaves out");
     let csv = std::fs::read_to_string(csv).unwrap();
     assert!(csv.lines().next().unwrap().contains(",rel_l2,abs_rms,"), "{csv}");
+    assert!(
+        stdout.contains("light groups (table order): light\n"),
+        "relight names the light group: {stdout}"
+    );
+}
+
+#[test]
+fn inspect_names_the_light_groups_given_the_scene() {
+    let table = folder("inspect").join("box.rft");
+    let table = table.to_str().unwrap();
+    let bake = radiosity(&[
+        "bake",
+        &scene("cornell-box.obj"),
+        "--no-subdivide",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "-q",
+        "-o",
+        table,
+    ]);
+    assert!(bake.status.success(), "{}", String::from_utf8_lossy(&bake.stderr));
+    let id = format!("id {:#010x}", radiosity_host::bake::group_id("light"));
+    // The table alone stores ids only: no name, and a hint where names come from.
+    let bare = radiosity(&["inspect", table]);
+    let stdout = String::from_utf8_lossy(&bare.stdout);
+    assert!(bare.status.success(), "{}", String::from_utf8_lossy(&bare.stderr));
+    assert!(stdout.contains(&format!("{id}  ")) && !stdout.contains("\"light\""), "{stdout}");
+    assert!(stdout.contains("names: inspect TABLE --scene SCENE.obj"), "{stdout}");
+    // With the scene it was baked from, each group's name stands beside its id.
+    let named = radiosity(&["inspect", table, "--scene", &scene("cornell-box.obj")]);
+    let stdout = String::from_utf8_lossy(&named.stdout);
+    assert!(named.status.success(), "{}", String::from_utf8_lossy(&named.stderr));
+    assert!(stdout.contains(&format!("{id} \"light\"  ")), "{stdout}");
+    assert!(!stdout.contains("names: inspect"), "{stdout}");
+    // A scene without that group names nothing, and says so.
+    let other = radiosity(&["inspect", table, "--scene", &scene("furnace.obj")]);
+    assert!(other.status.success());
+    assert!(String::from_utf8_lossy(&other.stderr).contains("1 of the table's 1 light groups have no name"));
 }
 
 #[test]

@@ -126,6 +126,30 @@ fn converged_frames_match_f64_within_the_bake_error_and_starved_frames_do_not() 
     }
     // CSV: header plus one line per row.
     assert_eq!(report.to_csv().lines().count(), 1 + report.frames.len());
+
+    // The same scripts naming the light group (`{ light = [...] }`) run the same frames, and the report names
+    // the group.
+    let named = scripts_file("named", &named_scripts(SCRIPTS));
+    assert_ne!(named_scripts(SCRIPTS), SCRIPTS);
+    let by_name =
+        relight::relight(&p, &baked.table, Path::new("unused.rft"), &named, &RelightOptions::default())
+            .unwrap();
+    assert_eq!(by_name.frames, report.frames);
+    assert_eq!(by_name.light_groups, vec!["light".to_owned()]);
+    assert!(by_name.to_string().contains("light groups (table order): light\n"), "{by_name}");
+}
+
+/// `text` with every one-group intensity `[[r, g, b]]` written by name, `{ light = [r, g, b] }`.
+fn named_scripts(text: &str) -> String {
+    text.lines()
+        .map(|line| match line.split_once(" = [[") {
+            Some((key, rest)) => {
+                format!("{key} = {{ light = [{}] }}", rest.strip_suffix("]]").unwrap_or(rest))
+            }
+            None => line.to_owned(),
+        })
+        .map(|line| line + "\n")
+        .collect()
 }
 
 #[test]
@@ -156,6 +180,13 @@ fn a_table_of_another_scene_and_bad_scripts_are_refused_by_name() {
     let err = relight::relight(&cornell, &table, Path::new("t.rft"), &two_groups, &RelightOptions::default())
         .unwrap_err();
     assert!(matches!(err, RelightError::Scripts { .. }), "{err}");
+    assert!(err.to_string().contains("the table has 1 light groups (\"light\")"), "{err}");
+    // A name the scene does not have: the error lists the table's groups by their scene names.
+    let unknown = scripts_file("unknown", &named_scripts(SCRIPTS).replace("light = [", "lamp = ["));
+    let err = relight::relight(&cornell, &table, Path::new("t.rft"), &unknown, &RelightOptions::default())
+        .unwrap_err();
+    assert!(err.to_string().contains("the table has no light group \"lamp\""), "{err}");
+    assert!(err.to_string().contains("its light groups: \"light\""), "{err}");
 }
 
 #[test]

@@ -25,5 +25,38 @@ pub use write::{
 /// The four bytes every table starts with.
 pub const MAGIC: [u8; 4] = *b"RFT\x1a";
 
+/// The light-group id a host writes for a group named `name`: the 32-bit FNV-1a hash of the name's UTF-8
+/// bytes (Fowler, Noll, Vo; IETF draft draft-eastlake-fnv). The table stores ids, not names; firmware and
+/// relight scripts refer to a group by name through this function ([`Table::find_group`]`(group_id(name))`).
+/// The format itself does not depend on it: any `u32` is a valid id.
+#[must_use]
+pub const fn group_id(name: &str) -> u32 {
+    let bytes = name.as_bytes();
+    let mut h: u32 = 0x811c_9dc5;
+    let mut i = 0;
+    while i < bytes.len() {
+        h ^= bytes[i] as u32;
+        h = h.wrapping_mul(0x0100_0193);
+        i += 1;
+    }
+    h
+}
+
 /// The format version this crate reads and writes.
 pub const FORMAT_VERSION: u16 = 3;
+
+#[cfg(test)]
+mod tests {
+    use super::group_id;
+
+    #[test]
+    fn group_id_is_fnv1a_32() {
+        // Test vectors of the FNV reference (draft-eastlake-fnv, appendix C).
+        assert_eq!(group_id(""), 0x811c_9dc5);
+        assert_eq!(group_id("a"), 0xe40c_292c);
+        assert_eq!(group_id("foobar"), 0xbf9c_f968);
+        // Evaluable at compile time, as firmware constants need.
+        const LIGHT: u32 = group_id("light");
+        assert_eq!(LIGHT, group_id(&String::from("light")));
+    }
+}

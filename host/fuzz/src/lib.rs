@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use firmware_sim::script::ScriptFile;
+use firmware_sim::script::{ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith};
 use radiosity_core::{FfCodec, Table};
 use radiosity_host::scene::Scene;
@@ -34,6 +34,7 @@ pub fn script(data: &[u8]) {
         return;
     }
     let table = Table::parse(table_bytes()).expect("the synthetic table parses");
+    let Ok(file) = file.resolve(&TableGroups::of(&table)) else { return };
     for arith in Arith::ALL {
         let _ = sim::simulate_file(arith, &table, &file, None, None);
     }

@@ -1,20 +1,12 @@
-//! The identities a table stores: light-group ids (step 3) and the scene fingerprint (step 6), both FNV-1a
-//! (Fowler, Noll, Vo; IETF draft draft-eastlake-fnv).
+//! The identities a table stores: light-group ids (step 3, core's [`radiosity_core::group_id`]) and the scene
+//! fingerprint (step 6), both FNV-1a (Fowler, Noll, Vo; IETF draft draft-eastlake-fnv).
 
 use super::BakeError;
 use crate::patch::Patch;
 
-/// The table id of a light group: 32-bit FNV-1a of its name, so firmware can refer to a group by a constant
-/// derived from its name.
-#[must_use]
-pub fn group_id(name: &str) -> u32 {
-    let mut h: u32 = 0x811c_9dc5;
-    for &b in name.as_bytes() {
-        h ^= u32::from(b);
-        h = h.wrapping_mul(0x0100_0193);
-    }
-    h
-}
+/// The table id of a light group: 32-bit FNV-1a of its name (core owns the hash, so firmware and relight
+/// scripts can refer to a group by name).
+pub use radiosity_core::group_id;
 
 /// The ids of `names` ([`group_id`]), in order.
 ///

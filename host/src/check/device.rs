@@ -23,6 +23,8 @@ pub(super) struct Answers<'a> {
     pub(super) device: &'a Radiosity,
     /// Patch areas.
     pub(super) area: &'a [f64],
+    /// Names of the dynamic light groups, in table order.
+    pub(super) light_groups: &'a [String],
 }
 
 /// Runs the device paths on `table` and finishes the report (iteration truncation and arithmetic components
@@ -99,6 +101,7 @@ pub(super) fn device_part(
         entries: table.entry_count() as usize,
         table_bytes,
         codec: table.codec().to_string(),
+        light_groups: answers.light_groups.to_vec(),
         budget: options.budget,
         frames_per_setting: options.frames,
         tolerance,

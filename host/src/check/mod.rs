@@ -302,9 +302,15 @@ pub fn check(
         decoded: &evaluation.decoded,
         device: &evaluation.device,
         area: &evaluation.area,
+        light_groups: &dynamic_group_names(p),
     };
     let report = device_part(&table, baked.table.len(), &answers, options, components)?;
     Ok(CheckReport { discretization, ..report })
+}
+
+/// Names of the dynamic light groups of `p`, in table order.
+fn dynamic_group_names(p: &Prepared) -> Vec<String> {
+    p.lighting.dynamic_groups.iter().map(|&g| p.scene.light_groups[g].name.clone()).collect()
 }
 
 /// The discretization component of `p`, whose exact answer is `reference`, if `options` ask for it.

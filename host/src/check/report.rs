@@ -65,6 +65,8 @@ pub struct CheckReport {
     pub table_bytes: usize,
     /// Codec name.
     pub codec: String,
+    /// Names of the dynamic light groups, in table order (the order of [`Setting::intensity`]).
+    pub light_groups: Vec<String>,
     /// Work units per frame.
     pub budget: u32,
     /// Frames per setting (`None`: to convergence).
@@ -142,6 +144,7 @@ impl fmt::Display for CheckReport {
             self.frames_per_setting.map_or("to convergence".to_string(), |n| n.to_string()),
             self.tolerance
         )?;
+        writeln!(f, "light groups (table order): {}", self.light_groups.join(", "))?;
         writeln!(f, "\nerror decomposition (default intensities)")?;
         writeln!(f, "{:<24} {:>10} {:>10} {:>10}  compares", "component", "rel L2", "max rel", "lum L2")?;
         for c in &self.components {
@@ -158,12 +161,13 @@ impl fmt::Display for CheckReport {
             f,
             "\ndevice vs exact f64 (scene matrix, transfer vectors relit), last frame of each setting"
         )?;
+        let first_group = self.light_groups.first().map_or("none", String::as_str);
         writeln!(
             f,
             "{:<6} {:<3} {:<24} {:>7} {:>12} {:>10} {:>10} {:>10} {:>10}",
             "arith",
             "#",
-            "intensity (group 0)",
+            format!("intensity ({first_group})"),
             "frames",
             "work",
             "relight",

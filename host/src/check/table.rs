@@ -6,8 +6,8 @@ use radiosity_core::Table;
 
 use super::device::{device_part, Answers};
 use super::{
-    check_options, discretization_part, evaluation_options, exact_transfer_of, CheckError, CheckOptions,
-    CheckReport,
+    check_options, discretization_part, dynamic_group_names, evaluation_options, exact_transfer_of,
+    CheckError, CheckOptions, CheckReport,
 };
 use crate::bake::{self, decode_table};
 use crate::evaluate;
@@ -85,6 +85,7 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
         decoded: &decoded,
         device: &device,
         area: &area,
+        light_groups: &dynamic_group_names(p),
     };
     let report = device_part(&table, bytes.len(), &answers, options, components)?;
     Ok(CheckReport { discretization, ..report })

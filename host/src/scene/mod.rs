@@ -9,7 +9,8 @@
 //! - Materials: MTL `Kd` is the reflectance (per channel, in `[0, 1)`, required), `Ke` the emission as radiant
 //!   exitance in W/m^2 (per channel, finite and `>= 0`, default 0). A colour with one number (`Kd 0.5`) is grey:
 //!   the same value on all three channels.
-//! - `NAME.toml` (optional, beside `NAME.obj`):
+//! - `NAME.toml` (optional, beside `NAME.obj`; the user reference, with an annotated example of every field, is
+//!   `docs/scene-format.md`, whose examples a test loads):
 //!   ```toml
 //!   [meshing]
 //!   max_patch_edge = 100.0   # scene units; largest patch edge after uniform subdivision

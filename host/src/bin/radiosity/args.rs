@@ -285,6 +285,10 @@ pub enum Command {
     Inspect {
         /// The table file (.rft).
         table: PathBuf,
+        /// The scene the table was baked from (.obj, with its .toml): names the light groups, whose ids are
+        /// hashes of their names.
+        #[arg(long)]
+        scene: Option<PathBuf>,
         /// Output format (`text` or `json`).
         #[arg(long, value_enum, default_value_t = ReportFormat::Text)]
         format: ReportFormat,
@@ -375,7 +379,7 @@ pub enum Command {
         /// The table baked from SCENE with the same meshing options (default: bake one at default settings).
         #[arg(long, value_name = "TABLE")]
         table: Option<PathBuf>,
-        /// Relight scripts (TOML, format in firmware-sim/src/script.rs; default: SCENE's stem + .relight.toml).
+        /// Relight scripts (TOML, format in docs/relight-scripts.md; default: SCENE's stem + .relight.toml).
         #[arg(long, value_name = "FILE")]
         scripts: Option<PathBuf>,
         /// Only the script of this name.

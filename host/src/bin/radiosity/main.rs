@@ -300,8 +300,20 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
         }
         Command::Reference(args) => reference_command(&args)?,
-        Command::Inspect { table, format } => {
-            let report = inspect_file(&table)?;
+        Command::Inspect { table, scene, format } => {
+            let mut report = inspect_file(&table)?;
+            if let Some(obj) = scene {
+                let scene = Scene::load(&obj)?;
+                let named = report.name_groups(scene.light_groups.iter().map(|g| g.name.as_str()));
+                if named < report.groups.len() {
+                    eprintln!(
+                        "warning: {} of the table's {} light groups have no name in {} (a table of another scene?)",
+                        report.groups.len() - named,
+                        report.groups.len(),
+                        obj.display()
+                    );
+                }
+            }
             match format {
                 ReportFormat::Json => {
                     serde_json::to_writer_pretty(&mut out, &report)?;
