@@ -335,7 +335,7 @@ fn counts_of_one_are_singular() {
     assert!(dropped.contains("of all power transported") && !dropped.contains("total"), "{dropped}");
     let out = radiosity(&["inspect", table.to_str().unwrap()]);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("(1 member)") && !stdout.contains("1 members"), "{stdout}");
+    assert!(stdout.contains("(1 member;") && !stdout.contains("1 members"), "{stdout}");
 }
 
 #[test]
