@@ -38,10 +38,11 @@
 //! # Status
 //! Not yet the default of any command: `solve --method hierarchical` only (links refined for the default light
 //! intensities; the answer is also split by light source, [`HierarchicalSolution::transfer`]). Scenes
-//! with many small, nearly touching surfaces (`scenes/make_office.py`) are not solved yet: the resolution limit
-//! is relative to the whole scene, so small faces cannot be split, and the cluster links' Monte Carlo estimates
-//! between nearly touching surfaces are heavy-tailed; the iteration then diverges, which is reported as
-//! [`HierarchyError::NotConverged`].
+//! with many small, nearly touching surfaces (`scenes/make_office.py`) are not solved in reasonable time yet:
+//! the direct-light pass splits links between nearly touching surfaces down to the resolution limit, so a few
+//! workstations already make tens of thousands of leaves and millions of links (the closing notes of issue 18
+//! have the measurements). A cluster link whose point-pair estimate is untrustworthy is split rather than
+//! trusted; an iteration that diverges anyway is reported as [`HierarchyError::NotConverged`].
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
@@ -218,7 +219,7 @@ pub struct HierarchyStats {
     /// (`sum A e / sum A max_c B`); `None` if the bound diverges (a leaf's `rho` times its total form factor
     /// reaches 1).
     pub claimed_error: Option<f64>,
-    /// Push-pull sweeps of the last solve.
+    /// Push-pull sweeps of the last solve (gathering), or its shots (shooting).
     pub sweeps: usize,
     /// Smallest and largest total form factor a leaf gathers through (its links and its ancestors'): the
     /// hierarchy's row sums, 1 in a closed scene.
