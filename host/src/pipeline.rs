@@ -26,14 +26,14 @@
 use std::path::{Path, PathBuf};
 
 use crate::formfactor::{
-    compute_form_factors, rows_over_noise, FormFactorOptions, FormFactorStats, RowExcess,
+    compute_form_factors, rows_over_noise, ClosureReport, FormFactorOptions, FormFactorStats, RowExcess,
 };
 use crate::lighting::PatchLighting;
 use crate::mesh::{
     mesh, refine, refine_scores, refinement_candidates, select_for_refinement, MeshOptions, RefineInput,
     RefineOptions, RepairReport, DEFAULT_PATCH_BUDGET,
 };
-use crate::patch::{FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
+use crate::patch::{Closure, FormFactorMatrix, Patch, ReciprocityChange, RowClamp};
 use crate::reference::{solve_many, RadiositySystem};
 use crate::scene::Scene;
 use crate::text::counted;
@@ -509,6 +509,14 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
         stats.visibility_time.as_secs_f64()
     );
     match &stats.closure {
+        Some(ClosureReport { balance: Closure { refused: Some(r), .. }, .. }) => {
+            eprintln!(
+                "warning: form factors: closed scene (none of {} hemisphere rays escaped), but closing the rows \
+                 would move the entry of patches {} and {} by {:.1e} standard deviations of its estimate: rows \
+                 left as estimated (sums {:.6}..{:.6}; more --rays makes them closer to 1)",
+                stats.escape_rays, r.row, r.col, r.sigmas, stats.row_sum_min, stats.row_sum_max
+            );
+        }
         Some(c) => eprintln!(
             "form factors: closed scene (none of {} hemisphere rays escaped): {} closed by correcting their \
              {} in proportion to their variance (largest change of an entry {:.2e}, {} zeroed), row sums now \

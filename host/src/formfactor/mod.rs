@@ -509,18 +509,19 @@ fn estimate<C: RayCaster + ?Sized>(
     let closure = if closed {
         let reciprocity_change = matrix.enforce_reciprocity(&areas);
         // Variance of a pair's visible fraction from R kernel-weighted rays: about v (1 - v) / R, so that of
-        // G_ij = A_i U_ij v is (A_i U_ij)^2 v (1 - v) / R = G_ij^2 (1 - v) / v / R; R is common to all pairs and
-        // cancels. Pairs whose visibility was assumed (NaN) get the largest such weight, (1 - v) / v at v = 1/2.
+        // G_ij = A_i U_ij v is (A_i U_ij)^2 v (1 - v) / R = G_ij^2 (1 - v) / v / R. Pairs whose visibility was
+        // assumed (NaN) get the largest such weight, (1 - v) / v at v = 1/2.
+        let rays = options.rays_per_pair as f64;
         let balance = matrix.close_rows(&areas, |i, j| {
             let v = fraction(i, j);
             let g = areas[i]
                 * lookup_unoccluded(&unoccluded, i, j)
                     .max(lookup_unoccluded(&unoccluded, j, i) * areas[j] / areas[i]);
             if v.is_nan() {
-                g * g
+                g * g / rays
             } else if v > 0.0 && v < 1.0 {
                 let g = g * v;
-                g * g * (1.0 - v) / v
+                g * g * (1.0 - v) / v / rays
             } else {
                 0.0
             }

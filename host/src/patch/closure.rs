@@ -18,7 +18,30 @@ pub struct Closure {
     pub max_entry_change: f64,
     /// Adjustable entries that the correction would have made negative and that were set to 0 instead.
     pub entries_zeroed: usize,
+    /// The correction was refused and every entry left as estimated: closing the rows would have changed an
+    /// entry by more than [`CLOSURE_MAX_SIGMA`] of its standard deviation (the deficits cannot be explained by
+    /// the estimates' noise, e.g. when the adjustable entries of a group of rows cannot move their sums
+    /// independently and the least-squares system is nearly singular). Set with `rows_closed == 0`.
+    pub refused: Option<RefusedClosure>,
 }
+
+/// Why [`FormFactorMatrix::close_rows`] refused to close the rows: the first entry the correction would have moved
+/// beyond its noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RefusedClosure {
+    /// Row of the entry.
+    pub row: usize,
+    /// Column of the entry.
+    pub col: usize,
+    /// The change of `G_ij = A_i F_ij` it would have taken, in standard deviations.
+    pub sigmas: f64,
+}
+
+/// Largest change of an entry, in standard deviations of its estimate, that closing the rows may make: a
+/// correction of a noisy estimate beyond this is not noise being removed but a row the adjustable entries cannot
+/// close (a Gaussian estimate is this far off with probability below 1e-22; the variance model is approximate,
+/// hence the wide margin).
+pub const CLOSURE_MAX_SIGMA: f64 = 10.0;
 
 /// Relative tolerance of the conjugate-gradient solve in [`FormFactorMatrix::close_rows`].
 pub const CLOSURE_TOLERANCE: f64 = 1e-14;
@@ -28,8 +51,9 @@ impl FormFactorMatrix {
     /// reciprocal; returns what it did.
     ///
     /// The matrix must already be reciprocal (see [`FormFactorMatrix::enforce_reciprocity`]) and
-    /// `variance(i, j)` symmetric: the (relative) variance of the estimate of `G_ij = A_i F_ij`, 0 for exact
-    /// entries. The correction is the generalized least-squares one: minimize `sum (δ_ij)² / w_ij` over symmetric
+    /// `variance(i, j)` symmetric: the variance of the estimate of `G_ij = A_i F_ij`, 0 for exact entries. If the
+    /// correction would move an entry by more than [`CLOSURE_MAX_SIGMA`] standard deviations, nothing is changed
+    /// and [`Closure::refused`] says where. The correction is the generalized least-squares one: minimize `sum (δ_ij)² / w_ij` over symmetric
     /// changes `δ` of the energy exchanges subject to every row of `G + δ` summing to `A_i`. Its Lagrange
     /// conditions give `δ_ij = w_ij (λ_i + λ_j)` with `(D + W) λ = A - G 1`, `D = diag(W 1)`, a symmetric positive
     /// semidefinite system solved by Jacobi-preconditioned conjugate gradients. Entries with more noise take more of
@@ -64,6 +88,7 @@ impl FormFactorMatrix {
             .collect();
         let original = self.value.clone();
         let mut report = Closure::default();
+        let mut refused = None;
         for _round in 0..8 {
             let g: Vec<f64> = (0..nnz).map(|k| area[row_of[k]] * self.value[k]).collect();
             let d: Vec<f64> =
@@ -120,6 +145,10 @@ impl FormFactorMatrix {
                 if w[k] > 0.0 {
                     let (i, j) = (row_of[k], self.col[k] as usize);
                     let new = g[k] + w[k] * (lambda[i] + lambda[j]);
+                    let sigmas = (new - g[k]).abs() / w[k].sqrt();
+                    if refused.is_none() && !(sigmas <= CLOSURE_MAX_SIGMA) {
+                        refused = Some(RefusedClosure { row: i, col: j, sigmas });
+                    }
                     if new < 0.0 {
                         self.value[k] = 0.0;
                         w[k] = 0.0;
@@ -130,9 +159,17 @@ impl FormFactorMatrix {
                 }
             }
             report.entries_zeroed += zeroed;
-            if zeroed == 0 {
+            if zeroed == 0 || refused.is_some() {
                 break;
             }
+        }
+        if let Some(r) = refused {
+            self.value = original;
+            let mut report = Closure { refused: Some(r), rows_left: n, ..Closure::default() };
+            for i in 0..n {
+                report.max_residual_left = report.max_residual_left.max((self.row_sum(i) - 1.0).abs());
+            }
+            return report;
         }
         // Entries set to 0 are dropped from the sparse structure.
         for (new, old) in self.value.iter().zip(&original) {
@@ -151,5 +188,34 @@ impl FormFactorMatrix {
             }
         }
         report
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::FormFactorMatrix;
+    use super::CLOSURE_MAX_SIGMA;
+
+    /// Two unit patches seeing each other by half: each row is 0.5 short. With the entry's standard deviation
+    /// `s`, closing means changing `G` by 0.5, that is `0.5 / s` standard deviations: done when that is within
+    /// [`CLOSURE_MAX_SIGMA`], refused (nothing changed) when it is not.
+    #[test]
+    fn closing_beyond_the_noise_is_refused() {
+        let half = || FormFactorMatrix::new(2, vec![0, 1, 2], vec![1, 0], vec![0.5, 0.5]).unwrap();
+        let area = [1.0, 1.0];
+        for (s, closes) in [(0.1, true), (0.5 / (0.9 * CLOSURE_MAX_SIGMA), true), (1e-3, false)] {
+            let mut m = half();
+            let report = m.close_rows(&area, |_, _| s * s);
+            if closes {
+                assert!(report.refused.is_none() && report.rows_closed == 2, "s {s}: {report:?}");
+                assert!((m.row_sum(0) - 1.0).abs() < 1e-12 && (m.row_sum(1) - 1.0).abs() < 1e-12);
+            } else {
+                let r = report.refused.expect("refused");
+                assert!((r.sigmas - 0.5 / s).abs() < 1e-6 * r.sigmas, "{r:?}");
+                assert_eq!((report.rows_closed, report.rows_left), (0, 2));
+                assert_eq!(m.row_sum(0), 0.5, "left as estimated");
+                assert!((report.max_residual_left - 0.5).abs() < 1e-15);
+            }
+        }
     }
 }
