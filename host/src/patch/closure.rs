@@ -146,7 +146,7 @@ impl FormFactorMatrix {
                     let (i, j) = (row_of[k], self.col[k] as usize);
                     let new = g[k] + w[k] * (lambda[i] + lambda[j]);
                     let sigmas = (new - g[k]).abs() / w[k].sqrt();
-                    if refused.is_none() && !(sigmas <= CLOSURE_MAX_SIGMA) {
+                    if refused.is_none() && (sigmas.is_nan() || sigmas > CLOSURE_MAX_SIGMA) {
                         refused = Some(RefusedClosure { row: i, col: j, sigmas });
                     }
                     if new < 0.0 {
