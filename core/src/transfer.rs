@@ -16,9 +16,10 @@
 //! Against `B_static + sum_g I_g T_g` with the host's `T_g` and `B_static`, per patch and channel:
 //! `sum_g |I_gc| max(2^-13 T_igc, 2^(K_gc - 27))` (response quantization) `+ 2^-11 E_s + (2^-11 + 2^-17) G_s`
 //! (the static base's emission and irradiance codes and the reflectance code, see the crate docs, "Error
-//! bounds") plus the arithmetic: in `f32` one rounding per term (relative `2^-24` of the running sum,
-//! `groups + 2` terms), in fixed point at most `2^-32` per decode and per product (`2 (groups + 1)` units of
-//! `2^-32`).
+//! bounds") plus the arithmetic: in `f32` one rounding per product and per sum (`rho G_s` and `E_s + rho G_s`,
+//! then `I_g T_g` and its addition for each group: `2 (groups + 1)` roundings, each within `2^-24` of the
+//! magnitude `|B_static| + sum_g |I_gc| T_igc`); in fixed point at most `2^-32` per decode of `E_s` and `G_s`
+//! and per product, and per group `(1 + |I_gc|) 2^-32` (the response's decode is multiplied by the intensity).
 //!
 //! # Cost
 //! One work unit per patch for the static base (decode `E_s`, `G_s`, `rho`: three multiply-adds) plus one per

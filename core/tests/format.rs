@@ -551,3 +551,19 @@ fn writer_rejects_bad_state_lists() {
     s.rows = vec![Vec::new(); 4];
     assert_eq!(try_write(&s), Err(WriteError::BadRows));
 }
+
+/// A row whose true sum is above 1 but within the writer's slack rounds down to more than 1 unless the writer
+/// lowers it: `[1.0, 2.55e-8]` with FLOAT16 (row exponent 0, subnormal step `2^-26`) rounded down decodes to
+/// `1 + 2^-26`. Found by `properties.rs`; the writer must never write a table its parser rejects.
+#[test]
+fn rows_above_one_within_the_slack_decode_to_at_most_one() {
+    let mut s = Scene::new(3);
+    s.rows = vec![vec![(1, 1.0), (2, 2.552_346_2e-8)], Vec::new(), Vec::new()];
+    for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
+        s.codec = codec;
+        let bytes = s.write();
+        let t = Table::parse(&bytes).unwrap_or_else(|e| panic!("{codec}: {e}"));
+        let sum: f64 = t.row(0).unwrap().map(|k| f64::from(t.entry(0, k).unwrap().1.to_f32())).sum();
+        assert!(sum <= 1.0, "{codec}: decoded sum {sum}");
+    }
+}

@@ -485,6 +485,7 @@ both_paths! {
     restart_after_dimming => restart_is_cold::<S>();
     stateless_patches => stateless_patches_show_the_static_base::<S>();
     budget_partition => budget_partition_invariance::<S>();
+    light_change_during_scan => light_change_during_the_scan::<S>();
 }
 
 #[test]
@@ -562,4 +563,32 @@ fn unreachable_tolerances_are_refused() {
     let mut f = Store::<f32>::for_table(&t);
     let refused = radiosity_core::Solver::new(&t, f.buffers(), Config { tolerance: -1e-30, overshoot: 0 });
     assert!(matches!(refused, Err(SolverError::ToleranceBelowFloor { .. })), "{refused:?}");
+}
+
+/// A light change during a Gauss-Seidel sweep's end-of-sweep scan, after the changed slot was scanned: the sweep
+/// must not report convergence on the old magnitudes. Two patches, rows of one entry each: a sweep costs 2 row
+/// visits, 2 entries and 2 scan units, so a budget of 5 stops after scanning slot 0, the light's member. Found by
+/// `properties.rs` (the solver answered with the light at its previous intensity).
+fn light_change_during_the_scan<S: Arith>() {
+    let bytes = two_patch_scene(1.0).write();
+    let t = Table::parse(&bytes).unwrap();
+    let mut store = Store::<S>::for_table(&t);
+    let mut solver = common::solver(&mut store, &t, config());
+    converge(&mut solver, 100, 1_000_000);
+    assert_eq!(solver.step_gauss_seidel(5), Outcome::BudgetSpent { used: 5 });
+    solver.set_light(0, [4.0; 3]).unwrap();
+    let o = solver.step_gauss_seidel(1);
+    assert!(matches!(o, Outcome::BudgetSpent { used: 1 }), "the scan starts over: {o:?}");
+    let mut steps = 0;
+    while !matches!(solver.step_gauss_seidel(100), Outcome::Converged { .. }) {
+        steps += 1;
+        assert!(steps < 10_000);
+    }
+    for i in 0..2 {
+        let u = solver.unshot(i).unwrap();
+        let magnitude = u.iter().map(|x| x.to_f32().abs()).sum::<f32>();
+        assert!(magnitude <= TOL, "slot {i}: unshot {magnitude} above the tolerance after Converged");
+    }
+    // B_1 = 4 / (1 - rho_1 rho_2 F_12 F_21), as in `two_patch` (quantization and truncation well inside 1e-3).
+    assert_close("B_1 at the new intensity", solver.radiosity(0).unwrap()[0].to_f32(), 4.0 / 0.968, 1e-3);
 }

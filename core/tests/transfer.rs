@@ -71,11 +71,13 @@ fn bound(t: &Table<'_>, s: &Scene, intensity: &[[f32; 3]], i: usize, c: usize, f
     b += 2f64.powi(-11) * f64::from(p.base_emission[c])
         + (2f64.powi(-11) + 2f64.powi(-17)) * f64::from(p.base_irradiance[c]);
     let arithmetic = if fixed {
-        // One 2^-32 per decode and per product, plus the rounding of each intensity to Q32.32 (times T).
-        2f64.powi(-32) * (2.0 * f64::from(groups + 1) + magnitude)
+        // One 2^-32 per decode and per product, a response's decode times |I|, plus the rounding of each
+        // intensity to Q32.32 (times T).
+        let intensities: f64 = (0..groups as usize).map(|g| f64::from(intensity[g][c]).abs()).sum();
+        2f64.powi(-32) * (2.0 * f64::from(groups + 1) + intensities + magnitude)
     } else {
-        // One f32 rounding per term of the running sum (groups + 2 terms), relative 2^-24 of its magnitude.
-        2f64.powi(-24) * f64::from(groups + 2) * magnitude
+        // One f32 rounding per product and per sum (2 (groups + 1)), relative 2^-24 of the magnitude.
+        2f64.powi(-24) * f64::from(2 * (groups + 1)) * magnitude
     };
     b + arithmetic
 }

@@ -10,7 +10,9 @@
 //! - **Atomic writes** ([`write_atomic`]): every file is written to a temporary file in the same folder, flushed
 //!   to disk (`fsync`) and renamed over the target, so a run that fails or is killed half way leaves the previous
 //!   file intact and no partial file (the temporary file is removed on failure; a killed run can leave one
-//!   `.NAME.tmp-*` file, never a truncated `NAME`).
+//!   `.NAME.tmp-PID-N` file, never a truncated `NAME`). Nothing removes such a leftover (it may belong to a run
+//!   still writing); a later write passes over its name if it meets it (a recycled process id) and is not
+//!   otherwise affected by it.
 
 use std::fs::{File, OpenOptions};
 use std::io::Write;
@@ -69,14 +71,24 @@ fn temporary_beside(path: &Path) -> PathBuf {
     folder_of(path).join(format!(".{name}.tmp-{}-{n}", std::process::id()))
 }
 
+/// Creates a new temporary file beside `path` (see [`temporary_beside`]). A name that exists already is passed
+/// over for the next one: a run killed half way leaves its temporary file behind, and a later process can get
+/// the same process id (containers recycle small ids), so the same name.
+fn create_temporary(path: &Path) -> std::io::Result<(PathBuf, File)> {
+    loop {
+        let temporary = temporary_beside(path);
+        match OpenOptions::new().write(true).create_new(true).open(&temporary) {
+            Ok(file) => return Ok((temporary, file)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {}
+            Err(e) => return Err(e),
+        }
+    }
+}
+
 /// Checks that `folder` is a writable folder by creating and removing a temporary file in it; `path` is the
 /// output the check is for (named in the error).
 fn check_writable(path: &Path, folder: &Path) -> Result<(), FileError> {
-    let probe = temporary_beside(&folder.join("probe"));
-    OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
+    let (probe, _) = create_temporary(&folder.join("probe"))
         .map_err(|source| FileError::Io { path: path.to_path_buf(), source })?;
     std::fs::remove_file(&probe).map_err(|source| FileError::Io { path: probe, source })
 }
@@ -151,10 +163,9 @@ pub fn create_output_folder(dir: &Path) -> Result<(), FileError> {
 /// # Errors
 /// [`FileError::Io`] naming `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), FileError> {
-    let temporary = temporary_beside(path);
     let io = |source| FileError::Io { path: path.to_path_buf(), source };
+    let (temporary, mut file) = create_temporary(path).map_err(io)?;
     let written = (|| {
-        let mut file = OpenOptions::new().write(true).create_new(true).open(&temporary)?;
         file.write_all(bytes)?;
         file.sync_all()?;
         drop(file);

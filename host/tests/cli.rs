@@ -1,6 +1,7 @@
 //! The `radiosity` binary on bad input: every size has a limit checked before any work, every check that needs
 //! no computation comes before the scene is even read, output paths follow one policy, files are written
-//! atomically, the shipped relight script with dark frames plots, and scene warnings reach stderr.
+//! atomically (also when a bake is killed), the shipped relight script with dark frames plots, and scene
+//! warnings reach stderr.
 //!
 //! Most cases pass a scene path that does not exist: if the expected error comes out instead of one naming that
 //! path, the check ran before anything else.
@@ -178,6 +179,148 @@ fn writes_are_atomic_and_a_failed_write_leaves_the_previous_file() {
     assert!(stderr.contains("cornell.rft") && stderr.contains("File too large"), "{stderr}");
     assert_eq!(std::fs::read(&table).unwrap(), b"previous table");
     assert_eq!(listing(&dir), ["a.txt", "cornell.rft"], "no partial file left");
+}
+
+/// A bake of the Cornell box to `table` with at most `max_patches` patches, quiet unless `progress`.
+fn bake_command(table: &Path, max_patches: u32, progress: bool) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_radiosity"));
+    command.args(["bake", &scene("cornell-box.obj"), "--max-patches", &max_patches.to_string()]);
+    command.args(["--samples", "4", "--rays", "4", "-o", table.to_str().unwrap()]);
+    if !progress {
+        command.arg("-q");
+    }
+    command
+}
+
+/// The name pattern of `write_atomic`'s temporary files for `NAME` written by process `pid`:
+/// `.NAME.tmp-PID-N`.
+fn is_temporary_of(file: &str, name: &str, pid: u32) -> bool {
+    file.strip_prefix(&format!(".{name}.tmp-{pid}-")).is_some_and(|n| n.parse::<u64>().is_ok())
+}
+
+/// A child process killed (SIGKILL) and reaped when dropped, so a failing assertion leaves no process behind
+/// (a stopped one would never end).
+struct KillOnDrop(std::process::Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A bake killed in the middle leaves the previous table (and the capacities file written after it) intact and
+/// no partial table, in the two places it can be killed:
+/// - during the computation, by SIGKILL: the bake is stopped (SIGSTOP) once stderr shows its mesh is done and
+///   its form factors start, the folder is inspected while it cannot move, then it is killed: nothing but
+///   the previous table is there, before and after;
+/// - while its temporary file exists, half written: a file size limit below the table's size, with SIGXFSZ at
+///   its default action, kills the bake inside `write` (the kernel's signal, no handler and no cleanup, as
+///   SIGKILL there would): the previous table is intact and the one file left beside it is the temporary,
+///   named `.cornell.rft.tmp-PID-N` after the killed process and holding the start of a table. Nothing
+///   removes it (the files policy, `radiosity_host::files`); the next bake writes its table beside it
+///   undisturbed.
+#[test]
+fn a_killed_bake_leaves_the_previous_table_and_no_partial_file() {
+    use std::io::{BufRead, BufReader};
+    use std::os::unix::process::ExitStatusExt;
+
+    let dir = folder("killed");
+    let table = dir.join("cornell.rft");
+    // A bake writes its table, then the capacities a firmware build needs beside it.
+    let capacities = dir.join("cornell.rft.capacities.json");
+    let out = bake_command(&table, 60, false).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let previous = (std::fs::read(&table).unwrap(), std::fs::read(&capacities).unwrap());
+    radiosity_core::Table::parse(&previous.0).expect("the previous table is a table");
+    let intact = || {
+        for (path, before) in [(&table, &previous.0), (&capacities, &previous.1)] {
+            let now = std::fs::read(path).unwrap();
+            assert!(
+                now == *before,
+                "{} changed: {} bytes, {} before",
+                path.display(),
+                now.len(),
+                before.len()
+            );
+        }
+    };
+    let outputs = ["cornell.rft", "cornell.rft.capacities.json"];
+
+    // Killed by SIGKILL during the computation (a bake of thousands of patches, stopped long before it writes).
+    let mut bake =
+        KillOnDrop(bake_command(&table, 3000, true).stderr(std::process::Stdio::piped()).spawn().unwrap());
+    let bake = &mut bake.0;
+    let mut stderr = BufReader::new(bake.stderr.take().unwrap());
+    let mut seen = String::new();
+    loop {
+        let mut line = String::new();
+        let read = stderr.read_line(&mut line).unwrap();
+        seen.push_str(&line);
+        assert!(read > 0, "the bake ended before meshing was reported: {seen}");
+        if line.contains(" patches (max edge ") {
+            break;
+        }
+    }
+    let stop = Command::new("kill").args(["-STOP", &bake.id().to_string()]).status().unwrap();
+    assert!(stop.success());
+    assert!(bake.try_wait().unwrap().is_none(), "stopped, not finished: {seen}");
+    assert_eq!(listing(&dir), outputs, "stopped while computing: no temporary file yet");
+    intact();
+    bake.kill().unwrap();
+    let status = bake.wait().unwrap();
+    assert_eq!(status.signal(), Some(9), "killed by SIGKILL: {status:?}");
+    intact();
+    assert_eq!(listing(&dir), outputs, "no partial file");
+
+    // Killed while its temporary file exists: the table (more than 8 KiB) meets the limit of 8 KiB part way.
+    let script = format!(
+        "ulimit -c 0; ulimit -f 8; exec '{}' bake '{}' -q --max-patches 100 --samples 4 --rays 4 -o '{}'",
+        env!("CARGO_BIN_EXE_radiosity"),
+        scene("cornell-box.obj"),
+        table.display()
+    );
+    let killed = Command::new("bash").args(["-c", &script]).spawn().unwrap();
+    let pid = killed.id();
+    let out = killed.wait_with_output().unwrap();
+    assert_eq!(out.status.signal(), Some(25), "killed by SIGXFSZ inside write: {:?}", out.status);
+    intact();
+    let files = listing(&dir);
+    assert_eq!(files.len(), 3, "{files:?}");
+    assert!(is_temporary_of(&files[0], "cornell.rft", pid), "{files:?}: the temporary of process {pid}");
+    assert_eq!(files[1..], outputs);
+    let stale = dir.join(&files[0]);
+    let partial = std::fs::read(&stale).unwrap();
+    assert!(partial.len() <= 8192 && partial.starts_with(b"RFT\x1a"), "the start of a table");
+    assert!(radiosity_core::Table::parse(&partial).is_err(), "a partial table");
+
+    // The next bake is not disturbed by the leftover, which stays as it was.
+    let out = bake_command(&table, 60, false).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    radiosity_core::Table::parse(&std::fs::read(&table).unwrap()).expect("a complete table");
+    assert_eq!(listing(&dir), files);
+    assert_eq!(std::fs::read(&stale).unwrap(), partial);
+}
+
+/// A leftover temporary file with the very name a write would pick next (a killed run's, whose process id came
+/// round again) does not make the write fail: the name is passed over.
+#[test]
+fn a_leftover_temporary_with_a_recycled_process_id_is_passed_over() {
+    let dir = folder("recycled");
+    let path = dir.join("a.txt");
+    // Every name this process's writes could pick next (its counter is shared with the other tests).
+    // The same for the probe that checks a folder is writable.
+    let pid = std::process::id();
+    let stale: Vec<String> =
+        (0..2000).flat_map(|n| [format!(".a.txt.tmp-{pid}-{n}"), format!(".probe.tmp-{pid}-{n}")]).collect();
+    for name in &stale {
+        std::fs::write(dir.join(name), b"left by a killed run").unwrap();
+    }
+    write_atomic(&path, b"new").expect("the leftover names are passed over");
+    assert_eq!(std::fs::read(&path).unwrap(), b"new");
+    assert_eq!(listing(&dir).len(), stale.len() + 1, "the leftovers stay, nothing else is added");
+    assert!(check_output_file(&dir.join("b.txt")).is_ok());
+    assert_eq!(listing(&dir).len(), stale.len() + 1, "the probe leaves nothing");
 }
 
 #[test]

@@ -280,6 +280,21 @@ pub(crate) fn quantize_row_with_exponent(
         *c = codec.round_down(f32_to_exact(v), e);
         sum = sum.saturating_add(codec.decode(*c, e).to_exact());
     }
+    // A row whose true sum is above the target (the writer accepts sums up to `1 + ROW_SUM_SLACK` and caps the
+    // target at 1) can round down to more than the target: lower its largest code, one step at a time, until the
+    // decoded sum fits (the excess is far below a top-binade step of any code, so this rarely takes two steps).
+    while sum > target {
+        let Some((k, _)) = codes.iter().enumerate().max_by_key(|&(k, &c)| (c, core::cmp::Reverse(k))) else {
+            break;
+        };
+        let Some(c) = codes.get_mut(k) else { break };
+        if *c == 0 {
+            break;
+        }
+        let lower = codec.decode(*c - 1, e).to_exact();
+        sum = sum - codec.decode(*c, e).to_exact() + lower;
+        *c -= 1;
+    }
     let mut slack = target.saturating_sub(sum);
     if slack == 0 {
         return sum;

@@ -36,7 +36,8 @@
 //! sender's area over its own. So every row's decoded sum is `<=` its true sum and `<= 1`, which makes the
 //! solver's iteration matrix `R F` have row sums `< 1` (reflectance codes are `< 1`): shooting converges. The
 //! deficit is less than one code step plus the losses of entries smaller than half a step, which are only
-//! rounded down.
+//! rounded down. A row whose true sum is above 1 (the writer accepts up to `1 + ROW_SUM_SLACK`) can round down
+//! to more than 1; its largest entry is then lowered by whole code steps until the decoded sum is `<= 1`.
 //!
 //! # Reflectance code
 //! `u16` `q`, `rho = q / 65536`, round to nearest, so `0 <= rho <= 65535/65536 < 1` always; absolute error

@@ -34,6 +34,7 @@ impl<S: Scalar> Solver<'_, S> {
                 return Err(SolverError::BadValue { channel: c as u8 });
             }
         }
+        self.restart_scan();
         let new = rgb.map(S::from_f32);
         let old = self.intensity(group).unwrap_or([S::ZERO; 3]);
         let delta = [new[0].sub(old[0]), new[1].sub(old[1]), new[2].sub(old[2])];
@@ -73,6 +74,7 @@ impl<S: Scalar> Solver<'_, S> {
                 return Err(SolverError::BadValue { channel: c as u8 });
             }
         }
+        self.restart_scan();
         let new_codes = rgb.map(encode_reflectance);
         let old_codes = self.buf.reflectance.get(material as usize).copied().unwrap_or([0; 3]);
         if let Some(r) = self.buf.reflectance.get_mut(material as usize) {

@@ -45,6 +45,19 @@ impl<S: Scalar> Solver<'_, S> {
         self.sweep_step(Some(scratch), budget)
     }
 
+    /// Called on a light or reflectance change: a Gauss-Seidel sweep in its end-of-sweep scan starts the scan
+    /// over, since the slots it has scanned may have received unshot power; otherwise the sweep would judge
+    /// convergence on their old magnitudes and could report [`Outcome::Converged`] with unshot power above the
+    /// tolerance. (A Jacobi sweep refuses changes; a sweep still visiting rows scans everything afterwards.)
+    pub(super) fn restart_scan(&mut self) {
+        if let Some(s) = self.sweep.as_mut() {
+            if let Phase::Scan(_) = s.phase {
+                s.phase = Phase::Scan(0);
+                s.max = S::ZERO;
+            }
+        }
+    }
+
     pub(super) fn sweep_step(&mut self, mut scratch: Option<&mut [[S; 3]]>, budget: u32) -> Outcome {
         let mut used = 0u32;
         if self.slots == 0 {
