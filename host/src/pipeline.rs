@@ -512,9 +512,9 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
         Some(ClosureReport { balance: Closure { refused: Some(r), .. }, .. }) => {
             eprintln!(
                 "warning: form factors: closed scene (none of {} hemisphere rays escaped), but closing the rows \
-                 would move the entry of patches {} and {} by {:.1e} standard deviations of its estimate: rows \
-                 left as estimated (sums {:.6}..{:.6}; more --rays makes them closer to 1)",
-                stats.escape_rays, r.row, r.col, r.sigmas, stats.row_sum_min, stats.row_sum_max
+                 would make the form factor between patches {} and {} {:.3e}: rows left as estimated (sums \
+                 {:.6}..{:.6}; more --rays brings them closer to 1)",
+                stats.escape_rays, r.row, r.col, r.form_factor, stats.row_sum_min, stats.row_sum_max
             );
         }
         Some(c) => eprintln!(

@@ -567,8 +567,8 @@ fn kernel_evaluations_follow_the_rules() {
 /// at desk height, both facing down: the kind of scene a newcomer writes first. The panels' backs make many
 /// pairs partly visible in a closed scene, and closing the rows by correcting those entries once asked for
 /// changes of 1e8 (the least-squares system of the correction was nearly singular), which the row check then
-/// refused. Closing beyond the entries' noise is now refused instead ([`radiosity_host::patch::Closure::refused`]),
-/// and every entry stays a form factor.
+/// refused. A closure that would make a form factor above 1 is now refused instead, the rows left as estimated
+/// ([`radiosity_host::patch::Closure::refused`]), and every entry stays a form factor.
 #[test]
 fn a_closed_room_with_hanging_lamps_bakes() {
     let dir = std::env::temp_dir().join(format!("radiosity-ff-room-{}", std::process::id()));

@@ -18,30 +18,24 @@ pub struct Closure {
     pub max_entry_change: f64,
     /// Adjustable entries that the correction would have made negative and that were set to 0 instead.
     pub entries_zeroed: usize,
-    /// The correction was refused and every entry left as estimated: closing the rows would have changed an
-    /// entry by more than [`CLOSURE_MAX_SIGMA`] of its standard deviation (the deficits cannot be explained by
-    /// the estimates' noise, e.g. when the adjustable entries of a group of rows cannot move their sums
-    /// independently and the least-squares system is nearly singular). Set with `rows_closed == 0`.
+    /// The correction was refused and every entry left as estimated: closing the rows would have made a form
+    /// factor larger than 1 (or not a number), which happens when the adjustable entries of a group of rows cannot
+    /// move their sums independently and the least-squares system is nearly singular. Set with
+    /// `rows_closed == 0`.
     pub refused: Option<RefusedClosure>,
 }
 
-/// Why [`FormFactorMatrix::close_rows`] refused to close the rows: the first entry the correction would have moved
-/// beyond its noise.
+/// Why [`FormFactorMatrix::close_rows`] refused to close the rows: the first entry the correction would have made
+/// impossible.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefusedClosure {
     /// Row of the entry.
     pub row: usize,
     /// Column of the entry.
     pub col: usize,
-    /// The change of `G_ij = A_i F_ij` it would have taken, in standard deviations.
-    pub sigmas: f64,
+    /// The larger of the pair's two form factors `F_ij`, `F_ji` the correction would have made (above 1, or NaN).
+    pub form_factor: f64,
 }
-
-/// Largest change of an entry, in standard deviations of its estimate, that closing the rows may make: a
-/// correction of a noisy estimate beyond this is not noise being removed but a row the adjustable entries cannot
-/// close (a Gaussian estimate is this far off with probability below 1e-22; the variance model is approximate,
-/// hence the wide margin).
-pub const CLOSURE_MAX_SIGMA: f64 = 10.0;
 
 /// Relative tolerance of the conjugate-gradient solve in [`FormFactorMatrix::close_rows`].
 pub const CLOSURE_TOLERANCE: f64 = 1e-14;
@@ -51,9 +45,9 @@ impl FormFactorMatrix {
     /// reciprocal; returns what it did.
     ///
     /// The matrix must already be reciprocal (see [`FormFactorMatrix::enforce_reciprocity`]) and
-    /// `variance(i, j)` symmetric: the variance of the estimate of `G_ij = A_i F_ij`, 0 for exact entries. If the
-    /// correction would move an entry by more than [`CLOSURE_MAX_SIGMA`] standard deviations, nothing is changed
-    /// and [`Closure::refused`] says where. The correction is the generalized least-squares one: minimize `sum (δ_ij)² / w_ij` over symmetric
+    /// `variance(i, j)` symmetric: the variance (or any common multiple of it) of the estimate of
+    /// `G_ij = A_i F_ij`, 0 for exact entries. If the correction would make a form factor larger than 1, nothing
+    /// is changed and [`Closure::refused`] says where. The correction is the generalized least-squares one: minimize `sum (δ_ij)² / w_ij` over symmetric
     /// changes `δ` of the energy exchanges subject to every row of `G + δ` summing to `A_i`. Its Lagrange
     /// conditions give `δ_ij = w_ij (λ_i + λ_j)` with `(D + W) λ = A - G 1`, `D = diag(W 1)`, a symmetric positive
     /// semidefinite system solved by Jacobi-preconditioned conjugate gradients. Entries with more noise take more of
@@ -145,9 +139,10 @@ impl FormFactorMatrix {
                 if w[k] > 0.0 {
                     let (i, j) = (row_of[k], self.col[k] as usize);
                     let new = g[k] + w[k] * (lambda[i] + lambda[j]);
-                    let sigmas = (new - g[k]).abs() / w[k].sqrt();
-                    if refused.is_none() && (sigmas.is_nan() || sigmas > CLOSURE_MAX_SIGMA) {
-                        refused = Some(RefusedClosure { row: i, col: j, sigmas });
+                    // G_ij = A_i F_ij = A_j F_ji: both form factors at most 1.
+                    let largest = new / area[i].min(area[j]);
+                    if refused.is_none() && (largest.is_nan() || largest > 1.0) {
+                        refused = Some(RefusedClosure { row: i, col: j, form_factor: largest });
                     }
                     if new < 0.0 {
                         self.value[k] = 0.0;
@@ -194,28 +189,25 @@ impl FormFactorMatrix {
 #[cfg(test)]
 mod tests {
     use super::super::FormFactorMatrix;
-    use super::CLOSURE_MAX_SIGMA;
 
-    /// Two unit patches seeing each other by half: each row is 0.5 short. With the entry's standard deviation
-    /// `s`, closing means changing `G` by 0.5, that is `0.5 / s` standard deviations: done when that is within
-    /// [`CLOSURE_MAX_SIGMA`], refused (nothing changed) when it is not.
+    /// Two unit patches seeing each other by half: each row is 0.5 short, and the one adjustable entry closes both
+    /// (F becomes 1). Two patches of different areas that see only each other cannot both close (one of the two
+    /// form factors would exceed 1), so nothing is changed.
     #[test]
-    fn closing_beyond_the_noise_is_refused() {
-        let half = || FormFactorMatrix::new(2, vec![0, 1, 2], vec![1, 0], vec![0.5, 0.5]).unwrap();
-        let area = [1.0, 1.0];
-        for (s, closes) in [(0.1, true), (0.5 / (0.9 * CLOSURE_MAX_SIGMA), true), (1e-3, false)] {
-            let mut m = half();
-            let report = m.close_rows(&area, |_, _| s * s);
-            if closes {
-                assert!(report.refused.is_none() && report.rows_closed == 2, "s {s}: {report:?}");
-                assert!((m.row_sum(0) - 1.0).abs() < 1e-12 && (m.row_sum(1) - 1.0).abs() < 1e-12);
-            } else {
-                let r = report.refused.expect("refused");
-                assert!((r.sigmas - 0.5 / s).abs() < 1e-6 * r.sigmas, "{r:?}");
-                assert_eq!((report.rows_closed, report.rows_left), (0, 2));
-                assert_eq!(m.row_sum(0), 0.5, "left as estimated");
-                assert!((report.max_residual_left - 0.5).abs() < 1e-15);
-            }
-        }
+    fn closing_that_needs_a_form_factor_above_one_is_refused() {
+        let mut m = FormFactorMatrix::new(2, vec![0, 1, 2], vec![1, 0], vec![0.5, 0.5]).unwrap();
+        let report = m.close_rows(&[1.0, 1.0], |_, _| 0.01);
+        assert!(report.refused.is_none() && report.rows_closed == 2, "{report:?}");
+        assert!((m.row_sum(0) - 1.0).abs() < 1e-12 && (m.row_sum(1) - 1.0).abs() < 1e-12);
+
+        // A unit patch and one of area 4 seeing each other only: closing both rows would need G_01 = 1 for the
+        // first and 4 for the second; the least-squares compromise gives F_01 above 1.
+        let mut m = FormFactorMatrix::new(2, vec![0, 1, 2], vec![1, 0], vec![0.5, 0.125]).unwrap();
+        let before = m.clone();
+        let report = m.close_rows(&[1.0, 4.0], |_, _| 0.01);
+        let r = report.refused.expect("refused");
+        assert!(r.form_factor > 1.0, "{r:?}");
+        assert_eq!((report.rows_closed, report.rows_left), (0, 2));
+        assert_eq!(m, before, "left as estimated");
     }
 }

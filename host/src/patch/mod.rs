@@ -26,5 +26,5 @@ pub struct Patch {
 mod closure;
 mod matrix;
 
-pub use closure::{Closure, RefusedClosure, CLOSURE_MAX_SIGMA, CLOSURE_TOLERANCE};
+pub use closure::{Closure, RefusedClosure, CLOSURE_TOLERANCE};
 pub use matrix::{FormFactorMatrix, MatrixError, ReciprocityChange, RowClamp};
