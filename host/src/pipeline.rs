@@ -513,7 +513,8 @@ fn report_form_factors(stats: &FormFactorStats, reciprocity_change: ReciprocityC
             eprintln!(
                 "warning: form factors: closed scene (none of {} hemisphere rays escaped), but closing the rows \
                  would make the form factor between patches {} and {} {:.3e}: rows left as estimated (sums \
-                 {:.6}..{:.6}; more --rays brings them closer to 1)",
+                 {:.6}..{:.6}; a patch that sees the back of a face, which absorbs, sums below 1 even in a \
+                 closed scene; if none does, more --rays brings the sums closer to 1)",
                 stats.escape_rays, r.row, r.col, r.form_factor, stats.row_sum_min, stats.row_sum_max
             );
         }
