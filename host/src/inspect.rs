@@ -166,7 +166,7 @@ impl Stats {
 pub struct GroupInfo {
     /// Position in the table.
     pub index: u32,
-    /// Identifier (a bake uses FNV-1a of the group name, [`crate::bake::group_id`]).
+    /// Identifier (a bake uses FNV-1a of the group name, [`radiosity_core::group_id`]).
     pub id: u32,
     /// The group's name, when known: a name given to [`InspectReport::name_groups`] whose id is `id` (the table
     /// itself stores only the id).
@@ -184,7 +184,7 @@ pub struct InspectReport {
     pub version: u16,
     /// CRC-32 of the table.
     pub crc: u32,
-    /// Scene fingerprint from the header ([`crate::bake::scene_fingerprint`] of the patches it was baked from).
+    /// Scene fingerprint from the header (`bake::scene_fingerprint` of the patches it was baked from).
     pub fingerprint: u64,
     /// Counts.
     pub counts: TableCounts,
@@ -227,12 +227,12 @@ pub struct TransferInfo {
 }
 
 impl InspectReport {
-    /// Names every light group whose id is the [`crate::bake::group_id`] of one of `names` (e.g. the light groups
+    /// Names every light group whose id is the [`radiosity_core::group_id`] of one of `names` (e.g. the light groups
     /// of the scene the table was baked from: `radiosity inspect TABLE --scene SCENE.obj`); names that match no
     /// group are ignored. Returns how many groups have a name afterwards.
     pub fn name_groups<'a>(&mut self, names: impl IntoIterator<Item = &'a str>) -> usize {
         for name in names {
-            let id = crate::bake::group_id(name);
+            let id = radiosity_core::group_id(name);
             for g in self.groups.iter_mut().filter(|g| g.id == id) {
                 g.name = Some(name.to_owned());
             }

@@ -19,9 +19,9 @@
 //! leaf has received, through every link on its chain, the sender's full radiosity.
 
 use super::link::Link;
-use super::solve::{pull, NodeRadiosity};
+use super::solve::{pull, reflectance, NodeRadiosity};
 use super::span::Span;
-use super::tree::{Kind, Tree, NONE};
+use super::tree::{Tree, NONE};
 use crate::rgb::{max_channel, Rgb};
 
 /// A node shoots in a round when its unshot power is at least this share of the round's largest.
@@ -39,14 +39,7 @@ pub(super) fn shoot(
 ) -> NodeRadiosity {
     let n = tree.nodes.len();
     let e = e.to_vec();
-    let rho: Vec<Rgb> = tree
-        .nodes
-        .iter()
-        .map(|node| match &node.kind {
-            Kind::Surface { rho, .. } => *rho,
-            Kind::Cluster { .. } => Rgb::ZERO,
-        })
-        .collect();
+    let rho = reflectance(tree);
     // Outgoing links per node, as (receiver, form factor at the receiver).
     let mut start = vec![0usize; n + 1];
     for l in links {

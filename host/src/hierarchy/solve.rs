@@ -20,6 +20,17 @@ pub(super) struct NodeRadiosity {
     pub(super) change: f64,
 }
 
+/// Reflectance per node (its surface's for surfaces, zero for clusters).
+pub(super) fn reflectance(tree: &Tree) -> Vec<Rgb> {
+    tree.nodes
+        .iter()
+        .map(|n| match &n.kind {
+            Kind::Surface { rho, .. } => *rho,
+            Kind::Cluster { .. } => Rgb::ZERO,
+        })
+        .collect()
+}
+
 /// Emission per node (its surface's for surfaces, zero for clusters).
 pub(super) fn emission(tree: &Tree) -> Vec<Rgb> {
     tree.nodes
@@ -74,14 +85,7 @@ pub(super) fn solve(
 ) -> NodeRadiosity {
     let n = tree.nodes.len();
     let e = e.to_vec();
-    let rho: Vec<Rgb> = tree
-        .nodes
-        .iter()
-        .map(|n| match &n.kind {
-            Kind::Surface { rho, .. } => *rho,
-            Kind::Cluster { .. } => Rgb::ZERO,
-        })
-        .collect();
+    let rho = reflectance(tree);
     let mut b = e.clone();
     let mut spans = vec![Span::ZERO; n];
     pull(tree, &mut b, &e, &mut spans);
