@@ -16,6 +16,8 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 use crate::sim::{Arith, ScriptSummary};
 
@@ -94,7 +96,7 @@ pub fn firmware_dir() -> PathBuf {
 }
 
 /// Builds the firmware for `target` (release) with the table at `table` and the scripts at `scripts`; returns
-/// the ELF path.
+/// the path of a copy of the ELF that no later build (another thread's, with another table) overwrites.
 ///
 /// # Errors
 /// A message with cargo's output if the build fails.
@@ -112,7 +114,60 @@ pub fn build_fault_test_firmware(target: Target, table: &Path, scripts: &Path) -
     cargo_build(target, table, scripts, true)
 }
 
+/// Held from a firmware build until its ELF is copied out: the builds of one target share cargo's output path,
+/// and two threads building it with different tables (parallel tests) would otherwise each run the other's.
+static BUILD: Mutex<()> = Mutex::new(());
+
+/// Numbers the copied ELFs of this process.
+static BUILDS: AtomicUsize = AtomicUsize::new(0);
+
+/// Builds as described at [`build_firmware`] and returns a copy of the ELF that no later build overwrites
+/// (`elf/` beside cargo's output, named by the process and a counter).
 fn cargo_build(target: Target, table: &Path, scripts: &Path, fault_test: bool) -> Result<PathBuf, String> {
+    // A thread that panicked while holding the lock left nothing half-done that matters here.
+    let _guard = BUILD.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+    let built = cargo_build_locked(target, table, scripts, fault_test)?;
+    let dir = built.parent().and_then(Path::parent).map_or_else(|| PathBuf::from("."), |p| p.join("elf"));
+    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    remove_stale_copies(&dir);
+    let copy = dir.join(format!(
+        "radiosity-firmware-{}-{}{}",
+        std::process::id(),
+        BUILDS.fetch_add(1, Ordering::Relaxed),
+        if fault_test { "-fault-test" } else { "" }
+    ));
+    std::fs::copy(&built, &copy)
+        .map_err(|e| format!("cannot copy the firmware {} to {}: {e}", built.display(), copy.display()))?;
+    Ok(copy)
+}
+
+/// Removes the ELF copies of processes that have ended (their id no longer under `/proc`), so that the copies do
+/// not pile up; nothing is removed where `/proc` does not exist.
+fn remove_stale_copies(dir: &Path) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let pid = name
+            .to_str()
+            .and_then(|n| n.strip_prefix("radiosity-firmware-"))
+            .and_then(|n| n.split('-').next());
+        if let Some(pid) = pid.filter(|p| !p.is_empty() && p.bytes().all(|b| b.is_ascii_digit())) {
+            if !Path::new("/proc").join(pid).exists() {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
+    }
+}
+
+fn cargo_build_locked(
+    target: Target,
+    table: &Path,
+    scripts: &Path,
+    fault_test: bool,
+) -> Result<PathBuf, String> {
     let dir = firmware_dir();
     // The firmware's build script runs in the firmware workspace, so relative paths must be made absolute here.
     let absolute =
