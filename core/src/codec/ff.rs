@@ -48,6 +48,31 @@ pub(crate) fn pow2_f32(k: i32) -> f32 {
     f32::from_bits(((k + 127) as u32) << 23)
 }
 
+/// [`FfCodec::decode`] for one row, its constants precomputed ([`FfCodec::row_decoder`]) so that a loop over a
+/// row's entries does not recompute them per entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RowDecoder {
+    max_code: u32,
+    m_bits: u32,
+    base: i32,
+}
+
+impl RowDecoder {
+    /// The code's value, as [`FfCodec::decode`] gives it (codes above the largest are clamped).
+    #[must_use]
+    #[inline]
+    pub fn decode(self, code: u32) -> Frac {
+        let code = code.min(self.max_code);
+        let x = code >> self.m_bits;
+        let m = code & ((1u32 << self.m_bits) - 1);
+        if x == 0 {
+            Frac { mantissa: m, shift: self.base.max(0) as u32 }
+        } else {
+            Frac { mantissa: (1u32 << self.m_bits) | m, shift: (self.base + 1 - x as i32).max(0) as u32 }
+        }
+    }
+}
+
 /// A form-factor codec: code width and exponent bits (see the module docs for the decoding rule).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FfCodec {
@@ -136,16 +161,16 @@ impl FfCodec {
     #[must_use]
     #[inline]
     pub fn decode(self, code: u16, row_exponent: u8) -> Frac {
-        let code = u32::from(code.min(self.max_code()));
+        self.row_decoder(row_exponent).decode(u32::from(code))
+    }
+
+    /// The constants of [`FfCodec::decode`] for rows of exponent `row_exponent`, computed once for a row's
+    /// entries.
+    #[must_use]
+    #[inline]
+    pub fn row_decoder(self, row_exponent: u8) -> RowDecoder {
         let (m_bits, base) = self.shape(row_exponent);
-        let x = code >> m_bits;
-        let m = code & ((1u32 << m_bits) - 1);
-        if x == 0 {
-            Frac { mantissa: m, shift: base.max(0) as u32 }
-        } else {
-            let shift = base + 1 - x as i32;
-            Frac { mantissa: (1u32 << m_bits) | m, shift: shift.max(0) as u32 }
-        }
+        RowDecoder { max_code: u32::from(self.max_code()), m_bits, base }
     }
 
     /// Largest code whose decoded value is `<= exact` (`exact` in units of `2^-EXACT_SHIFT`).

@@ -5,7 +5,7 @@
 use super::layout::{le_f32, le_u16, le_u32, rgb16, SectionSizes};
 use super::parse::Table;
 use crate::codec::transfer::decode_transfer;
-use crate::codec::{FfCodec, Frac};
+use crate::codec::{FfCodec, Frac, RowDecoder};
 
 /// One light-group member: a patch and its emission at unit intensity.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -332,8 +332,7 @@ impl<'a> Row<'a> {
         Entries {
             receivers: receivers.chunks_exact(self.index_bytes.max(1)),
             codes: codes.chunks_exact(cb.max(1)),
-            codec: self.codec,
-            exponent: self.exponent,
+            decoder: self.codec.row_decoder(self.exponent),
         }
     }
 
@@ -349,8 +348,7 @@ impl<'a> Row<'a> {
 pub struct Entries<'a> {
     receivers: core::slice::ChunksExact<'a, u8>,
     codes: core::slice::ChunksExact<'a, u8>,
-    codec: FfCodec,
-    exponent: u8,
+    decoder: RowDecoder,
 }
 
 impl Iterator for Entries<'_> {
@@ -367,11 +365,11 @@ impl Iterator for Entries<'_> {
             _ => 0,
         };
         let code = match *c {
-            [a] => u16::from(a),
-            [a, b] => u16::from_le_bytes([a, b]),
+            [a] => u32::from(a),
+            [a, b] => u32::from(u16::from_le_bytes([a, b])),
             _ => 0,
         };
-        Some((receiver, self.codec.decode(code, self.exponent)))
+        Some((receiver, self.decoder.decode(code)))
     }
 
     fn size_hint(&self) -> (usize, Option<usize>) {
