@@ -8,7 +8,7 @@
 //!   coloured by error against a reference (with a legend strip below the picture).
 //! - [`default_camera`]: the Cornell box's published camera for scenes named `cornell-box*`, else an automatic view
 //!   of the bounding box.
-//! - [`write_light_map`]: the per-face light-map atlas (`.hdr`, `.png`, `.json`).
+//! - [`write_light_map`]: the per-face light-map atlas (`.exr`, `.hdr`, `.png`, `.json`).
 
 use std::path::{Path, PathBuf};
 
@@ -241,8 +241,8 @@ fn stack(top: &RgbImage, bottom: &RgbImage) -> RgbImage {
 /// What [`write_light_map`] wrote: the files and the atlas's resolution.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightMapFiles {
-    /// `<stem>.hdr`, `<stem>.png` and `<stem>.json`.
-    pub paths: [PathBuf; 3],
+    /// `<stem>.exr`, `<stem>.hdr`, `<stem>.png` and `<stem>.json`.
+    pub paths: [PathBuf; 4],
     /// Atlas width in texels.
     pub width: u32,
     /// Atlas height in texels.
@@ -252,7 +252,7 @@ pub struct LightMapFiles {
 }
 
 /// Bakes the light map of `prepared` with radiosity `b` (smooth shading, resolution from `options`) and writes
-/// `<stem>.hdr`, `<stem>.png` and `<stem>.json`. Every OBJ face gets a rectangle.
+/// `<stem>.exr`, `<stem>.hdr`, `<stem>.png` and `<stem>.json`. Every OBJ face gets a rectangle.
 ///
 /// # Errors
 /// [`ViewError::Picture`] if a face has no patch, `b` has the wrong length or holds a non-finite value, the
@@ -268,3 +268,4 @@ pub fn write_light_map(
     let paths = map.write(stem, None)?;
     Ok(LightMapFiles { paths, width: map.atlas.width, height: map.atlas.height, texel_size: map.texel_size })
 }
+

@@ -11,9 +11,19 @@
 //! over the texel grid, and the shader moves the point onto that patch's boundary). Each rectangle is surrounded by `padding` texels filled the same way, so
 //! bilinear filtering near a face's edge never reads another face's texels.
 //!
+//! **Seams and gutters.** The smooth shader gives patches of the same material and plane the same value at a
+//! shared vertex, also when they belong to different faces (the Cornell box's ceiling is four faces around the
+//! light), so the field is continuous across such edges; each face's chart samples that one field. A bilinear
+//! filter at an atlas point `(ax, ay)` reads the four texels around `(ax - 0.5, ay - 0.5)` (see
+//! [`LightMap::bilinear`]), so at a point of a face it reaches at most one texel beyond the face's rectangle: a
+//! padding of at least 1 (the default is 2) keeps every read inside the face's own padded rectangle, where every
+//! texel is written with the field at (or moved onto) the face. Mip-mapped sampling would reach further: a
+//! sampler for this atlas should not use mip maps (the `.glb` export's does not).
+//!
 //! Packing is a shelf packer (rectangles sorted by decreasing height, placed left to right on shelves as wide as
-//! the square root of the total padded area). The atlas is written as linear Radiance `.hdr` (radiosity in W/m^2),
-//! a tone-mapped PNG (see [`super::tonemap`]) and a JSON map (see [`LightMap::to_json`]).
+//! the square root of the total padded area). The atlas is written as OpenEXR (linear radiosity in W/m^2, RGB
+//! 32-bit float; see [`super::hdr`]), linear Radiance `.hdr` (the same values in RGBE, 8-bit mantissas), a
+//! tone-mapped PNG (see [`super::tonemap`]) and a JSON map (see [`LightMap::to_json`]).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -21,7 +31,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use serde::Serialize;
 
-use super::hdr::{write_hdr, LinearImage};
+use super::hdr::{write_exr, write_hdr, LinearImage};
 use super::shading::SmoothShader;
 use super::{write_file, write_png, PictureError, ToneMap};
 use crate::patch::Patch;
@@ -34,7 +44,7 @@ pub struct LightMapOptions {
     pub texel_size: Option<f64>,
     /// Texels across the largest face when `texel_size` is `None`.
     pub max_face_texels: u32,
-    /// Border texels around each face rectangle.
+    /// Border texels around each face rectangle; at least 1 (see the module docs on gutters).
     pub padding: u32,
 }
 
@@ -84,6 +94,40 @@ impl FaceRect {
             f64::from(self.x) + d.dot(self.u_axis) / self.texel_size,
             f64::from(self.y) + d.dot(self.v_axis) / self.texel_size,
         )
+    }
+}
+
+impl FaceRect {
+    /// The rectangle with its padding: `(left, top, width, height)` in atlas texels. Every texel in it is
+    /// written by [`bake_light_map`]; a bilinear filter at any point of the face reads only texels in it.
+    #[must_use]
+    pub fn padded(&self, padding: u32) -> (u32, u32, u32, u32) {
+        (self.x - padding, self.y - padding, self.width + 2 * padding, self.height + 2 * padding)
+    }
+}
+
+/// The four texels a bilinear filter reads at a continuous atlas point, with their weights (they sum to 1).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    /// Texel `(column, row)` of each of the four reads; indices may be -1 or the atlas size at its border.
+    pub texels: [(i64, i64); 4],
+    /// The weight of each read.
+    pub weights: [f64; 4],
+}
+
+impl Footprint {
+    /// The footprint at atlas point `(ax, ay)` (texel `(i, j)` spans `[i, i + 1) x [j, j + 1)`; its centre is at
+    /// `(i + 0.5, j + 0.5)`), as the GPU's linear (non-mip-mapped) filter computes it.
+    #[must_use]
+    pub fn at(ax: f64, ay: f64) -> Self {
+        let (sx, sy) = (ax - 0.5, ay - 0.5);
+        let (x0, y0) = (sx.floor(), sy.floor());
+        let (fx, fy) = (sx - x0, sy - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        Footprint {
+            texels: [(x0, y0), (x0 + 1, y0), (x0, y0 + 1), (x0 + 1, y0 + 1)],
+            weights: [(1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy],
+        }
     }
 }
 
@@ -190,6 +234,12 @@ pub fn bake_light_map(
         return Err(PictureError::invalid("light map texel size", format!("{texel_size} is not positive")));
     }
     let pad = options.padding;
+    if pad == 0 {
+        return Err(PictureError::invalid(
+            "light map padding",
+            "0 texels: bilinear filtering at a face's edge would read the neighbouring chart (at least 1)",
+        ));
+    }
     let mut sizes = Vec::with_capacity(layouts.len());
     for l in &layouts {
         let side = |e: f64| (e / texel_size).ceil().max(1.0);
@@ -328,11 +378,18 @@ pub fn bake_light_map(
 impl LightMap {
     /// The JSON map: atlas size and files, conventions, and one entry per face (see [`FaceRect`]).
     #[must_use]
-    pub fn to_json(&self, hdr_file: &str, png_file: &str) -> serde_json::Value {
+    pub fn to_json(&self, exr_file: &str, hdr_file: &str, png_file: &str) -> serde_json::Value {
         serde_json::json!({
             "format": "radiosity-lightmap/1",
-            "atlas": {"width": self.atlas.width, "height": self.atlas.height, "hdr": hdr_file, "png": png_file},
-            "units": "the .hdr holds linear radiosity in W/m^2 (scene units); the .png is tone mapped and sRGB encoded",
+            "atlas": {
+                "width": self.atlas.width,
+                "height": self.atlas.height,
+                "exr": exr_file,
+                "hdr": hdr_file,
+                "png": png_file,
+            },
+            "units": "the .exr (RGB 32-bit float) and the .hdr (RGBE) hold linear radiosity in W/m^2 (scene units); \
+                the .png is tone mapped and sRGB encoded",
             "texel_size": self.texel_size,
             "padding": self.padding,
             "convention": "texel (x + i, y + j) of a face has its centre at origin + (i + 0.5) * texel_size * u_axis \
@@ -360,12 +417,28 @@ impl LightMap {
         out
     }
 
-    /// Writes `<stem>.hdr`, `<stem>.png` and `<stem>.json` and returns their paths. The PNG uses `tone`, or when
-    /// `None` a [`ToneMap::from_percentile`] exposure over the face texels with the default percentile and white.
+    /// The bilinearly filtered atlas at continuous atlas point `(ax, ay)` (see [`Footprint::at`]), with reads
+    /// outside the atlas clamped to its border (the GPU's clamp-to-edge).
+    #[must_use]
+    pub fn bilinear(&self, ax: f64, ay: f64) -> Rgb {
+        let f = Footprint::at(ax, ay);
+        let (w, h) = (i64::from(self.atlas.width), i64::from(self.atlas.height));
+        let mut out = Rgb::ZERO;
+        for (&(x, y), &weight) in f.texels.iter().zip(&f.weights) {
+            let (x, y) = (x.clamp(0, w - 1) as usize, y.clamp(0, h - 1) as usize);
+            out += weight * Rgb::from_array(self.atlas.pixels[y * w as usize + x].map(f64::from));
+        }
+        out
+    }
+
+    /// Writes `<stem>.exr`, `<stem>.hdr`, `<stem>.png` and `<stem>.json` and returns their paths in that order.
+    /// The PNG uses `tone`, or when `None` a [`ToneMap::from_percentile`] exposure over the face texels with the
+    /// default percentile and white.
     ///
     /// # Errors
-    /// [`PictureError::Io`] / [`PictureError::Png`] if a file cannot be written.
-    pub fn write(&self, stem: &Path, tone: Option<ToneMap>) -> Result<[PathBuf; 3], PictureError> {
+    /// [`PictureError::Io`] / [`PictureError::Png`] / [`PictureError::Format`] if a file cannot be written.
+    pub fn write(&self, stem: &Path, tone: Option<ToneMap>) -> Result<[PathBuf; 4], PictureError> {
+        let exr = stem.with_extension("exr");
         let hdr = stem.with_extension("hdr");
         let png = stem.with_extension("png");
         let json = stem.with_extension("json");
@@ -378,12 +451,13 @@ impl LightMap {
             )?,
         };
         let linear: Vec<Rgb> = self.atlas.pixels.iter().map(|p| Rgb::from_array(p.map(f64::from))).collect();
+        write_exr(&exr, &self.atlas)?;
         write_hdr(&hdr, &self.atlas)?;
         write_png(&png, &tone.map_image(&linear, self.atlas.width, self.atlas.height)?)?;
         let name = |p: &Path| p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let text = serde_json::to_string_pretty(&self.to_json(&name(&hdr), &name(&png)))
+        let text = serde_json::to_string_pretty(&self.to_json(&name(&exr), &name(&hdr), &name(&png)))
             .map_err(|e| PictureError::invalid("light map JSON", e.to_string()))?;
         write_file(&json, text.as_bytes())?;
-        Ok([hdr, png, json])
+        Ok([exr, hdr, png, json])
     }
 }

@@ -63,7 +63,7 @@ fn light_map_maps_every_face_without_overlap() {
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     let options = LightMapOptions { texel_size: Some(0.25), padding: 2, ..Default::default() };
     let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
-    let json = map.to_json("a.hdr", "a.png");
+    let json = map.to_json("a.exr", "a.hdr", "a.png");
     let faces = json["faces"].as_array().unwrap();
     let mut seen: Vec<u64> = faces.iter().map(|f| f["face"].as_u64().unwrap()).collect();
     seen.sort_unstable();
@@ -121,11 +121,13 @@ fn light_map_maps_every_face_without_overlap() {
     }
     // Files: the PNG has the atlas size, the HDR reads back, the JSON parses.
     let dir = scratch_dir("lightmap");
-    let [hdr, png_path, json_path] = map.write(&dir.join("box"), None).unwrap();
+    let [exr, hdr, png_path, json_path] = map.write(&dir.join("box"), None).unwrap();
     let (w, h, _) = decode_png(&std::fs::read(&png_path).unwrap());
     assert_eq!((u64::from(w), u64::from(h)), (aw, ah));
     let back = radiosity_host::picture::hdr::read_hdr(&hdr).unwrap();
     assert_eq!((back.width, back.height), (w, h));
+    // The EXR holds the atlas exactly (f32 channels, lossless).
+    assert_eq!(radiosity_host::picture::hdr::read_exr(&exr).unwrap(), map.atlas);
     let parsed: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
     assert_eq!(parsed["faces"].as_array().unwrap().len(), 6);

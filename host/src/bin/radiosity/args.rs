@@ -408,8 +408,9 @@ pub enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
-    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
-    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths and the
+    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.exr (linear radiosity in W/m^2,
+    /// RGB 32-bit float), STEM.hdr (the same in Radiance RGBE), STEM.png (tone mapped, sRGB) and STEM.json (the
+    /// face -> atlas rectangle map, every face). Prints the paths and the
     /// atlas's size; `--texel-size` or `--face-texels` sets the resolution.
     Lightmap {
         #[command(flatten)]

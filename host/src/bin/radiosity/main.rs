@@ -516,7 +516,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     return Err(format!("--texel-size {t}: must be a positive length").into());
                 }
             }
-            check_outputs(["hdr", "png", "json"].map(|e| output.with_extension(e)))?;
+            check_outputs(["exr", "hdr", "png", "json"].map(|e| output.with_extension(e)))?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let options =
                 LightMapOptions { texel_size, max_face_texels: face_texels, ..LightMapOptions::default() };
