@@ -18,10 +18,11 @@
 //! for `H = t * S`, with `S` (the *irradiance scale*) the largest irradiance of any chart texel, so nothing clips;
 //! the 8-bit steps cost at most `S * (srgb_decode((c + 0.5) / 255) - srgb_decode(c / 255))` at code `c`. Emitters
 //! carry their emission as `emissiveFactor` (times `KHR_materials_emissive_strength` above 1), as radiance `E / pi`.
-//! With the light map's intensity set to `S`, an unlit or light-less physically based material (three.js's
-//! `MeshBasicMaterial` and `MeshStandardMaterial`, which both divide a light map by pi) shows radiance
-//! `rho H / pi + E / pi = B / pi` in W/(m^2 sr): multiply the exposure by pi to display radiosity as
-//! `radiosity render` does.
+//! With the light map's intensity set to `S` and no lights, three.js's `MeshLambertMaterial` (which divides a
+//! light map by pi, as `MeshBasicMaterial` does) shows radiance `rho H / pi + E / pi = B / pi` in W/(m^2 sr):
+//! multiply the exposure by pi to display radiosity as `radiosity render` does. (`MeshStandardMaterial` takes
+//! its specular lobe's share, about 4%, out of the light map; Bevy multiplies the light map by the base colour
+//! without dividing by pi, so its `lightmap_exposure` is `S / pi` for the same picture.)
 //!
 //! **Extensions.** Each material names the light map with `MOZ_lightmap` (`{"index", "texCoord": 1, "intensity":
 //! S}`, the Mozilla Hubs convention that three.js-based viewers read); the file's `extras.radiosity` states the same
