@@ -134,6 +134,31 @@ fn light_map_maps_every_face_without_overlap() {
     assert_eq!(parsed["atlas"]["png"], "box.png");
 }
 
+/// A square face meshed as two triangles along its diagonal, the first patch's first edge being that diagonal: the
+/// chart is still the square (its frame follows the smallest rectangle around the face, not that edge), 8 x 8
+/// texels of 0.5 for a side of 4, not the 12 x 6 of a frame along the diagonal.
+#[test]
+fn light_map_chart_frame_follows_the_smallest_rectangle() {
+    let plane = Plane::tilted();
+    let (a, b, c, d) = (plane.at(0.0, 0.0), plane.at(4.0, 0.0), plane.at(4.0, 4.0), plane.at(0.0, 4.0));
+    let patches = vec![polygon(0, 0, vec![a, c, d]), polygon(0, 0, vec![c, a, b])];
+    let radiosity: Vec<Rgb> = patches.iter().map(|p| linear_field(p.centroid)).collect();
+    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let options = LightMapOptions { texel_size: Some(0.5), padding: 1, ..Default::default() };
+    let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
+    let r = &map.rects[0];
+    assert_eq!((r.width, r.height), (8, 8), "frame u = {}", r.u_axis);
+    // Both triangles are one face, one chart: every texel of the rectangle lies on the square.
+    for (i, j) in [(0, 0), (7, 0), (0, 7), (7, 7)] {
+        let centre =
+            r.origin + r.u_axis * ((f64::from(i) + 0.5) * 0.5) + r.v_axis * ((f64::from(j) + 0.5) * 0.5);
+        assert!(
+            (0..2).any(|k| shader.distance_in_plane(k, centre) == 0.0),
+            "corner texel ({i}, {j}) off the face"
+        );
+    }
+}
+
 #[test]
 fn light_map_refuses_a_face_without_patches() {
     let mut patches = box_patches();
