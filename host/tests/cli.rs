@@ -639,7 +639,13 @@ fn demo_without_qemu_runs_on_the_host_only() {
     assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("--no-qemu: the host's device loop only"), "{stdout}");
     assert!(!stdout.contains("QEMU m4") && !stdout.contains("QEMU run skipped"), "{stdout}");
-    for file in ["cornell-box.rft", "cornell-box-m4.rft", "cornell-box.png", "cornell-box-relight.csv"] {
+    for file in [
+        "cornell-box.rft",
+        "cornell-box-m4.rft",
+        "cornell-box.png",
+        "cornell-box-relight.csv",
+        "cornell-box.glb",
+    ] {
         assert!(dir.join(file).exists(), "{file} missing: {stdout}");
     }
 }

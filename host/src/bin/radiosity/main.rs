@@ -782,6 +782,8 @@ fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), B
     for path in &light_map.paths {
         writeln!(out, "{}", path.display())?;
     }
+    let glb = view::export_glb(&p, &b, &dir.join("cornell-box.glb"), &LightMapOptions::default())?;
+    writeln!(out, "{}", glb.glb.display())?;
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
     let intensity: Vec<[f32; 3]> =
         p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
