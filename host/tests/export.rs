@@ -557,8 +557,17 @@ fn three_js_renders_the_glb_as_the_project_does() {
         let name = &materials[e.prepared.patches.iter().find(|p| p.face == *face).unwrap().material].name;
         let f = |c: Rgb| format!("{:5.1} {:5.1} {:5.1}", c.x, c.y, c.z);
         let line = format!(
-            "face {face:2} ({name:5}, {:4} px): three.js {} | engine redone {} (off {}, allowed {}) | project {} (off {}, allowed {}) | three.js - project {}",
-            r.pixels, f(browser), f(engine), f(off_gpu), f(allowed_gpu), f(project), f(off_map), f(allowed_map), f(off)
+            "face {face:2} ({name:5}, {:4} px): three.js {} | engine redone {} (off {}, allowed {}) | \
+             project {} (off {}, allowed {}) | three.js - project {}",
+            r.pixels,
+            f(browser),
+            f(engine),
+            f(off_gpu),
+            f(allowed_gpu),
+            f(project),
+            f(off_map),
+            f(allowed_map),
+            f(off)
         );
         eprintln!("{line}");
         if !off_gpu.cmple(allowed_gpu).all() || !off_map.cmple(allowed_map).all() {

@@ -244,12 +244,12 @@ fn probe_points(patch: &radiosity_host::patch::Patch) -> Vec<DVec3> {
 }
 
 /// The Cornell box's atlas filtered as a GPU does (bilinear, no mip maps) at points all over every face, corners
-/// and edges included: the filter reads only texels of the face's own padded chart rectangle (never an unused
-/// texel or another chart's), and the value lies within the smooth field's range over the filter's reach on
-/// the chart, so gutters hold the chart's own light (a black or foreign gutter texel at a face's edge or corner pulls the value out of
-/// that range). The reach: the four texel centres read lie within sqrt(2) texels of the point, and a gutter
-/// texel holds the field at the nearest point of a patch, at most 1.5 texels further (half a texel of gutter
-/// plus the under-one-texel gap between the face and its rectangle's rounded-up side): 3 texels in all.
+/// and edges included: the filter reads only texels of the face's own padded chart rectangle (never an unused texel
+/// or another chart's), and the value lies within the smooth field's range over the filter's reach on the chart, so
+/// gutters hold the chart's own light (a black or foreign gutter texel at a face's edge or corner pulls the value
+/// out of that range). The reach: the four texel centres read lie within sqrt(2) texels of the point, and a gutter
+/// texel holds the field at the nearest point of a patch, at most 1.5 texels further (half a texel of gutter plus
+/// the under-one-texel gap between the face and its rectangle's rounded-up side): 3 texels in all.
 /// The four ceiling faces around the light (one plane, one material, sharing edges) are one chart, so both
 /// sides of every edge between them read the same texels: no seam (drawn as four charts, the two sides of an
 /// edge differed by up to 9% of the value at a corner of the light, in the 12 mm texels of this test); the

@@ -153,7 +153,8 @@ impl Builder {
     fn floats(&mut self, values: &[f32], kind: &str, components: usize, bounds: bool) -> usize {
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
         let view = self.view(&bytes, Some(ARRAY_BUFFER));
-        let mut accessor = json!({"bufferView": view, "componentType": FLOAT, "count": values.len() / components, "type": kind});
+        let count = values.len() / components;
+        let mut accessor = json!({"bufferView": view, "componentType": FLOAT, "count": count, "type": kind});
         if bounds {
             let (mut lo, mut hi) = (vec![f32::INFINITY; components], vec![f32::NEG_INFINITY; components]);
             for chunk in values.chunks_exact(components) {

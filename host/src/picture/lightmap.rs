@@ -3,17 +3,17 @@
 //!
 //! **Charts.** Every OBJ face (every distinct [`Patch::face`]) is drawn in one chart, a rectangle of texels. Faces
 //! of one material whose normals agree and that share a patch vertex are joined into one chart, transitively (the
-//! Cornell box's ceiling is four faces around the light: one chart), so there is no seam between them at all;
-//! any other two faces meet at a crease or a material boundary, where the lighting may jump anyway. A chart's
-//! frame: its normal `n` (area-weighted over its patches), a `u` axis along a side of the smallest rectangle
-//! around the chart (the first edge of its first patch when that rectangle is aligned with it), `v = u x n` (so that, seen from the front with `u` to the right, `v` points down, like image rows), and an
-//! origin at the lower corner of the chart's bounding rectangle in that frame. Texel `(i, j)` of the chart (column
-//! `i`, row `j`) has its centre at `origin + (i + 0.5) * texel_size * u + (j + 0.5) * texel_size * v` and holds
-//! the smooth shader's value there ([`SmoothShader::shade`] on the chart's patch containing the point; texels in
-//! the padding border, between patches, in a hole (the ceiling's light) or outside a non-rectangular face take
-//! the patch of the nearest covered texel, found by a flood fill over the texel grid (dilation), and the shader
-//! moves the point onto that patch's boundary). Each rectangle is surrounded by `padding` texels filled the same
-//! way.
+//! Cornell box's ceiling is four faces around the light: one chart), so there is no seam between them at all; any
+//! other two faces meet at a crease or a material boundary, where the lighting may jump anyway. A chart's frame:
+//! its normal `n` (area-weighted over its patches), a `u` axis along a side of the smallest rectangle around the
+//! chart (the first edge of its first patch when that rectangle is aligned with it), `v = u x n` (so that, seen
+//! from the front with `u` to the right, `v` points down, like image rows), and an origin at the lower corner of
+//! the chart's bounding rectangle in that frame. Texel `(i, j)` of the chart (column `i`, row `j`) has its centre
+//! at `origin + (i + 0.5) * texel_size * u + (j + 0.5) * texel_size * v` and holds the smooth shader's value there
+//! ([`SmoothShader::shade`] on the chart's patch containing the point; texels in the padding border, between
+//! patches, in a hole (the ceiling's light) or outside a non-rectangular face take the patch of the nearest covered
+//! texel, found by a flood fill over the texel grid (dilation), and the shader moves the point onto that patch's
+//! boundary). Each rectangle is surrounded by `padding` texels filled the same way.
 //!
 //! **Smoothness and gutters.** The smooth shader interpolates vertex values fitted over all compatible patches
 //! around a vertex (same material, normals within the crease angle), so the field is continuous across the edges

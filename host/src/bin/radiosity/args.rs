@@ -294,9 +294,10 @@ pub enum Command {
         format: ReportFormat,
     },
     /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
-    /// render it (view, light-map atlas, the .glb export, device error map, mesh histogram), then bake a table within 400 patches
-    /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
-    /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
+    /// render it (view, light-map atlas, the .glb export, device error map, mesh histogram), then bake a table
+    /// within 400 patches for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under
+    /// QEMU, printing every frame's error against f64 next to the instructions it took. Everything lands in the
+    /// output folder.
     Demo {
         /// Folder for the outputs (created, with its parents, if missing).
         #[arg(long, default_value = "out")]
