@@ -12,7 +12,9 @@ export QEMU
 deps:
 	@bash scripts/deps.sh
 
-demo: deps
+# The demo needs neither Chromium nor the npm packages of the web checks (WEB=0).
+demo:
+	@WEB=0 bash scripts/deps.sh
 	$(CARGO) run --release -p radiosity-host --bin radiosity -- demo --out $(OUT) $(if $(filter 0,$(QEMU)),--no-qemu)
 
 test: deps

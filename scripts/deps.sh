@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs everything the build and the tests need on a fresh Debian 12 machine (run as root).
 # Idempotent: each step checks first and returns at once when already done. With QEMU=0 (`make demo QEMU=0`) the
-# firmware's needs are left out: QEMU, the ARM binutils and the embedded Rust targets.
+# firmware's needs are left out: QEMU, the ARM binutils and the embedded Rust targets. With WEB=0 (`make demo`)
+# the web checks' needs are left out: Chromium, Node.js with npm, and the npm packages of tests/web.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -13,6 +14,14 @@ TARGETS=(thumbv7em-none-eabihf thumbv6m-none-eabi)
 if [ "${QEMU:-1}" = 0 ]; then
     APT_PACKAGES=(libclang1-14 libclang-common-14-dev unzip fonts-dejavu-core)
     TARGETS=()
+fi
+
+# The .glb export's checks by others' tools (host/tests/export.rs): the Khronos glTF validator and three.js in
+# headless Chromium, from tests/web's package-lock.json. Node.js and npm come from Debian unless already installed.
+if [ "${WEB:-1}" != 0 ]; then
+    APT_PACKAGES+=(chromium)
+    command -v node >/dev/null 2>&1 || APT_PACKAGES+=(nodejs)
+    command -v npm >/dev/null 2>&1 || APT_PACKAGES+=(npm)
 fi
 
 step() { printf '\n==> deps: %s\n' "$1"; }
@@ -74,5 +83,11 @@ PY
     lib=$(cd "$EMBREE_DIR" && ls libembree4-*.so.4 | head -n 1)
     [ -n "$lib" ] || fail "find libembree4" "The wheel held no libembree4-*.so.4."
     ln -sf "$lib" "$EMBREE_DIR/libembree4.so"
+fi
+# 4. npm packages of the web checks, exactly as locked; again only when the lock is newer than the installed tree.
+if [ "${WEB:-1}" != 0 ] && [ ! tests/web/node_modules/.package-lock.json -nt tests/web/package-lock.json ]; then
+    step "npm ci in tests/web (gltf-validator, three, puppeteer-core)"
+    (cd tests/web && npm ci --no-audit --no-fund --loglevel=error) \
+        || fail "npm ci in tests/web" "Needs npm and access to the npm registry."
 fi
 echo "deps: all present."

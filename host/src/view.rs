@@ -8,7 +8,8 @@
 //!   coloured by error against a reference (with a legend strip below the picture).
 //! - [`default_camera`]: the Cornell box's published camera for scenes named `cornell-box*`, else an automatic view
 //!   of the bounding box.
-//! - [`write_light_map`]: the per-face light-map atlas (`.hdr`, `.png`, `.json`).
+//! - [`write_light_map`]: the per-face light-map atlas (`.exr`, `.hdr`, `.png`, `.json`).
+//! - [`export_glb`]: the scene as binary glTF 2.0 with the light map embedded (and its `.exr` beside it).
 
 use std::path::{Path, PathBuf};
 
@@ -241,8 +242,8 @@ fn stack(top: &RgbImage, bottom: &RgbImage) -> RgbImage {
 /// What [`write_light_map`] wrote: the files and the atlas's resolution.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightMapFiles {
-    /// `<stem>.hdr`, `<stem>.png` and `<stem>.json`.
-    pub paths: [PathBuf; 3],
+    /// `<stem>.exr`, `<stem>.hdr`, `<stem>.png` and `<stem>.json`.
+    pub paths: [PathBuf; 4],
     /// Atlas width in texels.
     pub width: u32,
     /// Atlas height in texels.
@@ -252,7 +253,7 @@ pub struct LightMapFiles {
 }
 
 /// Bakes the light map of `prepared` with radiosity `b` (smooth shading, resolution from `options`) and writes
-/// `<stem>.hdr`, `<stem>.png` and `<stem>.json`. Every OBJ face gets a rectangle.
+/// `<stem>.exr`, `<stem>.hdr`, `<stem>.png` and `<stem>.json`. Every OBJ face gets a rectangle.
 ///
 /// # Errors
 /// [`ViewError::Picture`] if a face has no patch, `b` has the wrong length or holds a non-finite value, the
@@ -267,4 +268,60 @@ pub fn write_light_map(
     let map = bake_light_map(&prepared.patches, &shader, b, options)?;
     let paths = map.write(stem, None)?;
     Ok(LightMapFiles { paths, width: map.atlas.width, height: map.atlas.height, texel_size: map.texel_size })
+}
+
+/// What [`export_glb`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportFiles {
+    /// The `.glb` file.
+    pub glb: PathBuf,
+    /// Beside it, the same light map in full precision: `<glb stem>.exr`, the irradiance atlas (W/m^2, RGB
+    /// 32-bit float) that the embedded PNG encodes in 8 bits.
+    pub exr: PathBuf,
+    /// Atlas width in texels.
+    pub width: u32,
+    /// Atlas height in texels.
+    pub height: u32,
+    /// Texel edge length in scene units.
+    pub texel_size: f64,
+    /// Irradiance (W/m^2) of a light-map texel of linear value 1: the light map's intensity.
+    pub irradiance_scale: f64,
+    /// Triangles in the file.
+    pub triangles: usize,
+}
+
+/// Bakes the light map of `prepared` with radiosity `b` (as [`write_light_map`]) and writes the scene as binary
+/// glTF 2.0 to `path` with the light map embedded ([`crate::picture::glb`]), and its irradiance atlas beside it
+/// as OpenEXR (`path` with extension `.exr`). The tone map suggested in the file is the light map's default
+/// ([`ToneMap::from_percentile`](crate::picture::ToneMap::from_percentile) over the chart texels).
+///
+/// # Errors
+/// As [`write_light_map`]; [`ViewError::Picture`] also if a face mixes materials.
+pub fn export_glb(
+    prepared: &Prepared,
+    b: &[Rgb],
+    path: &Path,
+    options: &LightMapOptions,
+) -> Result<ExportFiles, ViewError> {
+    use crate::picture::{glb, hdr, ToneMap};
+    let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
+    let map = bake_light_map(&prepared.patches, &shader, b, options)?;
+    let tone = ToneMap::from_percentile(
+        &map.face_luminances(),
+        ToneMap::DEFAULT_PERCENTILE,
+        ToneMap::DEFAULT_WHITE,
+    )?;
+    let file = glb::encode_glb(&prepared.patches, &prepared.scene.materials, &map, tone)?;
+    let exr = path.with_extension("exr");
+    hdr::write_exr(&exr, &file.irradiance)?;
+    crate::picture::write_file(path, &file.bytes)?;
+    Ok(ExportFiles {
+        glb: path.to_path_buf(),
+        exr,
+        width: map.atlas.width,
+        height: map.atlas.height,
+        texel_size: map.texel_size,
+        irradiance_scale: file.irradiance_scale,
+        triangles: file.triangles,
+    })
 }

@@ -122,6 +122,7 @@ fn output_files_need_an_existing_folder_and_folders_the_tool_creates_are_checked
         assert_fails(&["bake", MISSING, "-o", &t("rft")], &[expect]);
         assert_fails(&["render", MISSING, "-o", &t("png")], &[expect]);
         assert_fails(&["lightmap", MISSING, "-o", &t("map")], &[expect]);
+        assert_fails(&["export", MISSING, "-o", &t("glb")], &[expect]);
         assert_fails(&["check", MISSING, "--plot", &t("plot")], &[expect]);
         assert_fails(&["relight", &scene("cornell-box.obj"), "--csv", &t("csv")], &[expect]);
         assert_fails(&["relight", &scene("cornell-box.obj"), "--plot", &t("plot")], &[expect]);
@@ -602,6 +603,34 @@ fn light_map_resolution_is_an_option() {
     assert!(stderr.contains("light map") && stderr.contains("4096 x 4096"), "{stderr}");
 }
 
+/// `export`: its help explains the file; bad options and outputs fail before any work; on the Cornell box (one
+/// patch per face) it says what it is doing on stderr and writes a .glb and the .exr beside it.
+#[test]
+fn export_writes_a_glb_beside_its_exr() {
+    let help = radiosity(&["export", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    for expect in ["TEXCOORD_1", "MOZ_lightmap", "irradiance", "--texel-size", "README"] {
+        assert!(help.contains(expect), "export --help lacks {expect:?}: {help}");
+    }
+    let dir = folder("export");
+    let glb = dir.join("box.glb");
+    let glb = glb.to_str().unwrap();
+    assert_fails(&["export", MISSING, "-o", dir.join("box.gltf").to_str().unwrap()], &["must be a .glb"]);
+    assert_fails(&["export", MISSING, "-o", glb, "--face-texels", "5000"], &["--face-texels 5000", "4096"]);
+    assert_fails(&["export", MISSING, "-o", glb, "--texel-size", "0"], &["--texel-size 0", "positive"]);
+    assert_fails(&["export", MISSING, "-o", "/nonexistent-folder/box.glb"], &["does not exist"]);
+    let cornell = scene("cornell-box.obj");
+    let out = radiosity(&["export", &cornell, "--no-subdivide", "--samples", "4", "--rays", "4", "-o", glb]);
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("export: solving") && stderr.contains("export: baking"), "{stderr}");
+    let exr = dir.join("box.exr");
+    assert!(stdout.contains(glb) && stdout.contains(exr.to_str().unwrap()), "{stdout}");
+    assert!(stdout.contains("triangles, atlas") && stdout.contains("light-map intensity"), "{stdout}");
+    assert_eq!(&std::fs::read(glb).unwrap()[..4], b"glTF");
+    assert!(radiosity_host::picture::hdr::read_exr(&exr).is_ok());
+}
+
 #[test]
 fn demo_without_qemu_runs_on_the_host_only() {
     let dir = folder("demo");
@@ -610,7 +639,13 @@ fn demo_without_qemu_runs_on_the_host_only() {
     assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
     assert!(stdout.contains("--no-qemu: the host's device loop only"), "{stdout}");
     assert!(!stdout.contains("QEMU m4") && !stdout.contains("QEMU run skipped"), "{stdout}");
-    for file in ["cornell-box.rft", "cornell-box-m4.rft", "cornell-box.png", "cornell-box-relight.csv"] {
+    for file in [
+        "cornell-box.rft",
+        "cornell-box-m4.rft",
+        "cornell-box.png",
+        "cornell-box-relight.csv",
+        "cornell-box.glb",
+    ] {
         assert!(dir.join(file).exists(), "{file} missing: {stdout}");
     }
 }

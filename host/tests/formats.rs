@@ -155,6 +155,7 @@ fn subcommands_without_a_format_refuse_one() {
     for args in [
         vec!["render", "/nonexistent.obj", "-o", out],
         vec!["lightmap", "/nonexistent.obj", "-o", out],
+        vec!["export", "/nonexistent.obj", "-o", out],
         vec!["demo", "--out", out],
         vec!["bench", "--quick", "--out", out],
     ] {

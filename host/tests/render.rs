@@ -9,6 +9,7 @@ use std::sync::OnceLock;
 use glam::DVec3;
 use radiosity_host::picture::camera::Camera;
 use radiosity_host::picture::render::View;
+use radiosity_host::picture::shading::{ShadingOptions, SmoothShader};
 use radiosity_host::picture::tonemap::srgb_decode;
 use radiosity_host::picture::write_png;
 use radiosity_host::pipeline::Prepared;
@@ -171,7 +172,7 @@ fn light_map_maps_every_face() {
     for path in &paths {
         assert!(std::fs::metadata(path).unwrap().len() > 0, "{} is empty", path.display());
     }
-    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&paths[2]).unwrap()).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&paths[3]).unwrap()).unwrap();
     let width = json["atlas"]["width"].as_u64().unwrap();
     let height = json["atlas"]["height"].as_u64().unwrap();
     let faces = json["faces"].as_array().unwrap();
@@ -193,4 +194,156 @@ fn light_map_maps_every_face() {
     }
     let missing: Vec<usize> = seen.iter().enumerate().filter(|(_, s)| !**s).map(|(i, _)| i).collect();
     assert!(missing.is_empty(), "faces without a light-map rectangle: {missing:?}");
+}
+
+/// The smooth field on the patches `on` at `q`: the shader on the first of them whose polygon contains `q` (`None`
+/// when none does).
+fn field_at(shader: &SmoothShader, b: &[Rgb], on: &[usize], q: DVec3) -> Option<Rgb> {
+    let inside = on.iter().find(|&&m| shader.distance_in_plane(m, q) <= shader.tolerance())?;
+    Some(shader.shade(b, *inside, q).unwrap())
+}
+
+/// Per-channel range of the smooth field over the points of the patches `on` within `reach` of `q` (in the plane
+/// spanned by `u` and `v`): `q` itself and 6 rings of 24 directions.
+fn field_range(
+    shader: &SmoothShader,
+    b: &[Rgb],
+    on: &[usize],
+    q: DVec3,
+    u: DVec3,
+    v: DVec3,
+    reach: f64,
+) -> (Rgb, Rgb) {
+    let (mut lo, mut hi) = (Rgb::INFINITY, Rgb::NEG_INFINITY);
+    let mut add = |x: DVec3| {
+        if let Some(f) = field_at(shader, b, on, x) {
+            lo = lo.min(f);
+            hi = hi.max(f);
+        }
+    };
+    add(q);
+    for ring in 1..=6 {
+        let r = reach * f64::from(ring) / 6.0;
+        for k in 0..24 {
+            let a = std::f64::consts::TAU * f64::from(k) / 24.0;
+            add(q + (u * a.cos() + v * a.sin()) * r);
+        }
+    }
+    (lo, hi)
+}
+
+/// Points of a patch where a filter is tried: its corners, three points on every edge, and its centroid.
+fn probe_points(patch: &radiosity_host::patch::Patch) -> Vec<DVec3> {
+    let n = patch.vertices.len();
+    let mut out = vec![patch.centroid];
+    for k in 0..n {
+        let (a, c) = (patch.vertices[k], patch.vertices[(k + 1) % n]);
+        out.extend([0.0, 0.25, 0.5, 0.75].map(|t| a + (c - a) * t));
+    }
+    out
+}
+
+/// The Cornell box's atlas filtered as a GPU does (bilinear, no mip maps) at points all over every face, corners
+/// and edges included: the filter reads only texels of the face's own padded chart rectangle (never an unused texel
+/// or another chart's), and the value lies within the smooth field's range over the filter's reach on the chart, so
+/// gutters hold the chart's own light (a black or foreign gutter texel at a face's edge or corner pulls the value
+/// out of that range). The reach: the four texel centres read lie within sqrt(2) texels of the point, and a gutter
+/// texel holds the field at the nearest point of a patch, at most 1.5 texels further (half a texel of gutter plus
+/// the under-one-texel gap between the face and its rectangle's rounded-up side): 3 texels in all.
+/// The four ceiling faces around the light (one plane, one material, sharing edges) are one chart, so both
+/// sides of every edge between them read the same texels: no seam (drawn as four charts, the two sides of an
+/// edge differed by up to 9% of the value at a corner of the light, in the 12 mm texels of this test); the
+/// light, the floor and the walls are charts of their own.
+#[test]
+fn light_map_filtering_stays_in_each_chart_and_agrees_across_coplanar_faces() {
+    use radiosity_host::picture::lightmap::{bake_light_map, Footprint, LightMapOptions};
+    let (p, b) = cornell();
+    let shader = SmoothShader::new(&p.patches, &ShadingOptions::default()).unwrap();
+    let map = bake_light_map(&p.patches, &shader, b, &LightMapOptions::default()).unwrap();
+    let reach = 3.0 * map.texel_size;
+    let peak = b.iter().fold(0.0f64, |m, v| m.max(v.max_element()));
+    let members =
+        |face: usize| -> Vec<usize> { (0..p.patches.len()).filter(|&i| p.patches[i].face == face).collect() };
+    let within = |s: Rgb, (lo, hi): (Rgb, Rgb)| {
+        // Slack: the rings sample the disc, not every point of it (a quarter of the range), and the atlas is f32.
+        let slack = (hi - lo) * 0.25 + Rgb::splat(1e-6 * peak);
+        s.cmpge(lo - slack).all() && s.cmple(hi + slack).all()
+    };
+    let mut probes = 0;
+    for rect in &map.rects {
+        let (px, py, pw, ph) = rect.padded(map.padding);
+        // The field's range is taken over the whole chart: a texel in a hole of the chart (the ceiling's light)
+        // holds the nearest of the chart's patches, which may belong to a neighbouring face of the chart.
+        let chart: Vec<usize> =
+            map.rects.iter().filter(|r| r.chart == rect.chart).flat_map(|r| members(r.face)).collect();
+        for &m in &members(rect.face) {
+            for q in probe_points(&p.patches[m]) {
+                let (ax, ay) = rect.atlas_coords(q);
+                let footprint = Footprint::at(ax, ay);
+                for (&(x, y), &w) in footprint.texels.iter().zip(&footprint.weights) {
+                    let inside = x >= i64::from(px)
+                        && y >= i64::from(py)
+                        && x < i64::from(px + pw)
+                        && y < i64::from(py + ph);
+                    assert!(
+                        w == 0.0 || inside,
+                        "face {}: filter at {q} reads texel ({x}, {y}) outside its padded rectangle {:?}",
+                        rect.face,
+                        rect.padded(map.padding)
+                    );
+                }
+                let s = map.bilinear(ax, ay);
+                let range = field_range(&shader, b, &chart, q, rect.u_axis, rect.v_axis, reach);
+                assert!(
+                    within(s, range),
+                    "face {} at {q}: filtered {s} outside the field's range {range:?} over {reach} mm",
+                    rect.face
+                );
+                probes += 1;
+            }
+        }
+    }
+    assert!(probes > 1000, "only {probes} points probed");
+    // Seams between the four ceiling faces around the light (faces 2..=5: one plane, one material).
+    let ceiling: Vec<usize> = (2..=5).collect();
+    let rect_of = |face: usize| map.rects.iter().find(|r| r.face == face).unwrap();
+    let mut seam_points = 0;
+    let mut worst_seam = 0.0f64;
+    for &fa in &ceiling {
+        for &m in &members(fa) {
+            for q in probe_points(&p.patches[m]).into_iter().skip(1) {
+                for &fb in ceiling.iter().filter(|&&f| f != fa) {
+                    let on_b = members(fb);
+                    if field_at(&shader, b, &on_b, q).is_none() {
+                        continue;
+                    }
+                    let (ra, rb) = (rect_of(fa), rect_of(fb));
+                    let (xa, ya) = ra.atlas_coords(q);
+                    let (xb, yb) = rb.atlas_coords(q);
+                    let (sa, sb) = (map.bilinear(xa, ya), map.bilinear(xb, yb));
+                    // Only the f64 rounding of the two faces' (identical) frames may differ.
+                    let allowed = Rgb::splat(1e-9 * peak);
+                    assert!(
+                        (sa - sb).abs().cmple(allowed).all(),
+                        "faces {fa} and {fb} at {q}: {sa} vs {sb} (allowed {allowed})"
+                    );
+                    worst_seam = worst_seam.max(((sa - sb).abs() / sa.max(sb)).max_element());
+                    seam_points += 1;
+                }
+            }
+        }
+    }
+    assert!(seam_points > 10, "only {seam_points} points on edges shared by ceiling faces");
+    let chart = |face: usize| rect_of(face).chart;
+    assert!(ceiling.iter().all(|&f| chart(f) == chart(2)), "the ceiling is not one chart");
+    let others: Vec<usize> = [0, 1, 6, 7, 8].map(chart).to_vec();
+    assert!(
+        others.iter().enumerate().all(|(i, c)| *c != chart(2) && !others[..i].contains(c)),
+        "floor, light, back, green and red walls share charts: {others:?}"
+    );
+    eprintln!(
+        "{probes} points probed, {seam_points} on ceiling seams (largest relative difference between the two \
+         faces' samples {worst_seam:.2e}); texel {:.2} mm",
+        map.texel_size
+    );
 }

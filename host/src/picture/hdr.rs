@@ -1,4 +1,4 @@
-//! Linear (high dynamic range) image files: Radiance `.hdr` (RGBE) and PFM.
+//! Linear (high dynamic range) image files: Radiance `.hdr` (RGBE), PFM and OpenEXR.
 //!
 //! **Radiance RGBE** (Greg Ward, "Real Pixels", Graphics Gems II, 1991; the Radiance file format as documented in
 //! the Radiance reference manual): a text header starting `#?RADIANCE`, a `FORMAT=32-bit_rle_rgbe` line, an empty
@@ -13,6 +13,11 @@
 //! **PFM** (portable float map, colour variant): the text header `PF\n<width> <height>\n<scale>\n`, then 32-bit
 //! IEEE floats, three per pixel, rows from the **bottom** up; a negative scale means little-endian. This writer uses
 //! scale `-1.0` (little-endian), and values round-trip exactly at f32 precision.
+//!
+//! **OpenEXR** (through the `exr` crate): one layer with channels `R`, `G`, `B` of 32-bit floats (not half: the
+//! scenes' radiosities span 1e-6..1e6, beyond half's range of 6e-5..65504), the crate's default lossless
+//! compression, rows top to bottom; values round-trip exactly at f32 precision. This is the format game engines
+//! and compositing tools read for linear light maps.
 
 use std::path::{Path, PathBuf};
 
@@ -320,6 +325,85 @@ pub fn decode_pfm(bytes: &[u8], path: &Path) -> Result<LinearImage, PictureError
 pub fn read_pfm(path: &Path) -> Result<LinearImage, PictureError> {
     let bytes = std::fs::read(path).map_err(|e| PictureError::io(path, e))?;
     decode_pfm(&bytes, path)
+}
+
+/// Encodes an image as OpenEXR: RGB, 32-bit float channels, lossless (see the module docs).
+///
+/// # Errors
+/// [`PictureError::Invalid`] / [`PictureError::NonFinite`] if the image is inconsistent or has NaN / infinite
+/// values; [`PictureError::Format`] if the encoder fails.
+pub fn encode_exr(image: &LinearImage) -> Result<Vec<u8>, PictureError> {
+    use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+    image.check()?;
+    let width = image.width as usize;
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+        let [r, g, b] = image.pixels[y * width + x];
+        (r, g, b)
+    });
+    let mut out = std::io::Cursor::new(Vec::new());
+    Image::from_channels((width, image.height as usize), channels)
+        .write()
+        .non_parallel()
+        .to_buffered(&mut out)
+        .map_err(|e| PictureError::Format {
+            path: memory_path(),
+            reason: format!("OpenEXR encoding: {e}"),
+        })?;
+    Ok(out.into_inner())
+}
+
+/// Writes an image as an OpenEXR file (see [`encode_exr`]).
+///
+/// # Errors
+/// As [`encode_exr`], and [`PictureError::Io`] if the file cannot be written.
+pub fn write_exr(path: &Path, image: &LinearImage) -> Result<(), PictureError> {
+    write_file(path, &encode_exr(image)?)
+}
+
+/// Decodes the first RGB(A) layer of an OpenEXR file (any channel type, converted to f32; alpha is ignored).
+///
+/// # Errors
+/// [`PictureError::Format`] naming `path` if the bytes are not an OpenEXR image with R, G and B channels, or the
+/// image is larger than [`crate::limits::MAX_IMAGE_PIXELS`].
+pub fn decode_exr(bytes: &[u8], path: &Path) -> Result<LinearImage, PictureError> {
+    use exr::prelude::{read, ReadChannels, ReadLayers};
+    let format = |reason: String| PictureError::Format { path: path.to_path_buf(), reason };
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |size, _| {
+                let (w, h) = (size.width().min(u32::MAX as usize), size.height().min(u32::MAX as usize));
+                // Nothing is allocated for an image over the size limit; the check below reports it.
+                let fits = crate::limits::check_image_size("OpenEXR image", w as u32, h as u32).is_ok();
+                let pixels = if fits { vec![[0.0; 3]; w * h] } else { Vec::new() };
+                LinearImage { width: w as u32, height: h as u32, pixels }
+            },
+            |image: &mut LinearImage, at, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let index = at.y() * image.width as usize + at.x();
+                if let Some(p) = image.pixels.get_mut(index) {
+                    *p = [r, g, b];
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| format(format!("not a readable OpenEXR RGB image: {e}")))?;
+    let pixels = image.layer_data.channel_data.pixels;
+    crate::limits::check_image_size("OpenEXR image", pixels.width, pixels.height)
+        .map_err(|e| format(e.to_string()))?;
+    Ok(pixels)
+}
+
+/// Reads an OpenEXR file (see [`decode_exr`]).
+///
+/// # Errors
+/// [`PictureError::Io`] if the file cannot be read, else as [`decode_exr`].
+pub fn read_exr(path: &Path) -> Result<LinearImage, PictureError> {
+    let bytes = std::fs::read(path).map_err(|e| PictureError::io(path, e))?;
+    decode_exr(&bytes, path)
 }
 
 /// The path used in errors for in-memory data.

@@ -5,9 +5,10 @@
 //!   closest-hit function (the Embree module, or any other intersector).
 //! - [`tonemap`]: linear radiosity (W/m^2) -> display values: an exposure, the extended Reinhard operator, and the
 //!   sRGB transfer function (IEC 61966-2-1); 8-bit RGB images and PNG files ([`RgbImage`], [`write_png`]).
-//! - [`hdr`]: linear (HDR) image files, Radiance `.hdr` (RGBE) and PFM, written and read back.
+//! - [`hdr`]: linear (HDR) image files, Radiance `.hdr` (RGBE), PFM and OpenEXR, written and read back.
 //! - [`shading`]: smooth shading: per-patch radiosity -> per-vertex values -> a value at any point of a patch.
-//! - [`lightmap`]: per-face light-map atlases (linear `.hdr`, tone-mapped PNG, and a JSON placement map).
+//! - [`lightmap`]: per-face light-map atlases (linear `.exr` and `.hdr`, tone-mapped PNG, and a JSON placement map).
+//! - [`glb`]: binary glTF 2.0 export of the patches with light-map UVs and the light map embedded.
 //! - [`colormap`]: a perceptually ordered false-colour map for errors, and its legend strip.
 //! - [`plot`]: report plots (error against work, error decomposition bars, patch-size histogram) as SVG and PNG.
 //! - [`text`]: the font of plots and legends, and their tick labels (used by [`colormap`] and [`plot`]).
@@ -18,6 +19,7 @@
 
 pub mod camera;
 pub mod colormap;
+pub mod glb;
 pub mod hdr;
 pub mod lightmap;
 pub mod plot;

@@ -63,7 +63,7 @@ fn light_map_maps_every_face_without_overlap() {
     let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
     let options = LightMapOptions { texel_size: Some(0.25), padding: 2, ..Default::default() };
     let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
-    let json = map.to_json("a.hdr", "a.png");
+    let json = map.to_json("a.exr", "a.hdr", "a.png");
     let faces = json["faces"].as_array().unwrap();
     let mut seen: Vec<u64> = faces.iter().map(|f| f["face"].as_u64().unwrap()).collect();
     seen.sort_unstable();
@@ -121,15 +121,42 @@ fn light_map_maps_every_face_without_overlap() {
     }
     // Files: the PNG has the atlas size, the HDR reads back, the JSON parses.
     let dir = scratch_dir("lightmap");
-    let [hdr, png_path, json_path] = map.write(&dir.join("box"), None).unwrap();
+    let [exr, hdr, png_path, json_path] = map.write(&dir.join("box"), None).unwrap();
     let (w, h, _) = decode_png(&std::fs::read(&png_path).unwrap());
     assert_eq!((u64::from(w), u64::from(h)), (aw, ah));
     let back = radiosity_host::picture::hdr::read_hdr(&hdr).unwrap();
     assert_eq!((back.width, back.height), (w, h));
+    // The EXR holds the atlas exactly (f32 channels, lossless).
+    assert_eq!(radiosity_host::picture::hdr::read_exr(&exr).unwrap(), map.atlas);
     let parsed: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
     assert_eq!(parsed["faces"].as_array().unwrap().len(), 6);
     assert_eq!(parsed["atlas"]["png"], "box.png");
+}
+
+/// A square face meshed as two triangles along its diagonal, the first patch's first edge being that diagonal: the
+/// chart is still the square (its frame follows the smallest rectangle around the face, not that edge), 8 x 8
+/// texels of 0.5 for a side of 4, not the 12 x 6 of a frame along the diagonal.
+#[test]
+fn light_map_chart_frame_follows_the_smallest_rectangle() {
+    let plane = Plane::tilted();
+    let (a, b, c, d) = (plane.at(0.0, 0.0), plane.at(4.0, 0.0), plane.at(4.0, 4.0), plane.at(0.0, 4.0));
+    let patches = vec![polygon(0, 0, vec![a, c, d]), polygon(0, 0, vec![c, a, b])];
+    let radiosity: Vec<Rgb> = patches.iter().map(|p| linear_field(p.centroid)).collect();
+    let shader = SmoothShader::new(&patches, &ShadingOptions::default()).unwrap();
+    let options = LightMapOptions { texel_size: Some(0.5), padding: 1, ..Default::default() };
+    let map = bake_light_map(&patches, &shader, &radiosity, &options).unwrap();
+    let r = &map.rects[0];
+    assert_eq!((r.width, r.height), (8, 8), "frame u = {}", r.u_axis);
+    // Both triangles are one face, one chart: every texel of the rectangle lies on the square.
+    for (i, j) in [(0, 0), (7, 0), (0, 7), (7, 7)] {
+        let centre =
+            r.origin + r.u_axis * ((f64::from(i) + 0.5) * 0.5) + r.v_axis * ((f64::from(j) + 0.5) * 0.5);
+        assert!(
+            (0..2).any(|k| shader.distance_in_plane(k, centre) == 0.0),
+            "corner texel ({i}, {j}) off the face"
+        );
+    }
 }
 
 #[test]

@@ -294,9 +294,10 @@ pub enum Command {
         format: ReportFormat,
     },
     /// Run the main job on the bundled Cornell box: bake it at its default (adaptive) mesh, validate the table,
-    /// render it (view, light-map atlas, device error map, mesh histogram), then bake a table within 400 patches
-    /// for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under QEMU, printing every
-    /// frame's error against f64 next to the instructions it took. Everything lands in the output folder.
+    /// render it (view, light-map atlas, the .glb export, device error map, mesh histogram), then bake a table
+    /// within 400 patches for a Cortex-M4 and run the "lights-on" relight script on it, on the host and under
+    /// QEMU, printing every frame's error against f64 next to the instructions it took. Everything lands in the
+    /// output folder.
     Demo {
         /// Folder for the outputs (created, with its parents, if missing).
         #[arg(long, default_value = "out")]
@@ -408,8 +409,9 @@ pub enum Command {
         #[arg(long, value_enum, default_value_t = Format::Text)]
         format: Format,
     },
-    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.hdr (linear W/m^2), STEM.png (tone
-    /// mapped, sRGB) and STEM.json (the face -> atlas rectangle map, every face). Prints the paths and the
+    /// Solve the scene in f64 (as `solve`) and write its light-map atlas: STEM.exr (linear radiosity in W/m^2,
+    /// RGB 32-bit float), STEM.hdr (the same in Radiance RGBE), STEM.png (tone mapped, sRGB) and STEM.json (the
+    /// face -> atlas rectangle map, every face). Prints the paths and the
     /// atlas's size; `--texel-size` or `--face-texels` sets the resolution.
     Lightmap {
         #[command(flatten)]
@@ -417,15 +419,27 @@ pub enum Command {
         /// Output path without extension (its folder must exist).
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
-        /// Texel edge length in scene units (a face `L` units across gets about `L / LENGTH` texels); the
-        /// default sizes texels by `--face-texels` instead.
-        #[arg(long, value_name = "LENGTH", conflicts_with = "face_texels")]
-        texel_size: Option<f64>,
-        /// Texels across the largest face when no `--texel-size` is given (1 to 4096; smaller faces get
-        /// proportionally fewer, at least one). Every face is at most 4096 texels across and the atlas at most
-        /// 4096 x 4096 texels in all.
-        #[arg(long, value_name = "N", default_value_t = LightMapOptions::default().max_face_texels)]
-        face_texels: u32,
+        #[command(flatten)]
+        light_map: LightMapArgs,
+    },
+    /// Solve the scene in f64 (as `solve`), bake its light map (as `lightmap`) and write the scene as binary
+    /// glTF 2.0 that game engines and three.js load as it is.
+    ///
+    /// OUT.glb holds the patches (positions in scene units, normals), TEXCOORD_1 = the light-map UVs (TEXCOORD_0
+    /// is the same set, as glTF requires it first), one material per scene material (baseColorFactor = the
+    /// reflectance, emissiveFactor = the emission as radiance E / pi) and the light map embedded as an 8-bit sRGB
+    /// PNG of the irradiance (B - E) / reflectance, scaled so that its brightest texel is 255: the light map's
+    /// intensity (MOZ_lightmap "intensity" in every material, and extras.radiosity.light_map.irradiance_scale)
+    /// turns it back into W/m^2. OUT.exr beside it holds the same irradiance atlas in 32-bit float. See README,
+    /// "Light maps in game engines", for three.js and Bevy.
+    Export {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// The .glb file to write (its folder must exist); the .exr goes beside it.
+        #[arg(short, long, value_name = "OUT.glb")]
+        output: PathBuf,
+        #[command(flatten)]
+        light_map: LightMapArgs,
     },
     /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
     /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
@@ -464,6 +478,20 @@ pub enum Command {
     /// Gauss-Seidel), the roofline and the bake throughput; write REPORT.md,
     /// CSV files and plots into the output folder. Run it from a release build.
     Bench(BenchArgs),
+}
+
+/// The light map's resolution (`lightmap`, `export`).
+#[derive(Clone, Debug, clap::Args)]
+pub struct LightMapArgs {
+    /// Texel edge length in scene units (a face `L` units across gets about `L / LENGTH` texels); the
+    /// default sizes texels by `--face-texels` instead.
+    #[arg(long, value_name = "LENGTH", conflicts_with = "face_texels")]
+    pub texel_size: Option<f64>,
+    /// Texels across the largest face when no `--texel-size` is given (1 to 4096; smaller faces get
+    /// proportionally fewer, at least one). Every face is at most 4096 texels across and the atlas at most
+    /// 4096 x 4096 texels in all.
+    #[arg(long, value_name = "N", default_value_t = LightMapOptions::default().max_face_texels)]
+    pub face_texels: u32,
 }
 
 /// Command-line options of `radiosity reference`.

@@ -85,6 +85,27 @@ fn check_outputs<P: AsRef<Path>>(paths: impl IntoIterator<Item = P>) -> Result<(
     Ok(())
 }
 
+/// The light-map options of `--texel-size` / `--face-texels`, checked before any work.
+fn light_map_options(args: &args::LightMapArgs) -> Result<LightMapOptions, BoxError> {
+    use radiosity_host::picture::lightmap::MAX_FACE_SIDE;
+    radiosity_host::limits::check_count(
+        "--face-texels",
+        args.face_texels as usize,
+        MAX_FACE_SIDE as usize,
+        "texels across the largest face",
+    )?;
+    if let Some(t) = args.texel_size {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(format!("--texel-size {t}: must be a positive length").into());
+        }
+    }
+    Ok(LightMapOptions {
+        texel_size: args.texel_size,
+        max_face_texels: args.face_texels,
+        ..LightMapOptions::default()
+    })
+}
+
 /// The files of a plot written to `stem` ([`radiosity_host::picture::plot::Plot::write`]).
 fn plot_files(stem: &Path) -> [PathBuf; 2] {
     [stem.with_extension("svg"), stem.with_extension("png")]
@@ -502,24 +523,11 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 paths,
             )?;
         }
-        Command::Lightmap { scene, output, texel_size, face_texels } => {
+        Command::Lightmap { scene, output, light_map } => {
             check_scene_args(&scene)?;
-            use radiosity_host::picture::lightmap::MAX_FACE_SIDE;
-            radiosity_host::limits::check_count(
-                "--face-texels",
-                face_texels as usize,
-                MAX_FACE_SIDE as usize,
-                "texels across the largest face",
-            )?;
-            if let Some(t) = texel_size {
-                if !(t.is_finite() && t > 0.0) {
-                    return Err(format!("--texel-size {t}: must be a positive length").into());
-                }
-            }
-            check_outputs(["hdr", "png", "json"].map(|e| output.with_extension(e)))?;
+            let options = light_map_options(&light_map)?;
+            check_outputs(["exr", "hdr", "png", "json"].map(|e| output.with_extension(e)))?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
-            let options =
-                LightMapOptions { texel_size, max_face_texels: face_texels, ..LightMapOptions::default() };
             let files = view::write_light_map(&p, &view::solve_default(&p)?, &output, &options)?;
             for path in &files.paths {
                 writeln!(out, "{}", path.display())?;
@@ -528,6 +536,35 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 out,
                 "atlas {} x {} texels, texel {:.4e} scene units",
                 files.width, files.height, files.texel_size
+            )?;
+        }
+        Command::Export { scene, output, light_map } => {
+            check_scene_args(&scene)?;
+            let options = light_map_options(&light_map)?;
+            if output.extension().is_none_or(|e| !e.eq_ignore_ascii_case("glb")) {
+                return Err(format!("{}: the output must be a .glb file", output.display()).into());
+            }
+            check_outputs([output.clone(), output.with_extension("exr")])?;
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            let stage = |what: &str| {
+                if !scene.quiet {
+                    eprintln!("export: {what}");
+                }
+            };
+            stage(&format!("solving {} in f64", counted(p.patches.len(), "patch", "patches")));
+            let b = view::solve_default(&p)?;
+            stage("baking the light map and writing the .glb");
+            let files = view::export_glb(&p, &b, &output, &options)?;
+            writeln!(out, "{}", files.glb.display())?;
+            writeln!(out, "{}", files.exr.display())?;
+            writeln!(
+                out,
+                "{}, atlas {} x {} texels (texel {:.4e} scene units), light-map intensity {:.6e} W/m^2",
+                counted(files.triangles, "triangle", "triangles"),
+                files.width,
+                files.height,
+                files.texel_size,
+                files.irradiance_scale
             )?;
         }
         Command::Check { scene, table_scene, check, plot, format } => {
@@ -745,6 +782,8 @@ fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), B
     for path in &light_map.paths {
         writeln!(out, "{}", path.display())?;
     }
+    let glb = view::export_glb(&p, &b, &dir.join("cornell-box.glb"), &LightMapOptions::default())?;
+    writeln!(out, "{}", glb.glb.display())?;
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
     let intensity: Vec<[f32; 3]> =
         p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
