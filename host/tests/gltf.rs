@@ -343,3 +343,295 @@ fn cornell_box_as_gltf_loads_and_solves_like_the_obj() {
 /// the other side of an edge, a patch split differently) would move radiosity by percent, far above it.
 /// Measured: 1.8e-8 (0.3u).
 const RADIOSITY_TOLERANCE: f64 = 16.0 * F32_ROUNDOFF;
+
+/// The faces of a scene as (vertices, area, normal), for comparisons.
+fn face_at(scene: &Scene, k: usize) -> (&[DVec3], f64, DVec3) {
+    let f = &scene.faces[k];
+    (&f.vertices, f.area, f.normal)
+}
+
+fn assert_vec(what: &str, a: DVec3, b: DVec3) {
+    assert!((a - b).abs().max_element() <= 1e-12 * (1.0 + b.abs().max_element()), "{what}: {a} vs {b}");
+}
+
+#[test]
+fn node_transforms_are_composed_down_the_hierarchy() {
+    let (mut w, mesh) = square_writer();
+    w.node(json!({"name": "plain", "mesh": mesh}), true);
+    // Scale (2, 3, 1), then 90 degrees about +x, then translation (10, 0, 0).
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    w.node(
+        json!({"name": "trs", "mesh": mesh, "translation": [10.0, 0.0, 0.0], "rotation": [s, 0.0, 0.0, s],
+               "scale": [2.0, 3.0, 1.0]}),
+        true,
+    );
+    // A child translated by (0, 0, 1) under a parent that scales by 2 and moves by (0, 20, 0) (a matrix,
+    // column-major).
+    let child = w.node(json!({"name": "child", "mesh": mesh, "translation": [0.0, 0.0, 1.0]}), false);
+    w.node(
+        json!({"name": "parent", "children": [child],
+               "matrix": [2.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 20.0, 0.0, 1.0]}),
+        true,
+    );
+    let scene = load("transforms", &w).unwrap();
+    assert_eq!(scene.faces.len(), 3, "one face per instance (each square's fan joined)");
+    let (v, area, n) = face_at(&scene, 0);
+    assert_eq!(v.len(), 4);
+    assert_close("area of the plain square", area, 1.0, 1e-12);
+    assert_vec("normal of the plain square", n, DVec3::Z);
+    let (v, area, n) = face_at(&scene, 1);
+    assert_close("area of the TRS square", area, 6.0, 1e-12);
+    assert_vec("normal of the TRS square (+z turned about +x)", n, DVec3::NEG_Y);
+    assert_vec("corner (1, 1, 0) of the TRS square", v[2], DVec3::new(12.0, 0.0, 3.0));
+    let (v, area, n) = face_at(&scene, 2);
+    assert_close("area of the child square", area, 4.0, 1e-12);
+    assert_vec("normal of the child square", n, DVec3::Z);
+    assert_vec("corner (1, 1, 0) of the child square", v[2], DVec3::new(2.0, 22.0, 2.0));
+    let place = scene.faces[2].gltf.as_ref().unwrap();
+    assert_eq!((place.node, place.mesh, place.primitive, place.triangles.clone()), (2, 0, 0, 0..2));
+    assert_eq!(scene.faces[2].object, "child");
+    assert_eq!(scene.faces[2].place(), "node 'child' (2), mesh 'square' (0), primitive 0, triangles 0..=1");
+}
+
+#[test]
+fn mirroring_nodes_keep_faces_facing_where_the_file_says() {
+    let (mut w, mesh) = square_writer();
+    // Mirrored in x: the square still faces +z.
+    w.node(json!({"mesh": mesh, "scale": [-1.0, 1.0, 1.0]}), true);
+    // Mirrored in z: it now faces -z.
+    w.node(json!({"mesh": mesh, "scale": [1.0, 1.0, -1.0], "translation": [3.0, 0.0, 0.0]}), true);
+    // Mirrored twice (parent and child): a rotation, facing +z again.
+    let child = w.node(json!({"mesh": mesh, "scale": [1.0, 1.0, -1.0]}), false);
+    w.node(json!({"children": [child], "scale": [1.0, 1.0, -1.0], "translation": [0.0, 3.0, 0.0]}), true);
+    let scene = load("mirror", &w).unwrap();
+    let normals: Vec<DVec3> = scene.faces.iter().map(|f| f.normal).collect();
+    assert_eq!(normals.len(), 3, "each mirrored square's fan is still joined: {normals:?}");
+    assert_vec("mirrored in x", normals[0], DVec3::Z);
+    assert_vec("mirrored in z", normals[1], DVec3::NEG_Z);
+    assert_vec("mirrored twice", normals[2], DVec3::Z);
+    for f in &scene.faces {
+        assert_close("area", f.area, 1.0, 1e-12);
+        assert_eq!(f.vertices.len(), 4);
+    }
+}
+
+#[test]
+fn strips_fans_and_unindexed_triangles_are_surfaces() {
+    let mut w = Writer::default();
+    let m = w.material("lamp", Rgb::splat(0.5), Rgb::splat(1.0));
+    let p = w.positions(&SQUARE);
+    let strip = w.indices(&[0, 1, 3, 2]);
+    let fan = w.indices(&[0, 1, 2, 3]);
+    let flat: Vec<[f32; 3]> = SQUARE_FAN.iter().map(|&i| SQUARE[i as usize]).collect();
+    let q = w.positions(&flat);
+    let strip_mesh = w.mesh("strip", &[(p, Some(strip), Some(m), TRIANGLE_STRIP)]);
+    let fan_mesh = w.mesh("fan", &[(p, Some(fan), Some(m), TRIANGLE_FAN)]);
+    let flat_mesh = w.mesh("unindexed", &[(q, None, Some(m), TRIANGLES)]);
+    w.node(json!({"mesh": strip_mesh}), true);
+    w.node(json!({"mesh": fan_mesh, "translation": [2.0, 0.0, 0.0]}), true);
+    w.node(json!({"mesh": flat_mesh, "translation": [4.0, 0.0, 0.0]}), true);
+    let scene = load("modes", &w).unwrap();
+    let summary: Vec<(usize, usize)> =
+        scene.faces.iter().map(|f| (f.gltf.as_ref().unwrap().node, f.vertices.len())).collect();
+    // The strip's second triangle does not start at the first vertex and the unindexed triangles share no
+    // index: two triangles each. The fan is joined into the square.
+    assert_eq!(summary, [(0, 3), (0, 3), (1, 4), (2, 3), (2, 3)]);
+    for f in &scene.faces {
+        assert_vec("normal", f.normal, DVec3::Z);
+    }
+    assert_close("total area", scene.total_area(), 3.0, 1e-12);
+}
+
+#[test]
+fn glb_and_gltf_with_a_bin_file_load_the_same_scene() {
+    let obj = Scene::load(common::scene("cornell-box.obj")).unwrap();
+    let w = writer_of(&obj);
+    let dir = temp_dir("glb");
+    w.write_gltf(&dir.join("box.gltf"));
+    w.write_glb(&dir.join("box.glb"));
+    let a = Scene::load(dir.join("box.gltf")).unwrap();
+    let b = Scene::load(dir.join("box.glb")).unwrap();
+    assert_eq!(a.faces, b.faces);
+    assert_eq!(a.materials, b.materials);
+    assert_eq!(a.light_groups, b.light_groups);
+    assert_eq!(b.faces.len(), obj.faces.len() + 1);
+}
+
+/// A 2 x 1 RGB PNG with 8-bit sRGB texels.
+fn png(texels: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut encoder = png::Encoder::new(&mut out, 2, 1);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.write_header().unwrap().write_image_data(texels).unwrap();
+    out
+}
+
+#[test]
+fn textures_multiply_by_their_linear_mean_and_emission_by_its_strength() {
+    let (mut w, mesh) = square_writer();
+    // sRGB 255 is linear 1, 0 is 0, 128 is ((128 / 255 + 0.055) / 1.055)^2.4 = 0.21586050011389926
+    // (IEC 61966-2-1); the mean over the two texels is taken in linear values.
+    let t = w.png_texture(&png(&[255, 0, 128, 0, 0, 128]));
+    w.materials[0]["pbrMetallicRoughness"]["baseColorFactor"] = json!([0.8, 0.8, 0.8, 1.0]);
+    w.materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": t});
+    w.materials[0]["emissiveFactor"] = json!([1.0, 0.5, 0.25]);
+    w.materials[0]["extensions"] = json!({"KHR_materials_emissive_strength": {"emissiveStrength": 8.0}});
+    w.node(json!({"mesh": mesh}), true);
+    let scene = load("texture", &w).unwrap();
+    let m = &scene.materials[0];
+    let f = 0.8_f32 as f64;
+    assert_vec("reflectance", m.reflectance, DVec3::new(f * 0.5, 0.0, f * 0.21586050011389926));
+    assert_eq!(m.emission, DVec3::new(8.0, 4.0, 2.0), "W/m^2, as MTL Ke");
+    assert_eq!(scene.light_groups.len(), 1);
+    assert_eq!(scene.light_groups[0].name, "lamp", "an emitting material is a light group named after it");
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+
+    let (mut w, mesh) = square_writer();
+    let t = w.png_texture(b"not a PNG at all");
+    w.materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": t});
+    w.node(json!({"mesh": mesh}), true);
+    let e = error("bad-texture", &w);
+    assert!(e.contains("material 'lamp' (0), base colour texture 0, image 0: cannot be decoded"), "{e}");
+}
+
+#[test]
+fn metallic_and_double_sided_materials_are_warned_about() {
+    let (mut w, mesh) = square_writer();
+    w.materials[0]["pbrMetallicRoughness"] = json!({"baseColorFactor": [0.5, 0.5, 0.5, 1.0]});
+    w.materials[0]["doubleSided"] = json!(true);
+    w.node(json!({"mesh": mesh}), true);
+    let scene = load("warnings", &w).unwrap();
+    let text: Vec<String> = scene.warnings.iter().map(ToString::to_string).collect();
+    assert_eq!(text.len(), 2, "{text:?}");
+    assert!(text[0].contains("material 'lamp' (0): metallicFactor is 1"), "{text:?}");
+    assert!(text[1].contains("material 'lamp' (0): double-sided"), "{text:?}");
+}
+
+/// The square placed by node 0 ("n"), with indices and positions as given.
+fn square_with(positions: &[[f32; 3]], indices: &[u32]) -> Writer {
+    let mut w = Writer::default();
+    let m = w.material("lamp", Rgb::splat(0.5), Rgb::splat(1.0));
+    let p = w.positions(positions);
+    let i = w.indices(indices);
+    let mesh = w.mesh("square", &[(p, Some(i), Some(m), TRIANGLES)]);
+    w.node(json!({"name": "n", "mesh": mesh}), true);
+    w
+}
+
+const AT: &str = "node 'n' (0), mesh 'square' (0), primitive 0";
+
+#[test]
+fn geometry_errors_name_node_mesh_primitive_and_triangle() {
+    let e = error("degenerate", &square_with(&SQUARE, &[0, 1, 2, 0, 2, 2]));
+    assert!(e.contains(&format!("{AT}, triangle 1: degenerate triangle: vertices 1 and 2 coincide")), "{e}");
+
+    let mut nan = SQUARE;
+    nan[3][1] = f32::NAN;
+    let e = error("nan", &square_with(&nan, &SQUARE_FAN));
+    assert!(e.contains(&format!("{AT}, triangle 1: vertex 2 (index 3) is not finite")), "{e}");
+
+    let e = error("index", &square_with(&SQUARE, &[0, 1, 2, 0, 2, 7]));
+    assert!(e.contains(&format!("{AT}, triangle 1: vertex 2: index 7 out of range (POSITION has 4 vertices)")), "{e}");
+
+    let e = error("count", &square_with(&SQUARE, &[0, 1, 2, 0, 2]));
+    assert!(e.contains(&format!("{AT}: 5 vertices for TRIANGLES, not a multiple of 3")), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.meshes[0]["primitives"][0]["mode"] = json!(LINES);
+    let e = error("lines", &w);
+    assert!(e.contains(&format!("{AT}: mode Lines is not a surface")), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.meshes[0]["primitives"][0].as_object_mut().unwrap().remove("material");
+    let e = error("no-material", &w);
+    assert!(e.contains(&format!("{AT}: no material")), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.meshes[0]["primitives"][0]["attributes"] = json!({"NORMAL": 0});
+    let e = error("no-position", &w);
+    assert!(e.contains("meshes[0].primitives[0]") || e.contains(&format!("{AT}: no POSITION")), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.nodes[0]["scale"] = json!([1.0, 1.0, 0.0]);
+    let e = error("singular", &w);
+    assert!(e.contains("node 'n' (0): transform (composed with its parents') has determinant 0"), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.nodes[0]["scale"] = json!([1e30, 1e30, 1e30]);
+    let e = error("huge", &w);
+    assert!(e.contains("more than the largest size supported"), "{e}");
+
+    // Two instances of the square in one place: duplicate faces.
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.node(json!({"name": "twin", "mesh": 0}), true);
+    let e = error("overlap", &w);
+    assert!(
+        e.contains(&format!("face 0 ({AT}, triangles 0..=1) and face 1 (node 'twin' (1), mesh 'square' (0)"))
+            && e.contains("coplanar and overlap"),
+        "{e}"
+    );
+}
+
+#[test]
+fn material_and_hierarchy_errors_name_what_is_wrong() {
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.materials[0]["pbrMetallicRoughness"]["baseColorFactor"] = json!([1.0, 0.5, 0.5, 1.0]);
+    let e = error("white", &w);
+    assert!(e.contains("material 'lamp' (0): reflectance (base colour) channel 0 = 1 is outside [0, 1)"), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.material("lamp", Rgb::splat(0.5), Rgb::ZERO);
+    let e = error("twins", &w);
+    assert!(e.contains("material 'lamp' (1): the name is also material 0's"), "{e}");
+
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.materials[0]["extensions"] = json!({"KHR_materials_emissive_strength": {"emissiveStrength": -2.0}});
+    let e = load("strength", &w).expect_err("negative strength").to_string();
+    assert!(e.contains("strength.gltf") && e.contains("emissiveStrength"), "{e}");
+
+    // Node 0 is a root and also the child of node 1, which is its child: a cycle.
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.nodes[0]["children"] = json!([1]);
+    w.node(json!({"name": "loop", "children": [0]}), false);
+    let e = error("cycle", &w);
+    assert!(e.contains("node 'n' (0): is a root of scene 0 and also a child of node 1"), "{e}");
+}
+
+#[test]
+fn broken_files_are_refused_naming_the_file() {
+    let dir = temp_dir("broken");
+    let w = square_with(&SQUARE, &SQUARE_FAN);
+
+    let glb = dir.join("cut.glb");
+    w.write_glb(&glb);
+    let bytes = std::fs::read(&glb).unwrap();
+    std::fs::write(&glb, &bytes[..bytes.len() / 2]).unwrap();
+    let e = Scene::load(&glb).unwrap_err().to_string();
+    assert!(e.contains("cut.glb: not a valid glTF 2.0 file"), "{e}");
+
+    let json = dir.join("syntax.gltf");
+    std::fs::write(&json, "{\"asset\": {\"version\": \"2.0\"}, ").unwrap();
+    let e = Scene::load(&json).unwrap_err().to_string();
+    assert!(e.contains("syntax.gltf: not a valid glTF 2.0 file"), "{e}");
+
+    let missing = dir.join("nobin.gltf");
+    w.write_gltf(&missing);
+    std::fs::remove_file(missing.with_extension("bin")).unwrap();
+    let e = Scene::load(&missing).unwrap_err().to_string();
+    assert!(e.contains("nobin.gltf: buffer 0 (") && e.contains("nobin.bin'): cannot be read"), "{e}");
+
+    let short = dir.join("short.gltf");
+    w.write_gltf(&short);
+    std::fs::write(short.with_extension("bin"), &w.bin[..w.bin.len() - 8]).unwrap();
+    let e = Scene::load(&short).unwrap_err().to_string();
+    assert!(e.contains("short.gltf: buffer 0 (") && e.contains("less than its byteLength"), "{e}");
+
+    let mut none = w.json(Some("none.bin"));
+    none.as_object_mut().unwrap().remove("scenes");
+    none.as_object_mut().unwrap().remove("scene");
+    std::fs::write(dir.join("none.bin"), &w.bin).unwrap();
+    std::fs::write(dir.join("none.gltf"), none.to_string()).unwrap();
+    let e = Scene::load(dir.join("none.gltf")).unwrap_err().to_string();
+    assert!(e.contains("none.gltf: scenes: the file has no scene"), "{e}");
+}

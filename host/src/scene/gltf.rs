@@ -181,7 +181,7 @@ fn build_materials(
             }
         }
         if !(strength.is_finite() && strength >= 0.0) {
-            return Err(at(place, format!("emissive strength {strength} must be finite and >= 0")));
+            return Err(at(place, format!("emissiveStrength (KHR_materials_emissive_strength) {strength} must be finite and >= 0")));
         }
         for (c, &v) in emission.to_array().iter().enumerate() {
             if !v.is_finite() {
