@@ -72,7 +72,8 @@ impl Writer {
     fn indices(&mut self, i: &[u32]) -> usize {
         let bytes: Vec<u8> = i.iter().flat_map(|v| v.to_le_bytes()).collect();
         let view = self.view(&bytes);
-        self.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": i.len(), "type": "SCALAR"}));
+        self.accessors
+            .push(json!({"bufferView": view, "componentType": 5125, "count": i.len(), "type": "SCALAR"}));
         self.accessors.len() - 1
     }
 
@@ -287,17 +288,31 @@ fn cornell_box_as_gltf_loads_and_solves_like_the_obj() {
             for (u, v) in p.vertices.iter().zip(&h.vertices) {
                 assert!((*u - *v).abs().max_element() <= F32_ROUNDOFF * size, "face {}: {u} vs {v}", f.index);
             }
-            assert!(h.normal.dot(p.normal) > 1.0 - 1e-9, "face {}: normal {} vs {}", f.index, h.normal, p.normal);
+            assert!(
+                h.normal.dot(p.normal) > 1.0 - 1e-9,
+                "face {}: normal {} vs {}",
+                f.index,
+                h.normal,
+                p.normal
+            );
             // |dA| <= |perimeter| * |dx|: each edge moves by at most the rounding of its ends.
             let perimeter: f64 = (0..p.vertices.len())
                 .map(|k| p.vertices[k].distance(p.vertices[(k + 1) % p.vertices.len()]))
                 .sum();
-            assert_close(&format!("area of face {}", f.index), p.area, h.area, 2.0 * perimeter * F32_ROUNDOFF * size);
+            assert_close(
+                &format!("area of face {}", f.index),
+                p.area,
+                h.area,
+                2.0 * perimeter * F32_ROUNDOFF * size,
+            );
             g += 1;
         }
     }
     assert_eq!(g, gltf.faces.len(), "no extra glTF faces");
-    assert!(gltf.faces.len() > obj.faces.len(), "the red wall is non-planar: its two triangles stay two faces");
+    assert!(
+        gltf.faces.len() > obj.faces.len(),
+        "the red wall is non-planar: its two triangles stay two faces"
+    );
 
     // Solve both (flat, 200 patches, the estimator's default sample counts) and compare each OBJ face's
     // area-weighted mean radiosity.
@@ -532,7 +547,10 @@ fn geometry_errors_name_node_mesh_primitive_and_triangle() {
     assert!(e.contains(&format!("{AT}, triangle 1: vertex 2 (index 3) is not finite")), "{e}");
 
     let e = error("index", &square_with(&SQUARE, &[0, 1, 2, 0, 2, 7]));
-    assert!(e.contains(&format!("{AT}, triangle 1: vertex 2: index 7 out of range (POSITION has 4 vertices)")), "{e}");
+    assert!(
+        e.contains(&format!("{AT}, triangle 1: vertex 2: index 7 out of range (POSITION has 4 vertices)")),
+        "{e}"
+    );
 
     let e = error("count", &square_with(&SQUARE, &[0, 1, 2, 0, 2]));
     assert!(e.contains(&format!("{AT}: 5 vertices for TRIANGLES, not a multiple of 3")), "{e}");
@@ -551,7 +569,11 @@ fn geometry_errors_name_node_mesh_primitive_and_triangle() {
     w.meshes[0]["primitives"][0]["attributes"] = json!({"NORMAL": 0});
     let e = error("no-position", &w);
     // The glTF reader's schema check finds this one first, and names the JSON path.
-    assert!(e.contains("not a valid glTF 2.0 file") && e.contains("meshes[0].primitives[0].attributes[\"POSITION\"]"), "{e}");
+    assert!(
+        e.contains("not a valid glTF 2.0 file")
+            && e.contains("meshes[0].primitives[0].attributes[\"POSITION\"]"),
+        "{e}"
+    );
 
     let mut w = square_with(&SQUARE, &SQUARE_FAN);
     w.nodes[0]["scale"] = json!([1.0, 1.0, 0.0]);
@@ -579,7 +601,10 @@ fn material_and_hierarchy_errors_name_what_is_wrong() {
     let mut w = square_with(&SQUARE, &SQUARE_FAN);
     w.materials[0]["pbrMetallicRoughness"]["baseColorFactor"] = json!([1.0, 0.5, 0.5, 1.0]);
     let e = error("white", &w);
-    assert!(e.contains("material 'lamp' (0): reflectance (base colour) channel 0 = 1 is outside [0, 1)"), "{e}");
+    assert!(
+        e.contains("material 'lamp' (0): reflectance (base colour) channel 0 = 1 is outside [0, 1)"),
+        "{e}"
+    );
 
     let mut w = square_with(&SQUARE, &SQUARE_FAN);
     w.material("lamp", Rgb::splat(0.5), Rgb::ZERO);
@@ -635,4 +660,56 @@ fn broken_files_are_refused_naming_the_file() {
     std::fs::write(dir.join("none.gltf"), none.to_string()).unwrap();
     let e = Scene::load(dir.join("none.gltf")).unwrap_err().to_string();
     assert!(e.contains("none.gltf: scenes: the file has no scene"), "{e}");
+}
+
+/// The ```json block of `docs/scene-format.md` (the light material of the Cornell box as glTF).
+fn doc_material() -> Value {
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/scene-format.md"))
+        .unwrap();
+    let block = text.split("```json\n").nth(1).expect("a ```json block").split("```").next().unwrap();
+    serde_json::from_str(block).unwrap()
+}
+
+#[test]
+fn the_documented_light_material_emits_what_the_mtl_ke_says() {
+    let (mut w, mesh) = square_writer();
+    w.materials[0] = doc_material();
+    w.node(json!({"mesh": mesh}), true);
+    let scene = load("doc-material", &w).unwrap();
+    let obj = Scene::load(common::scene("cornell-box.obj")).unwrap();
+    let light = obj.materials.iter().find(|m| m.name == "light").unwrap();
+    let m = &scene.materials[0];
+    assert_eq!(m.name, "light");
+    for c in 0..3 {
+        // The factor is written to 7 digits (relative 1e-7 of 1), then both are rounded to f32.
+        assert_close("emission", m.emission[c], light.emission[c], 2e-7 * light.emission.max_element());
+        assert_close("reflectance", m.reflectance[c], light.reflectance[c], F32_ROUNDOFF);
+    }
+}
+
+#[test]
+fn the_command_line_solves_a_glb_scene() {
+    let (mut w, mesh) = square_writer();
+    // The lamp square facing up, and a grey square 1 above it facing down.
+    let grey = w.material("grey", Rgb::splat(0.5), Rgb::ZERO);
+    let p = w.positions(&SQUARE);
+    let i = w.indices(&SQUARE_FAN);
+    let down = w.mesh("down", &[(p, Some(i), Some(grey), TRIANGLES)]);
+    w.node(json!({"mesh": mesh}), true);
+    w.node(json!({"mesh": down, "scale": [1.0, 1.0, -1.0], "translation": [0.0, 0.0, 1.0]}), true);
+    let path = temp_dir("cli").join("pair.glb");
+    w.write_glb(&path);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args(["solve", path.to_str().unwrap(), "--no-subdivide", "--no-repair", "--format", "csv"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rows: Vec<Vec<f64>> =
+        stdout.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert_eq!(rows.len(), 2, "{stdout}");
+    // Facing unit squares 1 apart: F = 0.199825 (closed form); the grey one's radiosity is 0.5 * F * B_lamp
+    // (it sees nothing else). A square facing the wrong way would get 0.
+    let (lamp, grey) = (rows[0][15], rows[1][15]);
+    assert_close("form factor from the solve", grey / (0.5 * lamp), 0.199825, 1e-3);
 }

@@ -278,7 +278,17 @@ pub(super) fn build_face(
         });
     };
     let area = polygons.iter().map(|p| p.area).sum();
-    Ok(Face { index, line, gltf: None, object: object.to_owned(), material, vertices, normal, area, polygons })
+    Ok(Face {
+        index,
+        line,
+        gltf: None,
+        object: object.to_owned(),
+        material,
+        vertices,
+        normal,
+        area,
+        polygons,
+    })
 }
 
 /// Checks that a polygon, projected on the plane with unit normal `normal`, is convex and simple: every turn is

@@ -67,9 +67,10 @@ pub(super) fn load_gltf(
     let at = |place: String, problem: String| SceneError::Gltf { file: file.to_path_buf(), place, problem };
     let buffers = load_buffers(&document, &base, blob, &at)?;
     let materials = build_materials(&document, &base, &buffers, &at)?;
-    let scene = document.default_scene().or_else(|| document.scenes().next()).ok_or_else(|| {
-        at("scenes".to_owned(), "the file has no scene (nothing to load)".to_owned())
-    })?;
+    let scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| at("scenes".to_owned(), "the file has no scene (nothing to load)".to_owned()))?;
     check_hierarchy(&document, &scene, &at)?;
     let mut faces = Vec::new();
     let mut stack: Vec<(gltf::Node<'_>, DMat4)> =
@@ -112,14 +113,20 @@ fn load_buffers(
             gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
                 format!("buffer {} (data URI)", buffer.index())
             }
-            gltf::buffer::Source::Uri(uri) => format!("buffer {} ('{}')", buffer.index(), base.join(uri).display()),
+            gltf::buffer::Source::Uri(uri) => {
+                format!("buffer {} ('{}')", buffer.index(), base.join(uri).display())
+            }
         };
         let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
             .map_err(|e| at(place.clone(), format!("cannot be read: {e}")))?;
         if data.len() < buffer.length() {
             return Err(at(
                 place,
-                format!("has {} bytes, less than its byteLength {} (truncated?)", data.len(), buffer.length()),
+                format!(
+                    "has {} bytes, less than its byteLength {} (truncated?)",
+                    data.len(),
+                    buffer.length()
+                ),
             ));
         }
         buffers.push(data);
@@ -156,7 +163,10 @@ fn build_materials(
         let name = m.name().map_or_else(|| format!("material_{i}"), str::to_owned);
         let place = named("material", Some(&name), i);
         if let Some(first) = names.insert(name.clone(), i) {
-            return Err(at(place, format!("the name is also material {first}'s (material names must be unique)")));
+            return Err(at(
+                place,
+                format!("the name is also material {first}'s (material names must be unique)"),
+            ));
         }
         let pbr = m.pbr_metallic_roughness();
         let [r, g, b, _] = pbr.base_color_factor();
@@ -177,11 +187,19 @@ fn build_materials(
                 return Err(at(place, format!("reflectance (base colour) channel {c} is not finite ({v})")));
             }
             if !(0.0..1.0).contains(&v) {
-                return Err(at(place, format!("reflectance (base colour) channel {c} = {v} is outside [0, 1)")));
+                return Err(at(
+                    place,
+                    format!("reflectance (base colour) channel {c} = {v} is outside [0, 1)"),
+                ));
             }
         }
         if !(strength.is_finite() && strength >= 0.0) {
-            return Err(at(place, format!("emissiveStrength (KHR_materials_emissive_strength) {strength} must be finite and >= 0")));
+            return Err(at(
+                place,
+                format!(
+                    "emissiveStrength (KHR_materials_emissive_strength) {strength} must be finite and >= 0"
+                ),
+            ));
         }
         for (c, &v) in emission.to_array().iter().enumerate() {
             if !v.is_finite() {
@@ -234,7 +252,10 @@ fn texture_mean(
     let texel = channels * bytes;
     let count = data.pixels.len() / texel;
     if count == 0 || data.pixels.len() % texel != 0 {
-        return Err(at(place, format!("decodes to {} bytes, not whole {texel}-byte texels", data.pixels.len())));
+        return Err(at(
+            place,
+            format!("decodes to {} bytes, not whole {texel}-byte texels", data.pixels.len()),
+        ));
     }
     let lut: Vec<f64> = (0..256).map(|v| srgb_to_linear(f64::from(v as u8) / 255.0)).collect();
     let value = |t: &[u8], c: usize| -> f64 {
@@ -362,7 +383,9 @@ fn triangles(
             .filter(|(_, [a, b, c])| a != b && b != c && a != c)
             .collect()),
         // The spec's fan triangle p is (p + 1, p + 2, 0): the same turn as (0, p + 1, p + 2).
-        Mode::TriangleFan => Ok((0..n - 2).map(|p| (p, [indices[0], indices[p + 1], indices[p + 2]])).collect()),
+        Mode::TriangleFan => {
+            Ok((0..n - 2).map(|p| (p, [indices[0], indices[p + 1], indices[p + 2]])).collect())
+        }
         other => Err(at(
             place.to_owned(),
             format!("mode {other:?} is not a surface (only TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN are)"),
@@ -400,17 +423,20 @@ fn add_mesh(
             primitive: primitive.index(),
             triangles: 0..0,
         };
-        let prim_place = format!("{node_place}, {}, primitive {}", named("mesh", mesh.name(), mesh.index()), primitive.index());
-        let material = match primitive.material().index() {
-            Some(m) if m < materials.len() => m,
-            _ => {
-                return Err(at(
+        let prim_place = format!(
+            "{node_place}, {}, primitive {}",
+            named("mesh", mesh.name(), mesh.index()),
+            primitive.index()
+        );
+        let material =
+            match primitive.material().index() {
+                Some(m) if m < materials.len() => m,
+                _ => return Err(at(
                     prim_place,
                     "no material (glTF's default material has reflectance 1, which no diffuse surface has)"
                         .to_owned(),
-                ))
-            }
-        };
+                )),
+            };
         let Some(accessor) = primitive.get(&Semantic::Positions) else {
             return Err(at(prim_place, "no POSITION attribute".to_owned()));
         };
@@ -528,7 +554,12 @@ fn add_mesh(
 }
 
 /// Appends `face`, numbered next, with its place (`place` with the triangles it is made of).
-fn push_face(faces: &mut Vec<Face>, mut face: Face, place: &mut GltfPlace, triangles: std::ops::Range<usize>) {
+fn push_face(
+    faces: &mut Vec<Face>,
+    mut face: Face,
+    place: &mut GltfPlace,
+    triangles: std::ops::Range<usize>,
+) {
     place.triangles = triangles;
     face.index = faces.len();
     face.line = 0;
@@ -547,7 +578,8 @@ fn material_warnings(file: &Path, document: &gltf::Document, faces: &[Face]) -> 
             continue;
         }
         let place = named("material", m.name(), i);
-        let warn = |message: String| SceneWarning { file: file.to_path_buf(), line: None, face: None, message };
+        let warn =
+            |message: String| SceneWarning { file: file.to_path_buf(), line: None, face: None, message };
         let metallic = m.pbr_metallic_roughness().metallic_factor();
         if metallic > 0.0 {
             out.push(warn(format!(

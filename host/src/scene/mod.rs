@@ -1,5 +1,12 @@
-//! Scene loading: a Wavefront OBJ + MTL pair (and an optional `NAME.toml` beside the OBJ) turned into validated
-//! faces, materials and light groups.
+//! Scene loading: a Wavefront OBJ + MTL pair or a glTF 2.0 file (and an optional `NAME.toml` beside either)
+//! turned into validated faces, materials and light groups.
+//!
+//! # glTF
+//! A path ending in `.gltf` or `.glb` is read as glTF 2.0 (submodule `gltf`, whose docs give the mapping): every
+//! triangle, or fan of triangles joined into a polygon, is a [`Face`]; materials take their reflectance from the
+//! base colour and their emission, in W/m^2 as MTL `Ke`, from the emissive factor and strength. Everything from
+//! the checks of the faces on (extent, overlaps, the TOML file, light groups) is the same as for OBJ; errors
+//! name the node, mesh, primitive and triangle instead of a line ([`Face::place`]).
 //!
 //! # Format
 //! - Geometry: OBJ `v` and `f` statements, read with `tobj` without triangulation, so every face is the polygon
@@ -47,7 +54,9 @@
 //! - `obj`: reading the OBJ and MTL text with `tobj`, and the line numbers `tobj` does not report.
 //! - `material`: [`Material`]s checked (`Kd`, `Ke`).
 //! - `face`: [`Face`]s built and checked (degenerate, convex, planar or split into a fan), with the face
-//!   tolerances.
+//!   tolerances, and [`GltfPlace`].
+//! - `gltf`: a glTF file's nodes, meshes and materials turned into faces and materials with the checks of
+//!   `face` (the glTF path's counterpart of `obj`, `material` and `face`'s `build_faces`).
 //! - `extent`: the scene's size and position against the supported range.
 //! - `overlap`: the coplanar-overlap check between faces.
 //! - `config`: the `NAME.toml` file and its [`MeshingLimits`].

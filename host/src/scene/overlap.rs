@@ -58,8 +58,16 @@ pub(super) fn check_overlaps(file: &Path, faces: &[Face]) -> Result<(), SceneErr
                 if x.gltf.is_some() || y.gltf.is_some() {
                     return Err(SceneError::Gltf {
                         file: file.to_path_buf(),
-                        place: format!("face {} ({}) and face {} ({})", x.index, x.place(), y.index, y.place()),
-                        problem: format!("coplanar and overlap (area {area:.6e}; duplicate or overlapping faces)"),
+                        place: format!(
+                            "face {} ({}) and face {} ({})",
+                            x.index,
+                            x.place(),
+                            y.index,
+                            y.place()
+                        ),
+                        problem: format!(
+                            "coplanar and overlap (area {area:.6e}; duplicate or overlapping faces)"
+                        ),
                     });
                 }
                 return Err(SceneError::OverlappingFaces {
