@@ -502,6 +502,28 @@ fn textures_multiply_by_their_linear_mean_and_emission_by_its_strength() {
     assert_eq!(scene.light_groups[0].name, "lamp", "an emitting material is a light group named after it");
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
 
+    // The same image as a file beside the scene, named by a relative URI: the same mean.
+    let (mut w, mesh) = square_writer();
+    w.images.push(json!({"uri": "texture.png"}));
+    w.textures.push(json!({"source": 0}));
+    w.materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+    w.node(json!({"mesh": mesh}), true);
+    let dir = temp_dir("external-texture");
+    std::fs::write(dir.join("texture.png"), png(&[255, 0, 128, 0, 0, 128])).unwrap();
+    w.write_gltf(&dir.join("external.gltf"));
+    let external = Scene::load(dir.join("external.gltf")).unwrap();
+    assert_vec(
+        "reflectance",
+        external.materials[0].reflectance,
+        DVec3::new(0.25, 0.0, 0.5 * 0.21586050011389926),
+    );
+    std::fs::remove_file(dir.join("texture.png")).unwrap();
+    let e = Scene::load(dir.join("external.gltf")).unwrap_err().to_string();
+    assert!(
+        e.contains("base colour texture 0, image 0 (") && e.contains("texture.png'): cannot be decoded"),
+        "{e}"
+    );
+
     let (mut w, mesh) = square_writer();
     let t = w.png_texture(b"not a PNG at all");
     w.materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": t});
