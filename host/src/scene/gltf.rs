@@ -58,8 +58,12 @@ pub(super) fn load_gltf(
     warnings: &mut Vec<SceneWarning>,
 ) -> Result<(Vec<Face>, Vec<Material>), SceneError> {
     let bytes = std::fs::read(file).map_err(|source| SceneError::Io { file: file.to_path_buf(), source })?;
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(&bytes)
-        .map_err(|e| SceneError::GltfParse { file: file.to_path_buf(), problem: e.to_string() })?;
+    let parse = |problem: String| SceneError::GltfParse { file: file.to_path_buf(), problem };
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| parse(e.to_string()))?;
+    let json = document.into_json();
+    check_attribute_indices(&json).map_err(parse)?;
+    let document = gltf::Document::from_json(json).map_err(|e| parse(e.to_string()))?;
     let base = match file.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -88,6 +92,62 @@ pub(super) fn load_gltf(
     }
     warnings.extend(material_warnings(file, &document, &faces));
     Ok((faces, materials))
+}
+
+/// Checks that every primitive attribute names an accessor that exists. The `gltf` crate's schema check (1.4)
+/// reads the POSITION accessor before it checks the index, and panics on one out of range; this runs first.
+fn check_attribute_indices(json: &gltf::json::Root) -> Result<(), String> {
+    let n = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.values().find(|i| i.value() >= n) {
+                return Err(format!(
+                    "meshes[{m}].primitives[{p}].attributes: accessor {} does not exist ({n} accessors)",
+                    index.value()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks what the `gltf` crate's accessor reader (1.4) assumes without checking, and panics on otherwise: the
+/// element type, at least one element, a buffer view, a stride no shorter than an element. Sparse accessors
+/// (used for morph targets, rarely for geometry) are not read.
+fn check_accessor(
+    accessor: &gltf::Accessor<'_>,
+    what: &str,
+    types: &[gltf::accessor::DataType],
+    dimensions: gltf::accessor::Dimensions,
+) -> Result<(), String> {
+    let index = accessor.index();
+    if !types.contains(&accessor.data_type()) || accessor.dimensions() != dimensions || accessor.normalized()
+    {
+        return Err(format!(
+            "{what} (accessor {index}) is {:?} {:?}{}; it must be {dimensions:?} of {types:?}",
+            accessor.data_type(),
+            accessor.dimensions(),
+            if accessor.normalized() { " normalized" } else { "" }
+        ));
+    }
+    if accessor.count() == 0 {
+        return Err(format!("{what} (accessor {index}) has no elements"));
+    }
+    if accessor.sparse().is_some() {
+        return Err(format!("{what} (accessor {index}) is sparse, which this loader does not read"));
+    }
+    let Some(view) = accessor.view() else {
+        return Err(format!("{what} (accessor {index}) has no buffer view"));
+    };
+    if view.stride().is_some_and(|s| s < accessor.size()) {
+        return Err(format!(
+            "{what} (accessor {index}): bufferView {} has byteStride {}, shorter than an element ({} bytes)",
+            view.index(),
+            view.stride().unwrap_or(0),
+            accessor.size()
+        ));
+    }
+    Ok(())
 }
 
 /// A place in the file for messages: `what 'name' (index)` or `what index`.
@@ -440,28 +500,24 @@ fn add_mesh(
         let Some(accessor) = primitive.get(&Semantic::Positions) else {
             return Err(at(prim_place, "no POSITION attribute".to_owned()));
         };
-        if accessor.data_type() != gltf::accessor::DataType::F32
-            || accessor.dimensions() != gltf::accessor::Dimensions::Vec3
-            || accessor.normalized()
-        {
-            return Err(at(
-                prim_place,
-                format!(
-                    "POSITION is {:?} {:?}{}, not float VEC3",
-                    accessor.data_type(),
-                    accessor.dimensions(),
-                    if accessor.normalized() { " normalized" } else { "" }
-                ),
-            ));
+        use gltf::accessor::{DataType, Dimensions};
+        check_accessor(&accessor, "POSITION", &[DataType::F32], Dimensions::Vec3)
+            .map_err(|p| at(prim_place.clone(), p))?;
+        if let Some(acc) = primitive.indices() {
+            check_accessor(
+                &acc,
+                "indices",
+                &[DataType::U8, DataType::U16, DataType::U32],
+                Dimensions::Scalar,
+            )
+            .map_err(|p| at(prim_place.clone(), p))?;
         }
         let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
         let positions: Vec<[f32; 3]> = reader
             .read_positions()
             .map(Iterator::collect)
             .filter(|p: &Vec<[f32; 3]>| p.len() == accessor.count())
-            .ok_or_else(|| {
-                at(prim_place.clone(), "POSITION data lies outside its buffer view (truncated?)".to_owned())
-            })?;
+            .ok_or_else(|| at(prim_place.clone(), "POSITION data lies outside its buffer view".to_owned()))?;
         let indices: Vec<u32> = match primitive.indices() {
             None => (0..u32::try_from(positions.len()).unwrap_or(u32::MAX)).collect(),
             Some(acc) => reader
@@ -469,7 +525,7 @@ fn add_mesh(
                 .map(|r| r.into_u32().collect())
                 .filter(|v: &Vec<u32>| v.len() == acc.count())
                 .ok_or_else(|| {
-                    at(prim_place.clone(), "index data lies outside its buffer view (truncated?)".to_owned())
+                    at(prim_place.clone(), "index data lies outside its buffer view".to_owned())
                 })?,
         };
         let tris = triangles(primitive.mode(), &indices, &prim_place, at)?;
