@@ -655,6 +655,15 @@ fn material_and_hierarchy_errors_name_what_is_wrong() {
     let e = load("strength", &w).expect_err("negative strength").to_string();
     assert!(e.contains("strength.gltf") && e.contains("emissiveStrength"), "{e}");
 
+    let mut w = square_with(&SQUARE, &SQUARE_FAN);
+    w.nodes[0]["matrix"] =
+        json!([1.0, 0.0, 0.0, 0.5, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let e = error("projective", &w);
+    assert!(
+        e.contains("node 'n' (0): matrix's last row is [0.5, 0, 0, 1], not (0, 0, 0, 1): not affine"),
+        "{e}"
+    );
+
     // Node 0 is a root and also the child of node 1, which is its child: a cycle.
     let mut w = square_with(&SQUARE, &SQUARE_FAN);
     w.nodes[0]["children"] = json!([1]);

@@ -8,7 +8,9 @@
 //! f32 in the file, transformed in f64. Primitives of mode `TRIANGLES` (indexed or not), `TRIANGLE_STRIP` and
 //! `TRIANGLE_FAN` are surfaces (strips and fans are expanded to triangles with the winding the glTF spec gives;
 //! in a strip, triangles with a repeated index are the usual way to join strips and are skipped); points and
-//! lines are refused. A transform with a negative determinant mirrors the mesh, which the spec says turns its
+//! lines are refused. A matrix whose last row is not (0, 0, 0, 1) is refused (glTF transforms are affine);
+//! skins and morph targets are ignored with a warning (the geometry is static, placed as the positions and the
+//! node transforms say). A transform with a negative determinant mirrors the mesh, which the spec says turns its
 //! triangles clockwise: their vertex order is reversed, so every face keeps facing where the file says.
 //!
 //! Every triangle is checked as an OBJ face is (non-finite, coincident or collinear vertices), then consecutive
@@ -82,6 +84,25 @@ pub(super) fn load_gltf(
     while let Some((node, parent)) = stack.pop() {
         let world = parent * local_transform(&node, &at)?;
         if let Some(mesh) = node.mesh() {
+            let ignored =
+                match (node.skin().is_some(), mesh.primitives().any(|p| p.morph_targets().len() > 0)) {
+                    (true, true) => Some("skin and morph targets"),
+                    (true, false) => Some("skin"),
+                    (false, true) => Some("morph targets"),
+                    (false, false) => None,
+                };
+            if let Some(what) = ignored {
+                warnings.push(SceneWarning {
+                    file: file.to_path_buf(),
+                    line: None,
+                    face: None,
+                    message: format!(
+                        "{}: {what} ignored: the mesh is placed as its positions and the node's transform say \
+                         (static geometry)",
+                        named("node", node.name(), node.index())
+                    ),
+                });
+            }
             add_mesh(file, &node, &mesh, world, &buffers, &materials, &mut faces, &at)?;
         }
         let children: Vec<_> = node.children().collect();
@@ -413,6 +434,11 @@ fn local_transform(
     if !m.is_finite() {
         return Err(at(place(), "transform is not finite".to_owned()));
     }
+    // glTF transforms are affine (the spec: decomposable into translation, rotation and scale); a projective
+    // bottom row would be ignored by the point transform below, so it is refused.
+    if m.row(3) != glam::DVec4::W {
+        return Err(at(place(), format!("matrix's last row is {}, not (0, 0, 0, 1): not affine", m.row(3))));
+    }
     Ok(m)
 }
 
@@ -453,6 +479,10 @@ fn triangles(
     }
 }
 
+/// Why a primitive without a material is refused.
+const NO_MATERIAL: &str =
+    "no material (glTF's default material has reflectance 1, which no diffuse surface has)";
+
 /// Places every primitive of `mesh` with the node's world transform and appends its faces.
 #[allow(clippy::too_many_arguments)] // one call site; the arguments are the walk's state
 fn add_mesh(
@@ -488,15 +518,9 @@ fn add_mesh(
             named("mesh", mesh.name(), mesh.index()),
             primitive.index()
         );
-        let material =
-            match primitive.material().index() {
-                Some(m) if m < materials.len() => m,
-                _ => return Err(at(
-                    prim_place,
-                    "no material (glTF's default material has reflectance 1, which no diffuse surface has)"
-                        .to_owned(),
-                )),
-            };
+        let Some(material) = primitive.material().index().filter(|&m| m < materials.len()) else {
+            return Err(at(prim_place, NO_MATERIAL.to_owned()));
+        };
         let Some(accessor) = primitive.get(&Semantic::Positions) else {
             return Err(at(prim_place, "no POSITION attribute".to_owned()));
         };
