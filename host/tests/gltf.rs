@@ -314,6 +314,19 @@ fn cornell_box_as_gltf_loads_and_solves_like_the_obj() {
         "the red wall is non-planar: its two triangles stay two faces"
     );
 
+    // Mesh repair cuts the floor where the blocks stand on it, in both; its notes name glTF faces by index
+    // (a glTF face has no line).
+    let notes = |scene: &Scene, path: &Path| -> Vec<String> {
+        radiosity_host::mesh::repair(scene).report.notes(path).iter().map(ToString::to_string).collect()
+    };
+    let (obj_notes, gltf_notes) = (notes(&obj, &obj_path), notes(&gltf, &gltf_path));
+    assert_eq!(obj_notes.len(), gltf_notes.len());
+    assert!(obj_notes.iter().all(|n| n.contains("cornell-box.obj:")), "{obj_notes:?}");
+    assert!(
+        gltf_notes.iter().all(|n| n.contains("cornell-box.gltf: face ") && !n.contains("(line ")),
+        "{gltf_notes:?}"
+    );
+
     // Solve both (flat, 200 patches, the estimator's default sample counts) and compare each OBJ face's
     // area-weighted mean radiosity.
     let options = PrepareOptions { max_patches: Some(200), ..PrepareOptions::quiet(false, 16, 16) };
