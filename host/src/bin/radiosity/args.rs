@@ -98,7 +98,7 @@ pub struct CheckArgs {
     #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
     pub row_sum_tolerance: f64,
     /// Add the discretization component: path trace the continuous scene (as `radiosity reference`) and
-    /// compare the mesh's f64 answer with it per OBJ face. Costs seconds, so it is off by default.
+    /// compare the mesh's f64 answer with it per face. Costs seconds, so it is off by default.
     #[arg(long)]
     pub continuous: bool,
     /// With --continuous: the reference's relative standard error per face.
@@ -333,7 +333,7 @@ pub enum Command {
         #[arg(long, value_enum)]
         solver: Option<HierarchySolverArg>,
     },
-    /// Path trace the continuous scene (no mesh) and print every OBJ face's area-averaged radiosity with its
+    /// Path trace the continuous scene (no mesh) and print every face's (OBJ face, or glTF triangle or joined fan) area-averaged radiosity with its
     /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.
     ///
     /// Next-event estimation to the emitters and cosine-weighted bounces, combined by multiple importance
