@@ -468,7 +468,7 @@ pub fn leaks(patches: &[Patch], escapes_per_patch: &[(u64, u64)]) -> Vec<Leak> {
 }
 
 /// One line naming where the open scene at `path` leaks: the [`LEAKS_LISTED`] faces that lose the most light,
-/// by OBJ line, with their share of the light lost ([`Leak::open_area`]).
+/// by OBJ line (or glTF node, mesh, primitive and triangles), with their share of the light lost ([`Leak::open_area`]).
 #[must_use]
 pub fn leak_note(path: &Path, scene: &Scene, leaks: &[Leak]) -> String {
     let total: f64 = leaks.iter().map(|l| l.open_area).sum();
@@ -476,8 +476,11 @@ pub fn leak_note(path: &Path, scene: &Scene, leaks: &[Leak]) -> String {
         .iter()
         .take(LEAKS_LISTED)
         .map(|l| {
-            let line = scene.faces.get(l.face).map_or(0, |f| f.line);
-            format!("face {} ({}:{line}, {:.0}%)", l.face, path.display(), 100.0 * l.open_area / total)
+            let share = 100.0 * l.open_area / total;
+            match scene.faces.get(l.face) {
+                Some(f) if f.gltf.is_some() => format!("face {} ({}, {share:.0}%)", l.face, f.place()),
+                f => format!("face {} ({}:{}, {share:.0}%)", l.face, path.display(), f.map_or(0, |f| f.line)),
+            }
         })
         .collect();
     let more = if leaks.len() > LEAKS_LISTED {

@@ -310,6 +310,7 @@ fn one_face_scene(polygon: Polygon) -> Scene {
     let face = Face {
         index: 0,
         line: 1,
+        gltf: None,
         object: "random".to_owned(),
         material: 0,
         vertices: polygon.vertices.clone(),

@@ -11,7 +11,7 @@ pub struct SceneWarning {
     pub file: PathBuf,
     /// Line in that file (1-based), if it is about one line.
     pub line: Option<usize>,
-    /// Face index in OBJ order, if it is about one face.
+    /// Face index (in OBJ order, or glTF load order), if it is about one face.
     pub face: Option<usize>,
     /// What happened.
     pub message: String,
@@ -171,6 +171,26 @@ pub enum SceneError {
         /// The OBJ file.
         file: PathBuf,
         /// What is out of range, by how much, and what to do.
+        problem: String,
+    },
+    /// A glTF file cannot be read as glTF 2.0: not JSON or GLB, truncated, or invalid against the schema (the
+    /// problem names the JSON path, e.g. `meshes[0].primitives[1].indices`).
+    #[error("{}: not a valid glTF 2.0 file: {problem}", file.display())]
+    GltfParse {
+        /// The glTF file.
+        file: PathBuf,
+        /// What the glTF reader found wrong.
+        problem: String,
+    },
+    /// A problem at one place of a glTF scene: a buffer, image, material, node, or a triangle of a primitive of
+    /// a mesh instanced by a node.
+    #[error("{}: {place}: {problem}", file.display())]
+    Gltf {
+        /// The glTF file.
+        file: PathBuf,
+        /// Where: e.g. `node 'lamp' (3), mesh 'quad' (0), primitive 1, triangle 5`.
+        place: String,
+        /// What is wrong.
         problem: String,
     },
     /// The TOML file does not parse.

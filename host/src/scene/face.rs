@@ -1,5 +1,5 @@
-//! Faces: the `f` statements of the OBJ file turned into validated [`Face`]s, each made of planar convex
-//! [`Polygon`]s.
+//! Faces: the `f` statements of the OBJ file (or the triangles of a glTF file, see [`super::gltf`]) turned into
+//! validated [`Face`]s, each made of planar convex [`Polygon`]s.
 //!
 //! A face is rejected when it has fewer than three vertices, non-finite or repeated vertices, zero area
 //! (degenerate), is not convex, or is too far from planar; a slightly non-planar face is split into a triangle
@@ -17,6 +17,8 @@
 //!   [`DEGENERATE_TOLERANCE`]` * d^2`.
 
 use std::f64::consts::TAU;
+use std::fmt;
+use std::ops::Range;
 use std::path::Path;
 
 use glam::DVec3;
@@ -35,14 +37,55 @@ pub const NON_PLANAR_LIMIT: f64 = 1e-2;
 /// squared).
 pub const DEGENERATE_TOLERANCE: f64 = 1e-9;
 
-/// One OBJ face, validated.
+/// Where a face of a glTF scene comes from: the node that places the mesh, the mesh, its primitive and the
+/// primitive's triangles (numbered as the file lists them, after strips and fans are expanded).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GltfPlace {
+    /// Node index in the file.
+    pub node: usize,
+    /// The node's name, if it has one.
+    pub node_name: Option<String>,
+    /// Mesh index in the file.
+    pub mesh: usize,
+    /// The mesh's name, if it has one.
+    pub mesh_name: Option<String>,
+    /// Primitive index within the mesh.
+    pub primitive: usize,
+    /// The primitive's triangles that make up the face: one, or a fan joined into one polygon.
+    pub triangles: Range<usize>,
+}
+
+impl fmt::Display for GltfPlace {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let named = |f: &mut fmt::Formatter<'_>, what: &str, name: &Option<String>, index: usize| match name {
+            Some(n) => write!(f, "{what} '{n}' ({index})"),
+            None => write!(f, "{what} {index}"),
+        };
+        named(f, "node", &self.node_name, self.node)?;
+        write!(f, ", ")?;
+        named(f, "mesh", &self.mesh_name, self.mesh)?;
+        write!(f, ", primitive {}, ", self.primitive)?;
+        if self.triangles.len() == 1 {
+            write!(f, "triangle {}", self.triangles.start)
+        } else {
+            write!(f, "triangles {}..={}", self.triangles.start, self.triangles.end.saturating_sub(1))
+        }
+    }
+}
+
+/// One face (an OBJ `f` statement, or one triangle or joined fan of a glTF primitive), validated.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Face {
-    /// Index of the face in OBJ order (0-based, over all objects): the k-th `f` statement has index k.
+    /// Index of the face in load order (0-based): for an OBJ file, over all objects, the k-th `f` statement has
+    /// index k; for a glTF file, see [`super::gltf`].
     pub index: usize,
-    /// Line of the face's `f` statement in the OBJ file (1-based).
+    /// Line of the face's `f` statement in the OBJ file (1-based); 0 for a face of a glTF file (see
+    /// [`Face::gltf`]).
     pub line: usize,
-    /// Name of the OBJ object or group (`o` / `g`) the face belongs to; `"unnamed_object"` or empty if none.
+    /// Where the face is in a glTF file; `None` for an OBJ face.
+    pub gltf: Option<GltfPlace>,
+    /// Name of the OBJ object or group (`o` / `g`) the face belongs to, `"unnamed_object"` or empty if none; for
+    /// a glTF face the name of the node that places it (`node N` if unnamed).
     pub object: String,
     /// Index of the face's material in [`Scene::materials`](super::Scene::materials).
     pub material: usize,
@@ -58,6 +101,16 @@ pub struct Face {
 }
 
 impl Face {
+    /// Where the face is in its file, for messages: `line 12` for an OBJ face, the node, mesh, primitive and
+    /// triangles for a glTF face.
+    #[must_use]
+    pub fn place(&self) -> String {
+        match &self.gltf {
+            Some(p) => p.to_string(),
+            None => format!("line {}", self.line),
+        }
+    }
+
     /// Whether the face was split into triangles because it is not planar.
     #[must_use]
     pub fn is_split(&self) -> bool {
@@ -136,7 +189,8 @@ pub(super) fn build_faces(
     Ok(faces)
 }
 
-fn build_face(
+/// Builds and checks one face from its vertices in order; errors name `file`, `line` and face `index`.
+pub(super) fn build_face(
     file: &Path,
     index: usize,
     line: usize,
@@ -224,7 +278,17 @@ fn build_face(
         });
     };
     let area = polygons.iter().map(|p| p.area).sum();
-    Ok(Face { index, line, object: object.to_owned(), material, vertices, normal, area, polygons })
+    Ok(Face {
+        index,
+        line,
+        gltf: None,
+        object: object.to_owned(),
+        material,
+        vertices,
+        normal,
+        area,
+        polygons,
+    })
 }
 
 /// Checks that a polygon, projected on the plane with unit normal `normal`, is convex and simple: every turn is

@@ -9,7 +9,7 @@ use super::config::TomlGroup;
 use super::error::{SceneError, SceneWarning};
 use super::face::Face;
 use super::material::Material;
-use super::obj::ObjData;
+use super::obj::MaterialSource;
 use crate::rgb::Rgb;
 
 /// A light group: emitting materials whose intensity changes together.
@@ -48,7 +48,8 @@ pub(super) fn build_light_groups(
         for name in &g.materials {
             let Some(m) = materials.iter().position(|m| &m.name == name) else {
                 return Err(invalid(format!(
-                    "light group '{}' lists material '{name}', which no MTL file defines",
+                    "light group '{}' lists material '{name}', which no MTL file defines (nor, for a glTF \
+                     scene, the glTF file)",
                     g.name
                 )));
             };
@@ -109,8 +110,11 @@ pub(super) fn build_light_groups(
 
 /// Warnings about light that the scene cannot emit: a light group none of whose materials any face uses (it would
 /// light nothing, whatever its intensity), and a scene with no emitting face at all (every radiosity is 0).
+/// `file` is the scene file; `sources` says where each material is defined (MTL file and line; empty for glTF,
+/// whose warnings then name the scene file).
 pub(super) fn light_warnings(
-    obj: &ObjData,
+    file: &Path,
+    sources: &HashMap<String, MaterialSource>,
     groups: &[LightGroup],
     materials: &[Material],
     faces: &[Face],
@@ -123,9 +127,9 @@ pub(super) fn light_warnings(
         }
         let names: Vec<String> = g.materials.iter().map(|&m| format!("'{}'", materials[m].name)).collect();
         // Name the MTL file and line of the group's first material, where the user defined the emitter.
-        let source = materials.get(g.materials[0]).and_then(|m| obj.sources.get(&m.name));
+        let source = materials.get(g.materials[0]).and_then(|m| sources.get(&m.name));
         warnings.push(SceneWarning {
-            file: source.map_or_else(|| obj.file.clone(), |s| s.file.clone()),
+            file: source.map_or_else(|| file.to_path_buf(), |s| s.file.clone()),
             line: source.map(|s| s.newmtl_line),
             face: None,
             message: format!(
@@ -138,10 +142,11 @@ pub(super) fn light_warnings(
     }
     if !faces.iter().any(|f| materials[f.material].is_emitter()) {
         warnings.push(SceneWarning {
-            file: obj.file.clone(),
+            file: file.to_path_buf(),
             line: None,
             face: None,
-            message: "no face emits light (no face's material has a nonzero Ke): every radiosity is 0"
+            message: "no face emits light (no face's material has a nonzero Ke, or glTF emission): every radiosity \
+                      is 0"
                 .to_owned(),
         });
     }

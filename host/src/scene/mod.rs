@@ -1,5 +1,12 @@
-//! Scene loading: a Wavefront OBJ + MTL pair (and an optional `NAME.toml` beside the OBJ) turned into validated
-//! faces, materials and light groups.
+//! Scene loading: a Wavefront OBJ + MTL pair or a glTF 2.0 file (and an optional `NAME.toml` beside either)
+//! turned into validated faces, materials and light groups.
+//!
+//! # glTF
+//! A path ending in `.gltf` or `.glb` is read as glTF 2.0 (submodule `gltf`, whose docs give the mapping): every
+//! triangle, or fan of triangles joined into a polygon, is a [`Face`]; materials take their reflectance from the
+//! base colour and their emission, in W/m^2 as MTL `Ke`, from the emissive factor and strength. Everything from
+//! the checks of the faces on (extent, overlaps, the TOML file, light groups) is the same as for OBJ; errors
+//! name the node, mesh, primitive and triangle instead of a line ([`Face::place`]).
 //!
 //! # Format
 //! - Geometry: OBJ `v` and `f` statements, read with `tobj` without triangulation, so every face is the polygon
@@ -47,7 +54,9 @@
 //! - `obj`: reading the OBJ and MTL text with `tobj`, and the line numbers `tobj` does not report.
 //! - `material`: [`Material`]s checked (`Kd`, `Ke`).
 //! - `face`: [`Face`]s built and checked (degenerate, convex, planar or split into a fan), with the face
-//!   tolerances.
+//!   tolerances, and [`GltfPlace`].
+//! - `gltf`: a glTF file's nodes, meshes and materials turned into faces and materials with the checks of
+//!   `face` (the glTF path's counterpart of `obj`, `material` and `face`'s `build_faces`).
 //! - `extent`: the scene's size and position against the supported range.
 //! - `overlap`: the coplanar-overlap check between faces.
 //! - `config`: the `NAME.toml` file and its [`MeshingLimits`].
@@ -60,19 +69,21 @@ mod config;
 mod error;
 mod extent;
 mod face;
+mod gltf;
 mod light_group;
 mod material;
 mod obj;
 mod overlap;
 mod polygon;
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 pub use config::{MeshingLimits, MAX_REFINE_PASSES};
 pub(crate) use error::length;
 pub use error::{SceneError, SceneWarning};
 pub use extent::{MAX_ORIGIN_DISTANCE, MAX_SCENE_SIZE, MIN_SCENE_SIZE};
-pub use face::{Face, DEGENERATE_TOLERANCE, NON_PLANAR_LIMIT, PLANAR_TOLERANCE};
+pub use face::{Face, GltfPlace, DEGENERATE_TOLERANCE, NON_PLANAR_LIMIT, PLANAR_TOLERANCE};
 pub use light_group::LightGroup;
 pub use material::Material;
 pub use overlap::OVERLAP_TOLERANCE;
@@ -81,6 +92,7 @@ pub use polygon::Polygon;
 use config::{check_meshing, parse_config, TomlScene};
 use extent::check_extent;
 use face::build_faces;
+use gltf::{is_gltf, load_gltf};
 use light_group::{build_light_groups, light_warnings};
 use material::check_materials;
 use obj::{load_obj, read_text};
@@ -89,11 +101,11 @@ use overlap::check_overlaps;
 /// A loaded, validated scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
-    /// The OBJ file the scene came from.
+    /// The OBJ or glTF file the scene came from.
     pub path: PathBuf,
-    /// Faces in OBJ order.
+    /// Faces in OBJ order (for glTF, in the order the [`gltf`](self#gltf) section gives).
     pub faces: Vec<Face>,
-    /// Materials of all MTL files, in the order they were defined.
+    /// Materials of all MTL files, in the order they were defined (for glTF: the file's materials, in order).
     pub materials: Vec<Material>,
     /// Light groups: first those of the TOML file in its order, then one per emitting material it does not
     /// list, in material order.
@@ -106,10 +118,12 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Loads `NAME.obj`, the MTL files it names (relative to its folder) and `NAME.toml` if it exists.
+    /// Loads `NAME.obj` and the MTL files it names (relative to its folder), or `NAME.gltf` / `NAME.glb` and the
+    /// buffers and images it names, and `NAME.toml` if it exists.
     ///
     /// # Errors
-    /// A [`SceneError`] naming the file, line and face of the first problem found.
+    /// A [`SceneError`] naming the file, and the line and face (OBJ) or the node, mesh, primitive and triangle
+    /// (glTF) of the first problem found.
     pub fn load(obj_path: impl AsRef<Path>) -> Result<Scene, SceneError> {
         let obj_path = obj_path.as_ref();
         let toml_path = obj_path.with_extension("toml");
@@ -117,16 +131,24 @@ impl Scene {
         Scene::load_with_toml(obj_path, toml.as_deref())
     }
 
-    /// Loads `obj_path` and its MTL files, and takes light groups and meshing limits from `toml_path` if given.
+    /// Loads `obj_path` and its MTL files (or, for a path ending in `.gltf` or `.glb`, that glTF file and its
+    /// buffers and images), and takes light groups and meshing limits from `toml_path` if given.
     ///
     /// # Errors
-    /// A [`SceneError`] naming the file, line and face of the first problem found.
+    /// A [`SceneError`] naming the file, and the line and face (OBJ) or the node, mesh, primitive and triangle
+    /// (glTF) of the first problem found.
     pub fn load_with_toml(obj_path: &Path, toml_path: Option<&Path>) -> Result<Scene, SceneError> {
-        let text = read_text(obj_path)?;
-        let obj = load_obj(obj_path, &text)?;
-        let materials = check_materials(&obj)?;
         let mut warnings = Vec::new();
-        let faces = build_faces(obj_path, &obj, &materials, &mut warnings)?;
+        let (faces, materials, sources) = if is_gltf(obj_path) {
+            let (faces, materials) = load_gltf(obj_path, &mut warnings)?;
+            (faces, materials, HashMap::new())
+        } else {
+            let text = read_text(obj_path)?;
+            let obj = load_obj(obj_path, &text)?;
+            let materials = check_materials(&obj)?;
+            let faces = build_faces(obj_path, &obj, &materials, &mut warnings)?;
+            (faces, materials, obj.sources)
+        };
         check_extent(obj_path, &faces)?;
         check_overlaps(obj_path, &faces)?;
         let settings = match toml_path {
@@ -136,7 +158,7 @@ impl Scene {
         let toml_file = toml_path.map_or_else(|| obj_path.with_extension("toml"), Path::to_path_buf);
         let meshing = check_meshing(&toml_file, settings.meshing.as_ref())?;
         let light_groups = build_light_groups(&toml_file, &settings.light_group, &materials)?;
-        warnings.extend(light_warnings(&obj, &light_groups, &materials, &faces));
+        warnings.extend(light_warnings(obj_path, &sources, &light_groups, &materials, &faces));
         Ok(Scene { path: obj_path.to_path_buf(), faces, materials, light_groups, meshing, warnings })
     }
 

@@ -55,6 +55,21 @@ pub(super) fn check_overlaps(file: &Path, faces: &[Face]) -> Result<(), SceneErr
             let area = overlap_area(a.poly, b.poly);
             if area > OVERLAP_TOLERANCE * a.poly.area.min(b.poly.area) {
                 let (x, y) = if a.face.index < b.face.index { (a.face, b.face) } else { (b.face, a.face) };
+                if x.gltf.is_some() || y.gltf.is_some() {
+                    return Err(SceneError::Gltf {
+                        file: file.to_path_buf(),
+                        place: format!(
+                            "face {} ({}) and face {} ({})",
+                            x.index,
+                            x.place(),
+                            y.index,
+                            y.place()
+                        ),
+                        problem: format!(
+                            "coplanar and overlap (area {area:.6e}; duplicate or overlapping faces)"
+                        ),
+                    });
+                }
                 return Err(SceneError::OverlappingFaces {
                     file: file.to_path_buf(),
                     face_a: x.index,

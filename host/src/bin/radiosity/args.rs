@@ -98,7 +98,7 @@ pub struct CheckArgs {
     #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
     pub row_sum_tolerance: f64,
     /// Add the discretization component: path trace the continuous scene (as `radiosity reference`) and
-    /// compare the mesh's f64 answer with it per OBJ face. Costs seconds, so it is off by default.
+    /// compare the mesh's f64 answer with it per face. Costs seconds, so it is off by default.
     #[arg(long)]
     pub continuous: bool,
     /// With --continuous: the reference's relative standard error per face.
@@ -285,7 +285,7 @@ pub enum Command {
     Inspect {
         /// The table file (.rft).
         table: PathBuf,
-        /// The scene the table was baked from (.obj, with its .toml): names the light groups, whose ids are
+        /// The scene the table was baked from (.obj, .gltf or .glb, with its .toml): names the light groups, whose ids are
         /// hashes of their names.
         #[arg(long)]
         scene: Option<PathBuf>,
@@ -334,7 +334,7 @@ pub enum Command {
         #[arg(long, value_enum)]
         solver: Option<HierarchySolverArg>,
     },
-    /// Path trace the continuous scene (no mesh) and print every OBJ face's area-averaged radiosity with its
+    /// Path trace the continuous scene (no mesh) and print every face's (OBJ face, or glTF triangle or joined fan) area-averaged radiosity with its
     /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.
     ///
     /// Next-event estimation to the emitters and cosine-weighted bounces, combined by multiple importance
@@ -447,7 +447,7 @@ pub enum Command {
     /// `radiosity check TABLE.rft --scene SCENE.obj` checks an existing table instead: it must have been baked
     /// from SCENE with the same meshing options (else a clear error naming the first difference).
     Check {
-        /// The scene's OBJ file, or a table (.rft) together with `--scene`.
+        /// The scene's OBJ or glTF (.gltf, .glb) file, or a table (.rft) together with `--scene`.
         #[command(flatten)]
         scene: SceneArgs,
         /// With a table as the first argument: the scene it was baked from.
@@ -497,7 +497,8 @@ pub struct LightMapArgs {
 /// Command-line options of `radiosity reference`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct ReferenceArgs {
-    /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
+    /// The scene: an OBJ file (its MTL files are read too) or a glTF 2.0 file (.gltf with its buffers and
+    /// images, or .glb); an optional NAME.toml beside it is read too.
     pub scene: PathBuf,
     /// Paths per face (instead of a target standard error), at most 2^30.
     #[arg(long, value_name = "N", conflicts_with_all = ["target_se", "max_samples"])]
@@ -562,9 +563,10 @@ pub enum RenderModeArg {
 /// Options shared by the commands that read a scene.
 #[derive(Args)]
 pub struct SceneArgs {
-    /// The scene's OBJ file (its MTL files and an optional NAME.toml beside it are read too).
+    /// The scene: an OBJ file (its MTL files are read too) or a glTF 2.0 file (.gltf with its buffers and
+    /// images, or .glb); an optional NAME.toml beside it is read too.
     pub scene: PathBuf,
-    /// One patch per OBJ face polygon: with `--no-repair` (and no non-planar face before it) patch k is face k,
+    /// One patch per face polygon: with `--no-repair` (and no non-planar face before it) patch k is face k,
     /// so results can be checked against hand computations; the `face` column maps patches to faces always.
     #[arg(long)]
     pub no_subdivide: bool,
@@ -576,7 +578,7 @@ pub struct SceneArgs {
     #[arg(long, value_name = "N")]
     pub max_patches: Option<usize>,
     /// Mesh the faces as loaded: no cuts where faces touch or pass through each other, no culling of what no
-    /// point can see (by default each changed face is reported on stderr, by OBJ line).
+    /// point can see (by default each changed face is reported on stderr, by OBJ line or glTF face index).
     #[arg(long)]
     pub no_repair: bool,
     /// Sample points on each patch for the form-factor integral (1 to 1024).

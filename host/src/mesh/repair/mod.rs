@@ -102,22 +102,30 @@ impl RepairReport {
         self.faces.iter().map(|f| f.culled_area).sum()
     }
 
-    /// One note per changed face, naming the face and the faces that meet it by OBJ line, for `file` (the
-    /// scene's OBJ file).
+    /// One note per changed face, naming the face and the faces that meet it by OBJ line (by index alone for a
+    /// glTF scene), for `file` (the scene's file).
     #[must_use]
     pub fn notes(&self, file: &Path) -> Vec<SceneWarning> {
         self.faces
             .iter()
             .map(|f| {
-                let names = |kind: Meeting| {
-                    let list: Vec<String> = f
-                        .met_by
-                        .iter()
-                        .filter(|m| m.2 == kind)
-                        .map(|&(face, line, _)| format!("{face} (line {line})"))
-                        .collect();
-                    list.join(", ")
-                };
+                let names =
+                    |kind: Meeting| {
+                        let list: Vec<String> =
+                            f.met_by
+                                .iter()
+                                .filter(|m| m.2 == kind)
+                                // A glTF face has no line (0): its index names it.
+                                .map(|&(face, line, _)| {
+                                    if line > 0 {
+                                        format!("{face} (line {line})")
+                                    } else {
+                                        face.to_string()
+                                    }
+                                })
+                                .collect();
+                        list.join(", ")
+                    };
                 let mut parts = Vec::new();
                 let contacts = names(Meeting::Contact);
                 if !contacts.is_empty() {
@@ -145,7 +153,8 @@ impl RepairReport {
                         100.0 * f.culled_area / f.area
                     );
                 }
-                SceneWarning { file: file.to_path_buf(), line: Some(f.line), face: Some(f.face), message }
+                let line = (f.line > 0).then_some(f.line);
+                SceneWarning { file: file.to_path_buf(), line, face: Some(f.face), message }
             })
             .collect()
     }
