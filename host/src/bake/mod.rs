@@ -13,10 +13,26 @@
 //!    The row budget alone is not enough: dropping the same small receiver from many rows (a patch lit only
 //!    through weak links, or ties in a uniform row) would leave it dark on the device although no row lost
 //!    much. Entries are visited from the least power `A_i F_ij` up. `t = 0` drops nothing (except entries that
-//!    are exactly zero, which carry nothing). Rows are never renormalized: the dropped energy is reported per
-//!    row (max, mean, largest fraction of a row and of a receiver), in total (the sum of all dropped `F_ij`)
-//!    and area-weighted (`sum_i A_i d_i / sum_i A_i s_i`, the fraction of all transported power under uniform
-//!    radiosity) ([`EnergyDropped`]). Both budgets are independent of the lighting (lights change at run time),
+//!    are exactly zero, which carry nothing). The dropped energy is reported per row (max, mean, largest
+//!    fraction of a row and of a receiver), in total (the sum of all dropped `F_ij`) and area-weighted
+//!    (`sum_i A_i d_i / sum_i A_i s_i`, the fraction of all transported power under uniform radiosity)
+//!    ([`EnergyDropped`]).
+//!
+//!    **Dropped energy goes back to its row** ([`DroppedEnergy::ReturnToRow`], the default;
+//!    [`Sparsified::return_dropped`]): the kept entries of row `i` are scaled by `s_i / k_i` (`k_i = s_i - d_i`
+//!    what was kept), so every row keeps its sum. A row's sum is the energy its shooter sends, so a closed scene
+//!    loses nothing to pruning; without this the device's furnace is off by about `rho d / (1 - rho)`, which
+//!    `rho = 0.99` makes a hundred times the dropped fraction (`pruned_quantized_furnace_at_rho_099_stays_within_half_a_percent`
+//!    in `host/tests/bake/device.rs`). Proportional return was chosen over handing the energy to the dropped
+//!    entries' neighbours because it needs no geometry, keeps the row's shape, and changes every kept entry by
+//!    the same factor, at most `1 / (1 - t)`; its cost is that the energy lands on the row's other receivers
+//!    (a redistribution of at most `d_i`) and that reciprocity `A_i F_ij = A_j F_ji` moves by the difference
+//!    of two rows' factors, at most `t / (1 - t)` relative. Both are in the sparsification error component
+//!    (the f64 solve of the sparsified rows' shooting form against the full matrix's, [`crate::evaluate`]),
+//!    and the report prints the largest factor and the net loss, measured from the rows
+//!    ([`EnergyDropped::max_entry_scale`], [`EnergyDropped::net_area_weighted`]). [`DroppedEnergy::Discard`]
+//!    keeps the kept entries unchanged and loses the energy (the bake before issue 19). Both budgets are
+//!    independent of the lighting (lights change at run time),
 //!    so a dim patch lit mostly through weak links from a bright light can lose more than `t` of its actual
 //!    irradiance (`error_grows_with_threshold_and_fewer_bits` in `host/tests/bake/sparsify.rs` prints the
 //!    numbers); the evaluation's per-patch maximum shows it.
@@ -77,7 +93,7 @@ pub use ids::{group_id, group_ids, scene_fingerprint};
 pub use report::{BakeReport, GroupReport};
 pub(crate) use solve::solve_one;
 pub use solve::{default_method, gather, shooting_form, DENSE_BAKE_LIMIT};
-pub use sparsify::{sparsify, EnergyDropped, Sparsified};
+pub use sparsify::{sparsify, DroppedEnergy, EnergyDropped, Sparsified};
 pub use state::{reachable_patches, RuntimeState};
 
 use crate::inspect::SectionBytes;
@@ -110,6 +126,9 @@ pub struct BakeOptions {
     /// Store the transfer basis (core's `transfer` module): the response `T_g` of every patch to every dynamic
     /// light group, solved in f64 on the table's own matrix and quantized, for `B = B_static + sum_g I_g T_g`.
     pub transfer: bool,
+    /// What becomes of the energy sparsification drops ([`DroppedEnergy`]; by default it goes back to the
+    /// kept entries of its row).
+    pub dropped_energy: DroppedEnergy,
 }
 
 impl Default for BakeOptions {
@@ -120,6 +139,7 @@ impl Default for BakeOptions {
             row_sum_tolerance: DEFAULT_ROW_SUM_TOLERANCE,
             method: None,
             transfer: false,
+            dropped_energy: DroppedEnergy::default(),
         }
     }
 }
@@ -255,7 +275,10 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     let reference = |what| move |source| BakeError::Reference { what, source };
 
     // 1. Sparsify.
-    let sparse = sparsify(ff, &area, options.threshold)?;
+    let mut sparse = sparsify(ff, &area, options.threshold)?;
+    if options.dropped_energy == DroppedEnergy::ReturnToRow {
+        sparse.return_dropped();
+    }
     let energy_dropped = EnergyDropped::of(ff, &area, &sparse);
 
     // 2. Static base on the shooting form of the sparsified matrix.

@@ -199,3 +199,50 @@ fn coarse_codec_is_refused_on_a_synthetic_sliver() {
     assert!(msg.contains("--bits 16"), "{msg}");
     bake(&scene.input(), &options(FfCodec::FLOAT16)).expect("16-bit bake");
 }
+
+/// Giving the dropped energy back: every row sums to what it did before sparsification (to the f64 rounding of
+/// re-summing its entries, `entries * eps` of the sum), every kept entry of a row grows by the same factor
+/// `s_i / k_i <= 1 / (1 - t)`, the pattern is the one `sparsify` kept, and the report says so.
+#[test]
+fn returning_dropped_energy_restores_every_row_sum() {
+    let scene = lit_scene(3, 60, 0.5, Rgb::ONE);
+    let n = scene.ff.n();
+    let area: Vec<f64> = scene.patches.iter().map(|p| p.area).collect();
+    let t = 0.05;
+    let lossy = sparsify(&scene.ff, &area, t).unwrap();
+    let mut s = lossy.clone();
+    s.return_dropped();
+    assert!(lossy.dropped.iter().sum::<f64>() > 0.0, "the test needs rows that drop something");
+    assert_eq!(s.matrix.columns(), lossy.matrix.columns(), "returning energy must not change the pattern");
+    assert_eq!(s.dropped, lossy.dropped);
+    for i in 0..n {
+        let (before, after) = (scene.ff.row_sum(i), s.matrix.row_sum(i));
+        let tol = scene.ff.row_values(i).len() as f64 * f64::EPSILON * before;
+        assert!((after - before).abs() <= tol, "row {i}: sum {after} after return, {before} before");
+        assert!((s.returned[i] - lossy.dropped[i]).abs() <= tol, "row {i}: returned != dropped");
+        let kept = lossy.matrix.row_sum(i);
+        if kept > 0.0 {
+            let factor = before / kept;
+            assert!(factor <= 1.0 / (1.0 - t) * (1.0 + 4.0 * f64::EPSILON), "row {i}: factor {factor}");
+            for (&new, &old) in s.matrix.row_values(i).iter().zip(lossy.matrix.row_values(i)) {
+                assert!((new - old * factor).abs() <= 4.0 * f64::EPSILON * new, "row {i}: {old} -> {new}");
+            }
+        }
+    }
+    // Returning twice returns nothing more.
+    let mut twice = s.clone();
+    twice.return_dropped();
+    assert_eq!(twice.matrix, s.matrix);
+    let report = EnergyDropped::of(&scene.ff, &area, &s);
+    let lossy_report = EnergyDropped::of(&scene.ff, &area, &lossy);
+    assert!(report.net_area_weighted.abs() <= n as f64 * f64::EPSILON, "{}", report.net_area_weighted);
+    assert!((lossy_report.net_area_weighted - lossy_report.area_weighted).abs() <= 1e-12);
+    assert!(report.max_entry_scale > 0.0 && report.max_entry_scale <= t / (1.0 - t) * (1.0 + 1e-12));
+    assert_eq!(lossy_report.max_entry_scale, 0.0);
+    // The bake returns it by default and loses it only when told to.
+    let returned = scene.bake(t, FfCodec::FLOAT16);
+    assert!(returned.report.energy_dropped.net_area_weighted.abs() <= n as f64 * f64::EPSILON);
+    let discard = BakeOptions { threshold: t, dropped_energy: DroppedEnergy::Discard, ..BakeOptions::default() };
+    let discarded = bake(&scene.input(), &discard).unwrap();
+    assert!(discarded.report.energy_dropped.net_area_weighted > 0.0);
+}
