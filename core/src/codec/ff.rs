@@ -510,7 +510,8 @@ mod tests {
 
     /// A row of `n` entries spread log-uniformly over `binades` binades below 1, scaled to sum below 1.
     fn random_row(rng: &mut proptest::test_runner::TestRng, n: usize, binades: f32, out: &mut [f32; 64]) {
-        let unit = |rng: &mut proptest::test_runner::TestRng| (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        let unit =
+            |rng: &mut proptest::test_runner::TestRng| (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
         for v in out[..n].iter_mut() {
             *v = libm::exp2f(-binades * unit(rng));
         }
@@ -589,7 +590,10 @@ mod tests {
                  down {abs_down:.2e}); in own steps {step_row:.4} ({up} up, {down} down), rounding down {step_down:.4}"
             );
             assert!(abs_floor < abs_row && abs_row <= 0.0, "{codec}: absolute mean {abs_row:e}");
-            assert!(abs_down < abs_floor, "{codec}: rounding down gives {abs_down:e}: the statistic is blind");
+            assert!(
+                abs_down < abs_floor,
+                "{codec}: rounding down gives {abs_down:e}: the statistic is blind"
+            );
             assert!(step_row >= -0.1, "{codec}: mean error {step_row} own steps");
             assert!(step_down <= -0.4, "{codec}: rounding down gives {step_down}: the statistic is blind");
         }

@@ -18,19 +18,22 @@
 //!    (`sum_i A_i d_i / sum_i A_i s_i`, the fraction of all transported power under uniform radiosity)
 //!    ([`EnergyDropped`]).
 //!
-//!    **Dropped energy goes back to its row** ([`DroppedEnergy::ReturnToRow`], the default;
-//!    [`Sparsified::return_dropped`]): the kept entries of row `i` are scaled by `s_i / k_i` (`k_i = s_i - d_i`
-//!    what was kept), so every row keeps its sum. A row's sum is the energy its shooter sends, so a closed scene
-//!    loses nothing to pruning; without this the device's furnace is off by about `rho d / (1 - rho)`, which
-//!    `rho = 0.99` makes a hundred times the dropped fraction (`pruned_quantized_furnace_at_rho_099_stays_within_half_a_percent`
-//!    in `host/tests/bake/device.rs`). Proportional return was chosen over handing the energy to the dropped
-//!    entries' neighbours because it needs no geometry, keeps the row's shape, and changes every kept entry by
-//!    the same factor, at most `1 / (1 - t)`; its cost is that the energy lands on the row's other receivers
-//!    (a redistribution of at most `d_i`) and that reciprocity `A_i F_ij = A_j F_ji` moves by the difference
-//!    of two rows' factors, at most `t / (1 - t)` relative. Both are in the sparsification error component
-//!    (the f64 solve of the sparsified rows' shooting form against the full matrix's, [`crate::evaluate`]),
-//!    and the report prints the largest factor and the net loss, measured from the rows
-//!    ([`EnergyDropped::max_entry_scale`], [`EnergyDropped::net_area_weighted`]). [`DroppedEnergy::Discard`]
+//!    **Dropped energy goes back to the kept entries** ([`DroppedEnergy::ReturnToRow`], the default;
+//!    [`Sparsified::return_dropped`]): the kept power exchanges `A_i F_ij` are scaled by a factor per row and
+//!    one per receiver (Sinkhorn-Knopp scaling, ending on the rows) until every row sums to its original `s_i`
+//!    and every receiver gets its original incoming power `sum_i A_i F_ij`. A row's sum is the energy its
+//!    shooter sends, so a closed scene loses nothing to pruning; without this the device's furnace is off by
+//!    about `rho d / (1 - rho)`, which `rho = 0.99` makes a hundred times the dropped fraction
+//!    (`pruned_quantized_furnace_at_rho_099_stays_within_half_a_percent` in `host/tests/bake/device.rs`). The
+//!    receivers' sums are the row sums of the shooting form the device converges to: scaling the rows alone
+//!    (each row's kept entries by `s_i / k_i`) was tried first and pushed those up to the threshold above 1 in
+//!    closed scenes, past what the reference solve accepts. The scaling needs no geometry and keeps each row's
+//!    shape; its cost is that the dropped energy lands on other receivers of the same rows, and that
+//!    reciprocity moves by the difference of the factors (each within about the threshold). Both are in the
+//!    sparsification error component (the f64 solve of the sparsified rows' shooting form against the full
+//!    matrix's, [`crate::evaluate`]); the report prints the largest relative change of a kept entry, of a
+//!    receiver's incoming power, and the net loss, measured from the rows ([`EnergyDropped`]).
+//!    [`DroppedEnergy::Discard`]
 //!    keeps the kept entries unchanged and loses the energy (the bake before issue 19). Both budgets are
 //!    independent of the lighting (lights change at run time),
 //!    so a dim patch lit mostly through weak links from a bright light can lose more than `t` of its actual
@@ -93,7 +96,7 @@ pub use ids::{group_id, group_ids, scene_fingerprint};
 pub use report::{BakeReport, GroupReport};
 pub(crate) use solve::solve_one;
 pub use solve::{default_method, gather, shooting_form, DENSE_BAKE_LIMIT};
-pub use sparsify::{sparsify, DroppedEnergy, EnergyDropped, Sparsified};
+pub use sparsify::{sparsify, DroppedEnergy, EnergyDropped, Sparsified, RETURN_ROUNDS, RETURN_TOLERANCE};
 pub use state::{reachable_patches, RuntimeState};
 
 use crate::inspect::SectionBytes;
@@ -277,7 +280,7 @@ pub fn bake(input: &BakeInput<'_>, options: &BakeOptions) -> Result<Baked, BakeE
     // 1. Sparsify.
     let mut sparse = sparsify(ff, &area, options.threshold)?;
     if options.dropped_energy == DroppedEnergy::ReturnToRow {
-        sparse.return_dropped();
+        sparse.return_dropped(&area);
     }
     let energy_dropped = EnergyDropped::of(ff, &area, &sparse);
 

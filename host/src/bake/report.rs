@@ -109,12 +109,12 @@ impl fmt::Display for BakeReport {
         if e.max_entry_scale > 0.0 {
             writeln!(
                 f,
-                "energy returned    each row's dropped energy given back to its kept entries (scaled up by at \
-                 most {:.3e}); net loss {:.3e} of all power",
-                e.max_entry_scale, e.net_area_weighted
+                "energy returned    to the kept entries (each changed by at most {:.3e}); rows lose {:.3e} of all \
+                 power, receivers' incoming power changes by at most {:.3e}",
+                e.max_entry_scale, e.net_area_weighted, e.max_incoming_change
             )?;
         } else {
-            writeln!(f, "energy returned    none; net loss {:.3e} of all power", e.net_area_weighted)?;
+            writeln!(f, "energy returned    none; rows lose {:.3e} of all power", e.net_area_weighted)?;
         }
         writeln!(f, "codec              {} ({} bits)", self.codec, self.ff_bits)?;
         writeln!(

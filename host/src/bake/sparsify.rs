@@ -74,39 +74,85 @@ pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<S
 /// What a bake does with the energy sparsification drops from a row (see the [`crate::bake`] docs, step 1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub enum DroppedEnergy {
-    /// Give it back to the kept entries of the same row, in proportion to them
-    /// ([`Sparsified::return_dropped`]): every row keeps its sum, so a closed scene loses no energy.
+    /// Give it back to the kept entries ([`Sparsified::return_dropped`]): every row keeps its sum, so a closed
+    /// scene loses no energy, and every receiver its incoming power.
     #[default]
     ReturnToRow,
     /// Lose it: the kept entries keep their values and every row sums to less than before.
     Discard,
 }
 
+/// Most alternating scalings [`Sparsified::return_dropped`] makes.
+pub const RETURN_ROUNDS: usize = 100;
+
+/// [`Sparsified::return_dropped`] stops scaling once every receiver's incoming power is within this relative
+/// distance of its original value.
+pub const RETURN_TOLERANCE: f64 = 1e-12;
+
 impl Sparsified {
-    /// Gives each row's dropped energy back to its kept entries in proportion to them: row `i`'s kept entries
-    /// are scaled by `s_i / k_i` (`s_i` the original row sum, `k_i = s_i - d_i` what was kept), so the row sum
-    /// is `s_i` again, to f64 rounding. Records what was given back in [`Sparsified::returned`].
+    /// Gives the dropped energy back to the kept entries, so that every row sends what it did before
+    /// sparsification and every receiver receives what it did, both under uniform unit radiosity: the kept
+    /// power exchanges `G_ij = A_i F_ij` are scaled as `x_i G_ij y_j` (alternately fitting the receivers'
+    /// incoming sums `sum_i G_ij` to [`Sparsified::incoming`] and the rows' sums to their original `s_i`, at most
+    /// [`RETURN_ROUNDS`] times, until the incoming sums are within [`RETURN_TOLERANCE`]; the Sinkhorn-Knopp
+    /// iteration), ending on the rows so that each row's sum is `s_i` again, to f64 rounding. Records each
+    /// row's returned energy `s_i - k_i` (`k_i` what was kept) in [`Sparsified::returned`].
     ///
-    /// A kept entry grows by the factor `1 + d_i / k_i <= 1 / (1 - t)` for threshold `t` (the row budget),
-    /// so the redistribution moves at most `d_i` of the row's energy between receivers, which is what the
-    /// sparsification error component measures; reciprocity `A_i F_ij = A_j F_ji` changes by the difference
-    /// of the two rows' factors, at most `t / (1 - t)` relative. A row that kept nothing (only possible when
-    /// all its entries were zero) is left as it is.
-    pub fn return_dropped(&mut self) {
+    /// Why both sides: the row sums are the energy each shooter sends, so fitting them keeps a closed scene's
+    /// energy; the incoming sums are the row sums of the shooting form `A_j F_ji / A_i` that the device
+    /// converges to, and scaling rows alone would push those above their original value (up to the threshold
+    /// above 1 in a closed scene, where the sparsified reference solve refuses rows above 1 plus the
+    /// reciprocity tolerance). A kept entry moves by about the dropped fractions of its row and its receiver,
+    /// each at most the threshold; where it lands is the sparsification error component.
+    pub fn return_dropped(&mut self, area: &[f64]) {
         let n = self.matrix.n();
-        let scale: Vec<f64> = (0..n)
+        let kept: Vec<f64> = (0..n).map(|i| self.matrix.row_sum(i)).collect();
+        let target: Vec<f64> = (0..n).map(|i| kept[i] + self.dropped[i] - self.returned[i]).collect();
+        for _ in 0..RETURN_ROUNDS {
+            let mut received = vec![0.0; n];
+            for (i, &a) in area.iter().enumerate().take(n) {
+                for (j, f) in self.matrix.row(i) {
+                    received[j] += a * f;
+                }
+            }
+            let mut worst: f64 = 0.0;
+            let y: Vec<f64> = received
+                .iter()
+                .zip(&self.incoming)
+                .map(|(&r, &want)| {
+                    if r > 0.0 && want > 0.0 {
+                        worst = worst.max((r - want).abs() / want);
+                        want / r
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            if worst <= RETURN_TOLERANCE {
+                break;
+            }
+            self.matrix.map_values(|_, j, f| f * y[j]);
+            self.scale_rows_to(&target);
+        }
+        self.scale_rows_to(&target);
+        for i in 0..n {
+            self.returned[i] += target[i] - kept[i];
+        }
+    }
+
+    /// Scales every row with a positive sum to sum to `target[i]`.
+    fn scale_rows_to(&mut self, target: &[f64]) {
+        let x: Vec<f64> = (0..self.matrix.n())
             .map(|i| {
-                let kept = self.matrix.row_sum(i);
-                let d = self.dropped[i] - self.returned[i];
-                if kept > 0.0 && d > 0.0 {
-                    self.returned[i] += d;
-                    (kept + d) / kept
+                let s = self.matrix.row_sum(i);
+                if s > 0.0 {
+                    target[i] / s
                 } else {
                     1.0
                 }
             })
             .collect();
-        self.matrix.map_values(|i, _, f| f * scale[i]);
+        self.matrix.map_values(|i, _, f| f * x[i]);
     }
 }
 
@@ -136,9 +182,13 @@ pub struct EnergyDropped {
     /// sparsified one in place of `d_i`. Zero to f64 rounding when every row's drop was given back
     /// ([`Sparsified::return_dropped`]), equal to `area_weighted` when none was.
     pub net_area_weighted: f64,
-    /// Largest factor minus one by which a row's kept entries were scaled up to return its dropped energy
-    /// (`r_i / k_i`): the largest relative change of a stored form factor.
+    /// Largest relative change of a kept form factor (zero unless the dropped energy was given back,
+    /// [`Sparsified::return_dropped`]).
     pub max_entry_scale: f64,
+    /// Largest relative change of a receiver's incoming power under uniform unit radiosity
+    /// (`sum_i A_i F_ij`), from the original matrix to the kept entries: at most the threshold when the
+    /// dropped energy is lost, about [`RETURN_TOLERANCE`] when it was given back.
+    pub max_incoming_change: f64,
 }
 
 impl EnergyDropped {
@@ -160,18 +210,31 @@ impl EnergyDropped {
         };
         // Measured from the matrices (not `d_i - r_i`), so the report shows what the stored rows really lost.
         let net: Vec<f64> = (0..n).map(|i| row_sums[i] - sparse.matrix.row_sum(i)).collect();
-        let max_entry_scale = sparse
-            .returned
-            .iter()
-            .enumerate()
-            .map(|(i, &r)| {
-                let kept = sparse.matrix.row_sum(i) - r;
-                if r > 0.0 && kept > 0.0 {
-                    r / kept
-                } else {
-                    0.0
+        // Largest relative change of a kept entry: the original and sparsified rows side by side (both sorted).
+        let mut max_entry_scale: f64 = 0.0;
+        for i in 0..n {
+            let mut orig = ff.row(i).peekable();
+            for (j, f) in sparse.matrix.row(i) {
+                while orig.peek().is_some_and(|&(k, _)| k < j) {
+                    orig.next();
                 }
-            })
+                if let Some(&(k, g)) = orig.peek() {
+                    if k == j && g > 0.0 {
+                        max_entry_scale = max_entry_scale.max((f - g).abs() / g);
+                    }
+                }
+            }
+        }
+        let mut received = vec![0.0; n];
+        for (i, &a) in area.iter().enumerate().take(n) {
+            for (j, f) in sparse.matrix.row(i) {
+                received[j] += a * f;
+            }
+        }
+        let max_incoming_change = received
+            .iter()
+            .zip(&sparse.incoming)
+            .map(|(&r, &want)| if want > 0.0 { (r - want).abs() / want } else { 0.0 })
             .fold(0.0, f64::max);
         EnergyDropped {
             max_row: sparse.dropped.iter().copied().fold(0.0, f64::max),
@@ -182,6 +245,7 @@ impl EnergyDropped {
             area_weighted: weighted(&sparse.dropped),
             net_area_weighted: weighted(&net),
             max_entry_scale,
+            max_incoming_change,
         }
     }
 }

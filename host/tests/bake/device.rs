@@ -431,14 +431,12 @@ fn pruned_quantized_furnace_at_rho_099_stays_within_half_a_percent() {
     assert!(worst <= 5e-3, "device max rel error {worst:.3e} > 0.5 %");
 
     // The power balance, from the decoded rows.
-    let rho_dec = f64::from(radiosity_core::codec::decode_reflectance(table.reflectance(0).unwrap()[0]).to_f32());
+    let rho_dec =
+        f64::from(radiosity_core::codec::decode_reflectance(table.reflectance(0).unwrap()[0]).to_f32());
     let mut max_deficit: f64 = 0.0;
     for slot in 0..table.state_count() {
-        let sum: f64 = table
-            .row(slot)
-            .unwrap()
-            .map(|k| f64::from(table.entry(slot, k).unwrap().1.to_f32()))
-            .sum();
+        let sum: f64 =
+            table.row(slot).unwrap().map(|k| f64::from(table.entry(slot, k).unwrap().1.to_f32())).sum();
         max_deficit = max_deficit.max((1.0 - sum).abs());
     }
     let total_area: f64 = area.iter().sum();
