@@ -120,8 +120,12 @@
 //!   row's decoded sum `<=` its true sum and `<= 1`; the deficit is less than one code step plus the losses of
 //!   entries smaller than half a code step, which are only rounded down (a step is never added where it would
 //!   more than double an entry).
+//!   The rounding is largest remainder under that constraint, with no round-down bias ([`codec`], "Row-sum
+//!   rounding").
 //! - Reflectance: absolute error `<= 2^-17`. Emission and irradiance: relative `<= 2^-11` in
-//!   `[9.3e-10, 8.6e9]` W/m^2.
+//!   `[9.3e-10, 8.6e9]` W/m^2. A light's emission code error carries over, at that relative size, to every
+//!   patch the light reaches; where a form-factor table's answer must be closer than `2^-11`, the emission code
+//!   is the limit, not the form-factor codes.
 //! - Convergence: decoded rows sum to `<= 1` and reflectances are `< 1`, so `R F` has row sums `< 1` and
 //!   shooting converges. [`Outcome::Converged`] means every patch's unshot magnitude is `<= tolerance`; the
 //!   remaining error per patch is at most `n * tolerance / ((1 - rho_max) A_min)`.

@@ -498,7 +498,151 @@ mod tests {
         Ok(())
     }
 
+    /// What the row rounding promises about a row's decoded sum (module docs of [`crate::codec`], "Row-sum
+    /// rounding"): never above the target (the exact sum capped at 1), and short of it by less than the code
+    /// step of any entry that was rounded down and could have been bumped, or else by no more than the losses
+    /// `L` of the entries the rounding may not bump (those below half their step, which a bump would more than
+    /// double): `target - sum <= L + min(step of rounded-down bumpable entries)`, and `< L + top step`.
+    fn check_row_sum(codec: FfCodec, values: &[f32]) -> Result<(), TestCaseError> {
+        let exact: u128 = values.iter().map(|&v| f32_to_exact(v)).sum();
+        let target = exact.min(1u128 << EXACT_SHIFT);
+        let mut codes = [0u16; 64];
+        let codes = &mut codes[..values.len()];
+        let e = quantize_row(codec, values, target, codes);
+        let sum: u128 = codes.iter().map(|&c| codec.decode(c, e).to_exact()).sum();
+        prop_assert!(sum <= target, "{codec:?}: decoded sum {sum} above target {target}");
+        let (mut unbumpable_loss, mut min_step) = (0u128, u128::MAX);
+        let mut top_step = 0u128;
+        for (&c, &v) in codes.iter().zip(values) {
+            let x = f32_to_exact(v);
+            let d = codec.decode(c, e).to_exact();
+            let step = codec.decode(c.saturating_add(1), e).to_exact().saturating_sub(d);
+            top_step = top_step.max(step);
+            if d < x {
+                if c < codec.max_code() && d + step <= 2 * x {
+                    min_step = min_step.min(step);
+                } else {
+                    unbumpable_loss += x - d;
+                }
+            }
+        }
+        let slack = target - sum;
+        let allowed = unbumpable_loss + if min_step == u128::MAX { 0 } else { min_step };
+        prop_assert!(slack <= allowed, "{codec:?}: short by {slack}, allowed {allowed}");
+        prop_assert!(slack < unbumpable_loss + top_step.max(1), "{codec:?}: short by {slack} >= a top step");
+        Ok(())
+    }
+
+    /// A row of `n` entries spread log-uniformly over `binades` binades below 1, scaled to sum below 1.
+    fn random_row(rng: &mut proptest::test_runner::TestRng, n: usize, binades: f32, out: &mut [f32; 64]) {
+        let unit =
+            |rng: &mut proptest::test_runner::TestRng| (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        for v in out[..n].iter_mut() {
+            *v = libm::exp2f(-binades * unit(rng));
+        }
+        let s: f32 = out[..n].iter().sum();
+        for v in out[..n].iter_mut() {
+            *v /= s * 1.0001;
+        }
+    }
+
+    /// The per-entry rounding error has no round-down bias, measured two ways over `R = 4000` random rows of
+    /// 8 to 63 entries spread over 5 binades below each row's largest (all in the float codes' normal range, so
+    /// every entry can go either way and no entry is too small to bump).
+    ///
+    /// 1. In absolute terms, per row `a_r = sum_k err_k / (n_r S_r)` with `S_r` the step of the row's top code
+    ///    (every step is at most `S_r`). The row-sum rounding makes `sum_k err_k = -(target - sum)`, which is in
+    ///    `(-S_r, 0]` here (`check_row_sum`: no unbumpable entries, and the shortfall is below some step), so
+    ///    the mean of `a_r` lies in `(-mean(1 / n_r), 0]`: asserted. Rounding down alone gives
+    ///    `-sum_k f_k s_k / (n_r S_r)`, about `-1/2` times the mean step ratio, asserted to fall outside.
+    /// 2. In each entry's own steps, `e_k = err_k / s_k` in `(-1, 1]`. Rounding down alone gives `-f_k`, mean
+    ///    `-1/2`. The row rounding bumps the entries whose fractional part is above a common threshold and
+    ///    gives what is left of the row's slack (up to one large step) to entries with smaller steps, so small
+    ///    entries are rounded up somewhat more often than down and large ones the other way; that moves no
+    ///    energy out of the row, and the mean of `e_k` is not negative. Rows are independent and a row's mean
+    ///    of `e_k` is in `[-1, 1]`, so by Hoeffding's inequality the mean over rows is within `x = 0.1` of its
+    ///    expectation with probability `1 - 2 exp(-R x^2 / 2) = 1 - 4e-9`: asserted `>= -0.1` (and `<= -0.4`
+    ///    for rounding down, `-1/2` within `x`, to show the statistic sees a round-down bias).
+    #[test]
+    fn rounding_error_has_no_systematic_sign() {
+        use proptest::test_runner::{RngAlgorithm, TestRng};
+        const ROWS: usize = 4000;
+        for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8] {
+            let mut rng = TestRng::deterministic_rng(RngAlgorithm::ChaCha);
+            let (mut abs_row, mut abs_down, mut abs_floor) = (0.0f64, 0.0f64, 0.0f64);
+            let (mut step_row, mut step_down, mut up, mut down) = (0.0f64, 0.0f64, 0usize, 0usize);
+            let mut values = [0.0f32; 64];
+            let mut codes = [0u16; 64];
+            for _ in 0..ROWS {
+                let n = 8 + (rng.next_u64() % 56) as usize;
+                random_row(&mut rng, n, 5.0, &mut values);
+                let values = &values[..n];
+                let target: u128 = values.iter().map(|&v| f32_to_exact(v)).sum();
+                let e = quantize_row(codec, values, target, &mut codes[..n]);
+                let top = codes[..n].iter().copied().max().unwrap_or(0);
+                let top_step = (codec.decode(top.saturating_add(1), e).to_exact()
+                    - codec.decode(top.saturating_sub(u16::from(top == codec.max_code())), e).to_exact())
+                    as f64;
+                let (mut err_sum, mut down_sum) = (0.0f64, 0.0f64);
+                let (mut in_steps, mut in_steps_down, mut counted) = (0.0f64, 0.0f64, 0usize);
+                for (&c, &v) in codes.iter().zip(values) {
+                    let x = f32_to_exact(v) as f64;
+                    let c0 = codec.round_down(f32_to_exact(v), e);
+                    let lo = codec.decode(c0, e).to_exact() as f64;
+                    err_sum += codec.decode(c, e).to_exact() as f64 - x;
+                    down_sum += lo - x;
+                    if c0 == codec.max_code() {
+                        continue; // the top code has no code above it to round to
+                    }
+                    counted += 1;
+                    let step = codec.decode(c0 + 1, e).to_exact() as f64 - lo;
+                    let d = codec.decode(c, e).to_exact() as f64;
+                    in_steps += (d - x) / step;
+                    in_steps_down += (lo - x) / step;
+                    up += usize::from(d > x);
+                    down += usize::from(d < x);
+                }
+                let r = ROWS as f64;
+                abs_row += err_sum / (n as f64 * top_step) / r;
+                abs_down += down_sum / (n as f64 * top_step) / r;
+                abs_floor -= 1.0 / n as f64 / r;
+                let counted = counted.max(1) as f64;
+                step_row += in_steps / counted / r;
+                step_down += in_steps_down / counted / r;
+            }
+            std::eprintln!(
+                "{codec}: absolute {abs_row:.2e} top steps per entry (allowed [{abs_floor:.2e}, 0], rounding \
+                 down {abs_down:.2e}); in own steps {step_row:.4} ({up} up, {down} down), rounding down {step_down:.4}"
+            );
+            assert!(abs_floor < abs_row && abs_row <= 0.0, "{codec}: absolute mean {abs_row:e}");
+            assert!(
+                abs_down < abs_floor,
+                "{codec}: rounding down gives {abs_down:e}: the statistic is blind"
+            );
+            assert!(step_row >= -0.1, "{codec}: mean error {step_row} own steps");
+            assert!(step_down <= -0.4, "{codec}: rounding down gives {step_down}: the statistic is blind");
+        }
+    }
+
     proptest! {
+        #[test]
+        fn row_sum_is_within_a_step_below_its_target(
+            raw in proptest::collection::vec((0.0f32..1.0, 0i32..30), 1..64),
+        ) {
+            let mut values = [0.0f32; 64];
+            let n = raw.len();
+            for (v, &(m, k)) in values.iter_mut().zip(&raw) {
+                *v = m * pow2_f32(-k);
+            }
+            let s: f32 = values[..n].iter().sum();
+            if s > 1.0 {
+                for v in &mut values[..n] { *v /= s * 1.0001; }
+            }
+            for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
+                check_row_sum(codec, &values[..n])?;
+            }
+        }
+
         #[test]
         fn codec_error_bounds_hold_on_random_rows(
             raw in proptest::collection::vec((0.0f32..1.0, 0i32..30), 1..64),

@@ -106,6 +106,16 @@ impl fmt::Display for BakeReport {
              incoming power {:.3e}",
             e.area_weighted, e.mean_row, e.max_row, e.max_row_fraction, e.max_receiver_fraction
         )?;
+        if e.max_entry_scale > 0.0 {
+            writeln!(
+                f,
+                "energy returned    to the kept entries (each changed by at most {:.3e}); rows lose {:.3e} of all \
+                 power, receivers' incoming power changes by at most {:.3e}",
+                e.max_entry_scale, e.net_area_weighted, e.max_incoming_change
+            )?;
+        } else {
+            writeln!(f, "energy returned    none; rows lose {:.3e} of all power", e.net_area_weighted)?;
+        }
         writeln!(f, "codec              {} ({} bits)", self.codec, self.ff_bits)?;
         writeln!(
             f,

@@ -8,10 +8,13 @@ use crate::patch::FormFactorMatrix;
 /// A sparsified matrix and the energy each row and each receiver lost.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sparsified {
-    /// The kept entries (values unchanged, never renormalized).
+    /// The kept entries: values unchanged as [`sparsify`] returns them, each row scaled up by its dropped
+    /// energy after [`Sparsified::return_dropped`].
     pub matrix: FormFactorMatrix,
     /// Per row `i`, the sum of the dropped `F_ij`.
     pub dropped: Vec<f64>,
+    /// Per row `i`, the energy given back to its kept entries ([`Sparsified::return_dropped`]; zero before).
+    pub returned: Vec<f64>,
     /// Per receiver `j`, the sum of the dropped `A_i F_ij` (power lost under uniform unit radiosity).
     pub dropped_incoming: Vec<f64>,
     /// Per receiver `j`, `sum_i A_i F_ij` over the original entries (power received under uniform unit
@@ -64,7 +67,93 @@ pub fn sparsify(ff: &FormFactorMatrix, area: &[f64], threshold: f64) -> Result<S
         }
     }
     let matrix = ff.retain_entries(|k| keep[k]);
-    Ok(Sparsified { matrix, dropped, dropped_incoming, incoming })
+    let returned = vec![0.0; n];
+    Ok(Sparsified { matrix, dropped, returned, dropped_incoming, incoming })
+}
+
+/// What a bake does with the energy sparsification drops from a row (see the [`crate::bake`] docs, step 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub enum DroppedEnergy {
+    /// Give it back to the kept entries ([`Sparsified::return_dropped`]): every row keeps its sum, so a closed
+    /// scene loses no energy, and every receiver its incoming power.
+    #[default]
+    ReturnToRow,
+    /// Lose it: the kept entries keep their values and every row sums to less than before.
+    Discard,
+}
+
+/// Most alternating scalings [`Sparsified::return_dropped`] makes.
+pub const RETURN_ROUNDS: usize = 100;
+
+/// [`Sparsified::return_dropped`] stops scaling once every receiver's incoming power is within this relative
+/// distance of its original value.
+pub const RETURN_TOLERANCE: f64 = 1e-12;
+
+impl Sparsified {
+    /// Gives the dropped energy back to the kept entries, so that every row sends what it did before
+    /// sparsification and every receiver receives what it did, both under uniform unit radiosity: the kept
+    /// power exchanges `G_ij = A_i F_ij` are scaled as `x_i G_ij y_j` (alternately fitting the receivers'
+    /// incoming sums `sum_i G_ij` to [`Sparsified::incoming`] and the rows' sums to their original `s_i`, at most
+    /// [`RETURN_ROUNDS`] times, until the incoming sums are within [`RETURN_TOLERANCE`]; the Sinkhorn-Knopp
+    /// iteration), ending on the rows so that each row's sum is `s_i` again, to f64 rounding. Records each
+    /// row's returned energy `s_i - k_i` (`k_i` what was kept) in [`Sparsified::returned`].
+    ///
+    /// Why both sides: the row sums are the energy each shooter sends, so fitting them keeps a closed scene's
+    /// energy; the incoming sums are the row sums of the shooting form `A_j F_ji / A_i` that the device
+    /// converges to, and scaling rows alone would push those above their original value (up to the threshold
+    /// above 1 in a closed scene, where the sparsified reference solve refuses rows above 1 plus the
+    /// reciprocity tolerance). A kept entry moves by about the dropped fractions of its row and its receiver,
+    /// each at most the threshold; where it lands is the sparsification error component.
+    pub fn return_dropped(&mut self, area: &[f64]) {
+        let n = self.matrix.n();
+        let kept: Vec<f64> = (0..n).map(|i| self.matrix.row_sum(i)).collect();
+        let target: Vec<f64> = (0..n).map(|i| kept[i] + self.dropped[i] - self.returned[i]).collect();
+        for _ in 0..RETURN_ROUNDS {
+            let mut received = vec![0.0; n];
+            for (i, &a) in area.iter().enumerate().take(n) {
+                for (j, f) in self.matrix.row(i) {
+                    received[j] += a * f;
+                }
+            }
+            let mut worst: f64 = 0.0;
+            let y: Vec<f64> = received
+                .iter()
+                .zip(&self.incoming)
+                .map(|(&r, &want)| {
+                    if r > 0.0 && want > 0.0 {
+                        worst = worst.max((r - want).abs() / want);
+                        want / r
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            if worst <= RETURN_TOLERANCE {
+                break;
+            }
+            self.matrix.map_values(|_, j, f| f * y[j]);
+            self.scale_rows_to(&target);
+        }
+        self.scale_rows_to(&target);
+        for i in 0..n {
+            self.returned[i] += target[i] - kept[i];
+        }
+    }
+
+    /// Scales every row with a positive sum to sum to `target[i]`.
+    fn scale_rows_to(&mut self, target: &[f64]) {
+        let x: Vec<f64> = (0..self.matrix.n())
+            .map(|i| {
+                let s = self.matrix.row_sum(i);
+                if s > 0.0 {
+                    target[i] / s
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        self.matrix.map_values(|i, _, f| f * x[i]);
+    }
 }
 
 /// `f64::total_cmp`'s order as an integer: the sign-magnitude bits turned into two's complement.
@@ -89,6 +178,17 @@ pub struct EnergyDropped {
     pub total: f64,
     /// `sum_i A_i d_i / sum_i A_i s_i`: fraction of all transported power under uniform radiosity.
     pub area_weighted: f64,
+    /// [`EnergyDropped::area_weighted`] of what the kept rows really lost: the original row sum minus the
+    /// sparsified one in place of `d_i`. Zero to f64 rounding when every row's drop was given back
+    /// ([`Sparsified::return_dropped`]), equal to `area_weighted` when none was.
+    pub net_area_weighted: f64,
+    /// Largest relative change of a kept form factor (zero unless the dropped energy was given back,
+    /// [`Sparsified::return_dropped`]).
+    pub max_entry_scale: f64,
+    /// Largest relative change of a receiver's incoming power under uniform unit radiosity
+    /// (`sum_i A_i F_ij`), from the original matrix to the kept entries: at most the threshold when the
+    /// dropped energy is lost, about [`RETURN_TOLERANCE`] when it was given back.
+    pub max_incoming_change: f64,
 }
 
 impl EnergyDropped {
@@ -101,17 +201,51 @@ impl EnergyDropped {
         let fraction = |d: &[f64], s: &[f64]| {
             d.iter().zip(s).map(|(&d, &s)| if s > 0.0 { d / s } else { 0.0 }).fold(0.0, f64::max)
         };
+        let weighted = |d: &[f64]| {
+            if total_transport > 0.0 {
+                d.iter().zip(area).map(|(d, a)| d * a).sum::<f64>() / total_transport
+            } else {
+                0.0
+            }
+        };
+        // Measured from the matrices (not `d_i - r_i`), so the report shows what the stored rows really lost.
+        let net: Vec<f64> = (0..n).map(|i| row_sums[i] - sparse.matrix.row_sum(i)).collect();
+        // Largest relative change of a kept entry: the original and sparsified rows side by side (both sorted).
+        let mut max_entry_scale: f64 = 0.0;
+        for i in 0..n {
+            let mut orig = ff.row(i).peekable();
+            for (j, f) in sparse.matrix.row(i) {
+                while orig.peek().is_some_and(|&(k, _)| k < j) {
+                    orig.next();
+                }
+                if let Some(&(k, g)) = orig.peek() {
+                    if k == j && g > 0.0 {
+                        max_entry_scale = max_entry_scale.max((f - g).abs() / g);
+                    }
+                }
+            }
+        }
+        let mut received = vec![0.0; n];
+        for (i, &a) in area.iter().enumerate().take(n) {
+            for (j, f) in sparse.matrix.row(i) {
+                received[j] += a * f;
+            }
+        }
+        let max_incoming_change = received
+            .iter()
+            .zip(&sparse.incoming)
+            .map(|(&r, &want)| if want > 0.0 { (r - want).abs() / want } else { 0.0 })
+            .fold(0.0, f64::max);
         EnergyDropped {
             max_row: sparse.dropped.iter().copied().fold(0.0, f64::max),
             mean_row: if n == 0 { 0.0 } else { sparse.dropped.iter().sum::<f64>() / n as f64 },
             max_row_fraction: fraction(&sparse.dropped, &row_sums),
             max_receiver_fraction: fraction(&sparse.dropped_incoming, &sparse.incoming),
             total: sparse.dropped.iter().sum(),
-            area_weighted: if total_transport > 0.0 {
-                sparse.dropped.iter().zip(area).map(|(d, a)| d * a).sum::<f64>() / total_transport
-            } else {
-                0.0
-            },
+            area_weighted: weighted(&sparse.dropped),
+            net_area_weighted: weighted(&net),
+            max_entry_scale,
+            max_incoming_change,
         }
     }
 }

@@ -106,6 +106,7 @@ pub(super) fn device_part(
         frames_per_setting: options.frames,
         tolerance,
         components,
+        quantization_parts: Vec::new(),
         settings,
         frames,
         discretization: None,

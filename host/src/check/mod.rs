@@ -23,6 +23,12 @@
 //! | iteration truncation | device (f32) after `frames` frames of `budget` units, cold start | device (f32) converged, same table |
 //! | arithmetic (f32, fixed) | device converged | f64 solve of the decoded table |
 //!
+//! Under the quantization component the report splits it by code ([`crate::evaluate::Evaluation::quantization_parts`]):
+//! the decoded form factors alone (the scene's reflectances and emission), against the sparsified answer, and
+//! the reflectance, emission and static-base codes, against that. The two need not add up (norms), but say
+//! which code to widen: a light's emission rounded by the emission code's `2^-11` moves every patch it lights
+//! by that much, whatever the form-factor codes do.
+//!
 //! The discretization component ([`CheckOptions::continuous`], `check --continuous`) judges the mesh rather
 //! than the table: the exact answer is exact for its mesh only. It is off by default (its path tracing costs
 //! seconds); the report then lists, per face, the mesh answer, the reference, their relative difference and the
@@ -305,7 +311,7 @@ pub fn check(
         light_groups: &dynamic_group_names(p),
     };
     let report = device_part(&table, baked.table.len(), &answers, options, components)?;
-    Ok(CheckReport { discretization, ..report })
+    Ok(CheckReport { discretization, quantization_parts: evaluation.quantization_parts.clone(), ..report })
 }
 
 /// Names of the dynamic light groups of `p`, in table order.

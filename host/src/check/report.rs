@@ -5,7 +5,7 @@ use std::fmt;
 use firmware_sim::sim::Arith;
 use serde::Serialize;
 
-use crate::evaluate::{Component, Discretization};
+use crate::evaluate::{Component, Discretization, QUANTIZATION};
 use crate::metrics::ErrorReport;
 use crate::picture::plot::Plot;
 use crate::rgb::{self, Rgb};
@@ -75,6 +75,9 @@ pub struct CheckReport {
     pub tolerance: f64,
     /// The error decomposition.
     pub components: Vec<Component>,
+    /// The quantization component split by code, printed under it (empty for a table checked without its
+    /// bake; [`crate::evaluate::Evaluation::quantization_parts`]).
+    pub quantization_parts: Vec<Component>,
     /// Every light setting on every arithmetic path.
     pub settings: Vec<Setting>,
     /// Every frame.
@@ -153,6 +156,15 @@ impl fmt::Display for CheckReport {
                 "{:<24} {:>10.3e} {:>10.3e} {:>10.3e}  {}",
                 c.name, c.error.rel_l2, c.error.max_rel, c.error.luminance_rel_l2, c.compares
             )?;
+            if c.name == QUANTIZATION {
+                for p in &self.quantization_parts {
+                    writeln!(
+                        f,
+                        "  {:<22} {:>10.3e} {:>10.3e} {:>10.3e}  {}",
+                        p.name, p.error.rel_l2, p.error.max_rel, p.error.luminance_rel_l2, p.compares
+                    )?;
+                }
+            }
         }
         if let Some(d) = &self.discretization {
             write_discretization(f, d)?;

@@ -164,7 +164,7 @@ pub fn match_scene(table: &Table<'_>, p: &Prepared) -> Result<(), String> {
         }
     }
     // Form factors: a table of the same scene differs from this run's matrix by sparsification (at most the
-    // fraction `t` of a row, 1e-3 by default), quantization (< 2^-5 of an entry at 8 bits) and the difference
+    // fraction `t` of a row dropped, 1e-3 by default, and as much given back to its kept entries), quantization (< 2^-5 of an entry at 8 bits) and the difference
     // between two Monte Carlo estimates (a few percent of a row at the default ray counts); another geometry
     // with the same patch attributes (facing vs perpendicular squares) sends a row's energy to other receivers,
     // which moves about twice the row sum. Half the transported energy separates the two cases by a factor of

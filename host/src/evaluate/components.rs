@@ -18,6 +18,10 @@ pub const RECIPROCITY: &str = "reciprocity";
 pub const SPARSIFICATION: &str = "sparsification";
 /// See [`FORM_FACTOR_ESTIMATION`].
 pub const QUANTIZATION: &str = "quantization";
+/// Part of [`QUANTIZATION`]: the form-factor codes alone ([`super::Evaluation::quantization_parts`]).
+pub const QUANTIZATION_FORM_FACTORS: &str = "of which form factors";
+/// Part of [`QUANTIZATION`]: the reflectance and emission codes ([`super::Evaluation::quantization_parts`]).
+pub const QUANTIZATION_CODES: &str = "of which rho, emission";
 /// See [`FORM_FACTOR_ESTIMATION`].
 pub const ITERATION_TRUNCATION: &str = "iteration truncation";
 /// See [`FORM_FACTOR_ESTIMATION`] (table input only).

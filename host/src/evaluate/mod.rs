@@ -40,7 +40,7 @@ use thiserror::Error;
 
 pub use components::{
     form_factor_estimation, table_vs_scene, Component, FORM_FACTOR_ESTIMATION, ITERATION_TRUNCATION,
-    QUANTIZATION, RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE,
+    QUANTIZATION, QUANTIZATION_CODES, QUANTIZATION_FORM_FACTORS, RECIPROCITY, SPARSIFICATION, TABLE_VS_SCENE,
 };
 pub use discretization::{discretization, Discretization, FaceDiscretization, DISCRETIZATION};
 pub use summary::BakeSummary;
@@ -54,6 +54,7 @@ use crate::lighting::PatchLighting;
 use crate::metrics::{self, ErrorReport, MetricsError};
 use crate::patch::FormFactorMatrix;
 use crate::reference::{Method, Radiosity, ReferenceError};
+use crate::rgb::Rgb;
 
 /// How the f64 answers are solved.
 #[derive(Clone, Debug, PartialEq)]
@@ -133,6 +134,11 @@ pub struct Evaluation {
     pub errors: BakeErrors,
     /// Each answer against the one a step before: reciprocity, sparsification, quantization.
     pub components: Vec<Component>,
+    /// The quantization component split by code ([`QUANTIZATION_FORM_FACTORS`], [`QUANTIZATION_CODES`]): the
+    /// decoded form factors alone (the scene's reflectances and emission, f64) against the sparsified answer,
+    /// and the rest of the decoded table against that. Not part of the telescoping decomposition, which the
+    /// quantization component already closes.
+    pub quantization_parts: Vec<Component>,
     /// The transfer relight's errors, if the table has a transfer basis.
     pub transfer: Option<TransferReport>,
     /// Largest relative residual of the f64 solves.
@@ -217,6 +223,15 @@ pub fn evaluate(
             error: metrics::compare(&device, &sparsified, &area)?,
         },
     ];
+    let quantization_parts = quantization_parts(
+        l,
+        &baked.static_radiosity,
+        &decoded,
+        [&device, &sparsified],
+        &area,
+        decoded_row_sum_tolerance(table.codec(), tol),
+        method,
+    )?;
     let transfer = match &baked.transfer {
         Some(tv) => Some(transfer::report(&table, tv, &l.default_intensity, &reference, &area)?),
         None => None,
@@ -230,9 +245,52 @@ pub fn evaluate(
         device,
         errors,
         components,
+        quantization_parts,
         transfer,
         residual: [r0, r1, r2, r3].into_iter().fold(0.0, f64::max),
     })
+}
+
+/// The quantization component split by code (see [`Evaluation::quantization_parts`]). What the device
+/// converges to is the decoded static base plus the response to the light groups on the decoded rows
+/// ([`Decoded::solution`]); with the codes undone, that is the bake's f64 static base `static_base` plus the
+/// response of the decoded rows with the scene's reflectances to its dynamic emission (`lighting`, default
+/// intensities), compared with `sparsified` (`[device, sparsified]`); `device` (everything decoded) is
+/// compared with that.
+///
+/// # Errors
+/// A failing f64 solve or non-finite answers.
+fn quantization_parts(
+    lighting: &PatchLighting,
+    static_base: &[Rgb],
+    decoded: &Decoded,
+    [device, sparsified]: [&Radiosity; 2],
+    area: &[f64],
+    tolerance: f64,
+    method: &Method,
+) -> Result<Vec<Component>, EvaluateError> {
+    let dynamic: Vec<Rgb> =
+        lighting.default_emission().iter().zip(&lighting.static_emission).map(|(&e, &s)| e - s).collect();
+    let shoot = shooting_form(&decoded.rows, &decoded.area);
+    let (mut rows_only, _) = solve_one(&lighting.rho, &shoot, &dynamic, tolerance, method)
+        .map_err(failed("decoded form factors alone"))?;
+    for (b, &s) in rows_only.iter_mut().zip(static_base) {
+        *b += s;
+    }
+    Ok(vec![
+        Component {
+            name: QUANTIZATION_FORM_FACTORS.into(),
+            compares: "f64, decoded form factors with the scene's reflectance and emission vs sparsified"
+                .into(),
+            error: metrics::compare(&rows_only, sparsified, area)?,
+        },
+        Component {
+            name: QUANTIZATION_CODES.into(),
+            compares: "f64, decoded table vs decoded form factors alone (reflectance, emission, base codes)"
+                .into(),
+            error: metrics::compare(device, &rows_only, area)?,
+        },
+    ])
 }
 
 /// The error of the f64 solve named `what`.

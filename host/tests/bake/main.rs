@@ -16,7 +16,7 @@ use glam::DVec3;
 use radiosity_core::{Buffers, Config, FfCodec, Outcome, OwnedBuffers, Solver, SolverError, Table};
 use radiosity_host::bake::{
     bake, codec_for_bits, gather, group_id, reachable_patches, shooting_form, sparsify, BakeError, BakeInput,
-    BakeOptions, Baked,
+    BakeOptions, Baked, DroppedEnergy, EnergyDropped, RETURN_TOLERANCE,
 };
 use radiosity_host::evaluate::{evaluate, BakeErrors, BakeSummary, EvaluateOptions, Evaluation};
 use radiosity_host::inspect::{inspect, inspect_file, InspectError};

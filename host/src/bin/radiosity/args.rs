@@ -269,7 +269,7 @@ pub enum Command {
         #[arg(long, default_value_t = 16)]
         bits: u32,
         /// Sparsification threshold: the largest fraction of a row's (and a receiver's) energy that may be
-        /// dropped.
+        /// dropped. The dropped energy goes back to the row's kept entries, so every row keeps its sum.
         #[arg(long, default_value_t = radiosity_host::bake::DEFAULT_THRESHOLD)]
         threshold: f64,
         /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
