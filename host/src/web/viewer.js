@@ -230,8 +230,13 @@ async function main() {
 
     // Budget: a log-scale slider of work units per frame, with the Cortex-M4F cost of that many units.
     const cost = scene.cost;
-    const readBudget = () => {
-        viewer.budget = Math.max(1, Math.round(10 ** Number($("budget").value)));
+    // `?budget=N` sets an exact budget (the slider snaps to its steps) until the slider is moved.
+    let exactBudget = params.has("budget") ? Math.max(1, Math.round(Number(params.get("budget")))) : undefined;
+    const readBudget = (event) => {
+        if (event !== undefined) {
+            exactBudget = undefined;
+        }
+        viewer.budget = exactBudget ?? Math.max(1, Math.round(10 ** Number($("budget").value)));
         const instr = cost.overhead + cost.per_unit * viewer.budget;
         const bound = cost.bound_overhead + cost.bound_per_unit * viewer.budget;
         $("budget-out").textContent = String(viewer.budget);
@@ -241,8 +246,8 @@ async function main() {
             `model of firmware-sim/COST.md: ${cost.overhead} + ${cost.per_unit} per unit (light-change units ` +
             `come on top)`;
     };
-    if (params.has("budget")) {
-        $("budget").value = String(Math.log10(Number(params.get("budget"))));
+    if (exactBudget !== undefined) {
+        $("budget").value = String(Math.log10(exactBudget));
     }
     $("budget").addEventListener("input", readBudget);
     readBudget();
@@ -446,11 +451,13 @@ async function main() {
                 s.overBudget += 1;
             }
             s.workSinceChange += used + lightUnits;
-            viewer.frames.push({ budget: viewer.budget, used, lightUnits });
+            // 0 converged, 1 budget spent, 2 no progress (the transfer answer shown: no step, so "converged").
+            const outcome = showingTransfer ? 0 : w.rft_outcome();
+            viewer.frames.push({ budget: viewer.budget, used, lightUnits, outcome });
             if (viewer.frames.length > KEEP_FRAMES) {
                 viewer.frames.shift();
             }
-            viewer.converged = w.rft_outcome() === 0;
+            viewer.converged = outcome === 0;
             const unshot = w.rft_unshot();
             if (plot.unshotAtChange === 0) {
                 plot.unshotAtChange = unshot;
