@@ -10,7 +10,7 @@ mod common;
 
 use common::web::{node, serve, web};
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
