@@ -1,6 +1,7 @@
 // Drives the browser viewer (`radiosity view SCENE --web DIR`) in headless Chromium (WebGL2 through SwiftShader).
 // Usage: node viewer.mjs URL OUT_DIR
-// Loads the page, waits until the solver has converged, saves the canvas as OUT_DIR/viewer-before.png, sets light
+// Loads the page, waits until the solver has converged, saves the canvas as OUT_DIR/viewer-before.png (and the
+// whole page as OUT_DIR/viewer-page.png), sets light
 // group 0 to intensity 0 through its slider, waits until converged again, saves OUT_DIR/viewer-after.png, and
 // prints one JSON object: the console errors, per phase the canvas's mean 8-bit value per channel, the solver's
 // radiosity and its error against the exact answer, and every frame's budget and units used.
@@ -29,7 +30,7 @@ try {
     });
     page.on("pageerror", (e) => errors.push(`page error: ${e.message}`));
     page.on("requestfailed", (r) => errors.push(`request failed: ${r.url()}`));
-    await page.setViewport({ width: 900, height: 600, deviceScaleFactor: 1 });
+    await page.setViewport({ width: 1000, height: 820, deviceScaleFactor: 1 });
     await page.goto(url, { waitUntil: "load" });
 
     // Waits until the page has run frames past `frames` and converged (or failed).
@@ -76,6 +77,7 @@ try {
 
     await converged(0);
     const before = await snapshot("viewer-before.png");
+    await page.screenshot({ path: join(outDir, "viewer-page.png") });
     await page.evaluate(() => window.viewer.setLight(0, 0));
     await converged(before.frames);
     const after = await snapshot("viewer-after.png");
