@@ -33,7 +33,7 @@ try {
     await page.setViewport({ width: 1000, height: 820, deviceScaleFactor: 1 });
     await page.goto(url, { waitUntil: "load" });
 
-    // Waits until the page has run frames past `frames` and converged (or failed).
+    // Waits until the page has run more than one frame past `frames` and converged (or failed).
     const converged = async (frames) => {
         await page.waitForFunction(
             (f) => window.viewer?.error !== undefined || (window.viewer?.ready && window.viewer.stats.frames > f + 1
@@ -78,8 +78,13 @@ try {
     await converged(0);
     const before = await snapshot("viewer-before.png");
     await page.screenshot({ path: join(outDir, "viewer-page.png") });
-    await page.evaluate(() => window.viewer.setLight(0, 0));
-    await converged(before.frames);
+    // The frame count at the change, read in the same task as the change: the next frame applies it, so
+    // convergence counts only after the frame after that.
+    const changedAt = await page.evaluate(() => {
+        window.viewer.setLight(0, 0);
+        return window.viewer.stats.frames;
+    });
+    await converged(changedAt);
     const after = await snapshot("viewer-after.png");
     const frames = await page.evaluate(() => window.viewer.frames);
     const stats = await page.evaluate(() => window.viewer.stats);

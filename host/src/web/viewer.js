@@ -214,6 +214,21 @@ async function main() {
             pendingLights.add(k);
         }));
     lightSliders.forEach((s, k) => { s.dataset.group = String(k); });
+    // A colour per group: its channels (decoded from sRGB to linear) multiply the default intensity.
+    const srgbDecode = (v) => (v <= 0.04045 ? v / 12.92 : ((v + 0.055) / 1.055) ** 2.4);
+    const lightColour = scene.groups.map(() => [1, 1, 1]);
+    lightSliders.forEach((s, k) => {
+        const input = document.createElement("input");
+        Object.assign(input, { type: "color", value: "#ffffff", title: `${scene.groups[k].name}: colour` });
+        input.addEventListener("input", () => {
+            const hex = input.value.slice(1);
+            lightColour[k] = [0, 2, 4].map((at) => srgbDecode(parseInt(hex.slice(at, at + 2), 16) / 255));
+            pendingLights.add(k);
+        });
+        s.parentElement.append(input);
+    });
+    // Intensity of group g, RGB: default x slider x colour.
+    const intensityOf = (g) => scene.groups[g].default_intensity.map((v, c) => v * intensityScale[g] * lightColour[g][c]);
     scene.materials.forEach((mat, m) => {
         const box = document.createElement("div");
         const title = document.createElement("div");
@@ -259,10 +274,10 @@ async function main() {
     const updateExact = () => {
         exact.set(scene.b_static);
         for (let g = 0; g < groups; g++) {
-            const d = scene.groups[g].default_intensity;
+            const intensity = intensityOf(g);
             const t = scene.t[g];
             for (let k = 0; k < 3 * n; k++) {
-                exact[k] += intensityScale[g] * d[k % 3] * t[k];
+                exact[k] += intensity[k % 3] * t[k];
             }
         }
     };
@@ -412,8 +427,7 @@ async function main() {
             let lightUnits = 0;
             let changed = false;
             for (const g of pendingLights) {
-                const d = scene.groups[g].default_intensity;
-                const units = w.rft_set_light(g, ...d.map((v) => v * intensityScale[g]));
+                const units = w.rft_set_light(g, ...intensityOf(g));
                 if (units < 0) {
                     throw new Error(message());
                 }

@@ -449,9 +449,9 @@ pub enum Command {
     /// map, the Cortex-M4F cost model of firmware-sim/COST.md, and the exact f64 transfer vectors for the live
     /// error). Nothing is fetched from elsewhere, but browsers do not run WebAssembly from file:// pages: serve
     /// the folder with any static server, e.g. `python3 -m http.server -d DIR`, and open the address it prints.
-    /// The page: drag to orbit, a slider per light group (intensity) and per material (reflectance), the budget in
-    /// work units per frame (each animation frame runs one bounded step), a plot of the error against work since
-    /// the last change, and the transfer-basis relight. `make web` builds the wasm and writes out/web.
+    /// The page: drag to orbit, a slider and a colour per light group (intensity) and sliders per material
+    /// (reflectance), the budget in work units per frame (each animation frame runs one bounded step), a plot of
+    /// the error against work since the last change, and the transfer-basis relight. `make web` builds the wasm and writes out/web.
     View {
         #[command(flatten)]
         scene: SceneArgs,
