@@ -75,14 +75,14 @@ fn cost_model_is_read_from_the_firmware_report() {
 /// The same table and relight script (boot, budgets that end frames mid-solve, dimming, switching off, a
 /// coloured light) through the host simulator's device loop and through the wasm build under Node.js: every
 /// frame's units, outcome and every patch's radiosity agree bit for bit (WebAssembly's f32 is IEEE 754 with
-/// round-to-nearest, as the host's).
+/// round-to-nearest, as the host's); so does the transfer-basis relight of the last intensities.
 #[test]
 fn wasm_core_matches_the_host_simulator_bit_for_bit() {
     let dir = or_skip!("wasm_core_matches_the_host_simulator_bit_for_bit", web());
     let wasm = or_skip!("wasm_core_matches_the_host_simulator_bit_for_bit", wasm());
     let p = cornell();
     let input = BakeInput::from_scene(&p.scene, &p.patches, &p.lighting, &p.form_factors);
-    let baked = bake(&input, &BakeOptions::default()).unwrap();
+    let baked = bake(&input, &BakeOptions { transfer: true, ..BakeOptions::default() }).unwrap();
     let table_path = scratch().join("bitexact.rft");
     std::fs::write(&table_path, &baked.table).unwrap();
     let table = Table::parse(&baked.table).unwrap();
@@ -143,6 +143,14 @@ fn wasm_core_matches_the_host_simulator_bit_for_bit() {
         let differ = wasm_bits.iter().zip(bits).filter(|(a, b)| **a != b.as_str()).count();
         assert_eq!(differ, 0, "frame {k}: {differ} of {} radiosity values differ in their bits", bits.len());
     }
+    // The transfer-basis relight of the last intensities: the same units and bits as core's on the host.
+    let mut answer = vec![[0.0f32; 3]; table.patch_count() as usize];
+    let units = radiosity_core::relight_transfer(&table, &[*levels.last().unwrap()], &mut answer).unwrap();
+    let t = &out["transfer"];
+    assert_eq!(t["units"], units);
+    let host_bits: Vec<String> = answer.iter().flatten().map(|v| format!("{:x}", v.to_bits())).collect();
+    let wasm_bits: Vec<&str> = t["bits"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert_eq!(wasm_bits, host_bits, "transfer-basis relight");
     // The script exercised the bounded path: frames that ended with budget spent, a shot split across frames.
     assert!(
         budget_spent >= 2,

@@ -1,7 +1,7 @@
 // Runs a relight script on the WebAssembly build of the device core (radiosity-web) under Node.js, as the host
 // simulator's device loop runs it (firmware-sim/src/device.rs: boot, then per frame the light groups whose
 // intensity changed and one bounded step), and prints per frame the units used, the outcome and the bits of
-// every patch's radiosity, for a bit-for-bit comparison.
+// every patch's radiosity, for a bit-for-bit comparison; then the transfer-basis answer for the last intensities.
 // Usage: node bitexact.mjs WASM TABLE SCRIPT.json
 // SCRIPT.json: { "tolerance": relative, "initial": [[r, g, b], ...], "boot_budget": n,
 //                "frames": [{ "budget": n, "intensity": [[r, g, b], ...] }, ...] }
@@ -40,9 +40,11 @@ const apply = (intensity) => {
     return units;
 };
 const hex = (x) => x.toString(16);
+let radiosityAt = 0;
+const bitsAt = (at) => Array.from(new Uint32Array(w.memory.buffer, at, 3 * n), hex);
 const bits = () => {
-    const f = new Float32Array(w.memory.buffer, w.rft_radiosity(), 3 * n);
-    return Array.from(new Uint32Array(f.buffer, f.byteOffset, 3 * n), hex);
+    radiosityAt = w.rft_radiosity();
+    return bitsAt(radiosityAt);
 };
 
 apply(script.initial);
@@ -55,4 +57,13 @@ const frames = script.frames.map((frame) => {
     const used = w.rft_step(frame.budget);
     return { used, light_units, outcome: w.rft_outcome(), bits: bits() };
 });
-console.log(JSON.stringify({ patches: n, frames }));
+// The transfer-basis answer for the last intensities (written into the radiosity buffer), when the table has one.
+let transfer = null;
+if (w.rft_has_transfer() === 1) {
+    const units = w.rft_relight_transfer();
+    if (units < 0) {
+        throw new Error(`rft_relight_transfer: ${message()}`);
+    }
+    transfer = { units, bits: bitsAt(radiosityAt) };
+}
+console.log(JSON.stringify({ patches: n, frames, transfer }));
