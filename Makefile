@@ -7,7 +7,7 @@ QEMU ?= 1
 OUT ?= out
 export QEMU
 
-.PHONY: deps demo test bench fuzz fmt-check clippy unit-tests embedded-builds
+.PHONY: deps demo web test bench fuzz fmt-check clippy unit-tests embedded-builds
 
 deps:
 	@bash scripts/deps.sh
@@ -16,6 +16,14 @@ deps:
 demo:
 	@WEB=0 bash scripts/deps.sh
 	$(CARGO) run --release -p radiosity-host --bin radiosity -- demo --out $(OUT) $(if $(filter 0,$(QEMU)),--no-qemu)
+
+# The browser viewer of the Cornell box in $(OUT)/web: the device core built as WebAssembly (target/web), then
+# `radiosity view`. Open it with `python3 -m http.server -d $(OUT)/web` (any static server will do).
+web:
+	@WEB=0 QEMU=0 WASM=1 bash scripts/deps.sh
+	$(CARGO) build --release -p radiosity-web --target wasm32-unknown-unknown --target-dir target/web \
+		--config profile.release.debug=0 --config profile.release.strip=true
+	$(CARGO) run --release -p radiosity-host --bin radiosity -- view scenes/cornell-box.obj --web $(OUT)/web
 
 test: deps
 	@bash scripts/test.sh

@@ -2,7 +2,8 @@
 # Installs everything the build and the tests need on a fresh Debian 12 machine (run as root).
 # Idempotent: each step checks first and returns at once when already done. With QEMU=0 (`make demo QEMU=0`) the
 # firmware's needs are left out: QEMU, the ARM binutils and the embedded Rust targets. With WEB=0 (`make demo`)
-# the web checks' needs are left out: Chromium, Node.js with npm, and the npm packages of tests/web.
+# the web checks' needs are left out: Chromium, Node.js with npm, the npm packages of tests/web and the wasm32
+# target (WASM=1 keeps the target, for `make web`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,6 +15,10 @@ TARGETS=(thumbv7em-none-eabihf thumbv6m-none-eabi)
 if [ "${QEMU:-1}" = 0 ]; then
     APT_PACKAGES=(libclang1-14 libclang-common-14-dev unzip fonts-dejavu-core)
     TARGETS=()
+fi
+# The browser viewer runs the core as WebAssembly (`make web`, host/tests/web.rs); with WEB=0 only if WASM=1.
+if [ "${WEB:-1}" != 0 ] || [ "${WASM:-0}" = 1 ]; then
+    TARGETS+=(wasm32-unknown-unknown)
 fi
 
 # The .glb export's checks by others' tools (host/tests/export.rs): the Khronos glTF validator and three.js in
@@ -44,7 +49,7 @@ if [ ${#missing[@]} -gt 0 ]; then
         || fail "apt-get install ${missing[*]}" "Install these packages by hand, then run 'make deps' again."
 fi
 
-# 2. Rust targets: the core must build for Cortex-M4F and for Cortex-M0 (no FPU).
+# 2. Rust targets: the core must build for Cortex-M4F and for Cortex-M0 (no FPU), and for WebAssembly.
 installed_targets=$(rustup target list --installed 2>/dev/null || true)
 for t in "${TARGETS[@]+"${TARGETS[@]}"}"; do
     if ! grep -qx "$t" <<<"$installed_targets"; then

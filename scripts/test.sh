@@ -22,5 +22,7 @@ run "core builds for Cortex-M4F (thumbv7em-none-eabihf)" \
     cargo build --locked -p radiosity-core --target thumbv7em-none-eabihf
 run "core builds for Cortex-M0 without FPU (thumbv6m-none-eabi)" \
     cargo build --locked -p radiosity-core --target thumbv6m-none-eabi
+run "core builds for WebAssembly (wasm32-unknown-unknown, the browser viewer's radiosity-web)" \
+    cargo build --locked -p radiosity-web --target wasm32-unknown-unknown
 run "firmware under QEMU (bit-exact against the host simulator, cost model)" scripts/firmware.sh
 run "workspace tests" cargo test --workspace --locked

@@ -22,7 +22,7 @@
 //! | bake | [`bake`] (`bake/`: sparsify, solve, ids, state, codec, decode, report, capacities) | how a table is produced (it only produces) |
 //! | evaluate | [`evaluate`] (`evaluate/`: the f64 answers once, components, transfer, summary) | how a table is judged against f64 |
 //! | check, regress | [`check`], [`regress`] | the device run against f64 (frames through `firmware_sim::device::run_frame`, the one device loop), the quantization baseline |
-//! | reports | [`inspect`], [`metrics`], [`relight`], [`view`], [`picture`], [`bench`](mod@bench), [`output`] | what is printed, drawn or exported (light maps, `.glb`) |
+//! | reports | [`inspect`], [`metrics`], [`relight`], [`view`], [`web`] (the browser viewer), [`picture`], [`bench`](mod@bench), [`output`] | what is printed, drawn or exported (light maps, `.glb`) |
 //! | files, limits | [`files`], [`limits`] | where outputs may go and how they are written (atomically); the limit of every size a user gives |
 //! | command line | `src/bin/radiosity/` (`args.rs` every flag and its `--help`, `main.rs` runs the commands) | a flag or subcommand (the library takes plain options) |
 
@@ -54,3 +54,4 @@ pub mod rng;
 pub mod scene;
 pub mod text;
 pub mod view;
+pub mod web;

@@ -687,3 +687,45 @@ fn hierarchical_solve_by_shooting() {
         &["--solver applies to --method hierarchical only"],
     );
 }
+
+/// `view --web`: its help says what the folder holds and how to serve it; a missing wasm build fails before the
+/// scene is read and says how to build it; a file that is not WebAssembly is refused. (The page itself:
+/// `host/tests/web.rs`.)
+#[test]
+fn view_web_explains_itself_and_needs_the_wasm_build() {
+    let help = radiosity(&["view", "--help"]);
+    let help = String::from_utf8_lossy(&help.stdout);
+    for expect in
+        ["index.html", "scene.json", "python3 -m http.server -d DIR", "--wasm", "make web", "COST.md"]
+    {
+        assert!(help.contains(expect), "view --help lacks {expect:?}: {help}");
+    }
+    let dir = folder("view");
+    let site = dir.join("site");
+    let site = site.to_str().unwrap();
+    let missing = dir.join("none.wasm");
+    assert_fails(
+        &["view", MISSING, "--web", site, "--wasm", missing.to_str().unwrap()],
+        &["none.wasm", "cargo build -p radiosity-web", "make web"],
+    );
+    let fake = dir.join("fake.wasm");
+    std::fs::write(&fake, "not wasm").unwrap();
+    let cornell = scene("cornell-box.obj");
+    let out = radiosity(&[
+        "view",
+        &cornell,
+        "--no-subdivide",
+        "--samples",
+        "4",
+        "--rays",
+        "4",
+        "-q",
+        "--web",
+        site,
+        "--wasm",
+        fake.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("not a WebAssembly module"), "{stderr}");
+}

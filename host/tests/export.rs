@@ -8,10 +8,9 @@
 
 mod common;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{TcpListener, TcpStream};
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use common::web::{node, serve, web};
+
+use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -222,82 +221,6 @@ fn glb_light_map_gives_the_radiosity_back_where_engines_sample_it() {
     assert_eq!(exr, irradiance_atlas(&e.prepared.patches, materials, &e.map).unwrap());
 }
 
-/// `tests/web` with its npm packages installed by `npm ci` (once per run, and only when the lock file is newer than
-/// the installed tree, as `scripts/deps.sh` does), or why they cannot be had.
-fn web() -> Result<&'static Path, String> {
-    static CELL: OnceLock<Result<PathBuf, String>> = OnceLock::new();
-    CELL.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/web");
-        let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-        let (installed, lock) = (
-            modified(&dir.join("node_modules/.package-lock.json")),
-            modified(&dir.join("package-lock.json")),
-        );
-        if matches!((installed, lock), (Some(i), Some(l)) if i > l) {
-            return Ok(dir);
-        }
-        let out = Command::new("npm")
-            .args(["ci", "--no-audit", "--no-fund", "--loglevel=error"])
-            .current_dir(&dir)
-            .stdin(Stdio::null())
-            .output()
-            .map_err(|e| format!("npm cannot be run ({e}); install nodejs and npm (scripts/deps.sh)"))?;
-        if !out.status.success() {
-            return Err(format!(
-                "`npm ci` in {} failed, so its packages cannot be installed: {}",
-                dir.display(),
-                String::from_utf8_lossy(&out.stderr).trim()
-            ));
-        }
-        Ok(dir)
-    })
-    .as_ref()
-    .map(PathBuf::as_path)
-    .map_err(Clone::clone)
-}
-
-/// Runs `node` with `args` in `dir`, killing it after `limit`; returns stdout, or stderr as the error.
-fn node(dir: &Path, args: &[&str], limit: Duration) -> Result<String, String> {
-    let mut child = Command::new("node")
-        .args(args)
-        .current_dir(dir)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("node cannot be run: {e}"))?;
-    let (mut stdout, mut stderr) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
-    let out = std::thread::spawn(move || {
-        let mut s = String::new();
-        stdout.read_to_string(&mut s).map(|_| s)
-    });
-    let err = std::thread::spawn(move || {
-        let mut s = String::new();
-        stderr.read_to_string(&mut s).map(|_| s)
-    });
-    let start = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if start.elapsed() > limit {
-            child.kill().unwrap();
-            child.wait().unwrap();
-            return Err(format!("node {args:?} did not finish within {limit:?}"));
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let (out, err) = (out.join().unwrap().unwrap(), err.join().unwrap().unwrap());
-    if status.success() {
-        if !err.is_empty() {
-            eprintln!("node {args:?} said on stderr:\n{err}");
-        }
-        Ok(out)
-    } else {
-        Err(format!("node {args:?} failed ({status}):\n{err}"))
-    }
-}
-
 #[test]
 fn glb_passes_the_khronos_gltf_validator() {
     let e = exported();
@@ -327,57 +250,6 @@ fn glb_passes_the_khronos_gltf_validator() {
         "validator: {} errors, {} warnings, {} infos, {} hints",
         issues["numErrors"], issues["numWarnings"], issues["numInfos"], issues["numHints"]
     );
-}
-
-/// Serves GET requests for files under `routes` (URL prefix -> folder) on a free local port, in the background.
-fn serve(routes: Vec<(&'static str, PathBuf)>) -> u16 {
-    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
-    let port = listener.local_addr().unwrap().port();
-    std::thread::spawn(move || {
-        for stream in listener.incoming().flatten() {
-            let routes = routes.clone();
-            std::thread::spawn(move || respond(stream, &routes));
-        }
-    });
-    port
-}
-
-fn respond(mut stream: TcpStream, routes: &[(&str, PathBuf)]) {
-    let mut reader = BufReader::new(stream.try_clone().unwrap());
-    let mut request = String::new();
-    if reader.read_line(&mut request).is_err() {
-        return;
-    }
-    loop {
-        let mut line = String::new();
-        if reader.read_line(&mut line).map_or(true, |n| n == 0) || line == "\r\n" {
-            break;
-        }
-    }
-    let target = request.split_whitespace().nth(1).unwrap_or("/");
-    let path = target.split('?').next().unwrap_or("/");
-    let file = routes.iter().find_map(|(prefix, dir)| {
-        let rest = path.strip_prefix(prefix)?;
-        (!rest.split('/').any(|part| part == "..")).then(|| dir.join(rest))
-    });
-    let (status, body, kind) = match file.and_then(|f| std::fs::read(&f).ok().map(|b| (f, b))) {
-        Some((f, body)) => {
-            let kind = match f.extension().and_then(|e| e.to_str()) {
-                Some("html") => "text/html; charset=utf-8",
-                Some("js" | "mjs") => "text/javascript",
-                Some("glb") => "model/gltf-binary",
-                Some("json") => "application/json",
-                _ => "application/octet-stream",
-            };
-            ("200 OK", body, kind)
-        }
-        None => ("404 Not Found", b"not found".to_vec(), "text/plain"),
-    };
-    let head = format!(
-        "HTTP/1.1 {status}\r\nContent-Type: {kind}\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
-        body.len()
-    );
-    let _ = stream.write_all(head.as_bytes()).and_then(|()| stream.write_all(&body));
 }
 
 /// Per-channel range of the smooth field over the points of face `face`'s patches within `reach` of `q`: `q`
@@ -443,14 +315,8 @@ fn three_js_renders_the_glb_as_the_project_does() {
             return;
         }
     };
-    let chromium =
-        std::env::var_os("CHROMIUM").map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
-    if !chromium.exists() {
-        eprintln!(
-            "SKIPPED three_js_renders_the_glb_as_the_project_does: no Chromium at {} (Debian package chromium; \
-             scripts/deps.sh installs it; CHROMIUM=PATH selects another)",
-            chromium.display()
-        );
+    if let Err(why) = common::web::chromium() {
+        eprintln!("SKIPPED three_js_renders_the_glb_as_the_project_does: {why}");
         return;
     }
     // The project's render (as `radiosity render`: ray cast, smooth shading, tone map from the visible pixels).

@@ -1,6 +1,8 @@
 //! What several host test files share: the bundled scenes and a coarse Cornell box.
 #![allow(dead_code)] // each test file uses some of these
 
+pub mod web;
+
 use std::path::{Path, PathBuf};
 
 use radiosity_host::formfactor::FormFactorOptions;

@@ -441,6 +441,32 @@ pub enum Command {
         #[command(flatten)]
         light_map: LightMapArgs,
     },
+    /// Write a browser viewer of the scene: the device core, built as WebAssembly, relights it live in a
+    /// WebGL2 page.
+    ///
+    /// DIR gets index.html, viewer.js, radiosity_web.wasm (the --wasm file), scene.rft (the table baked at default
+    /// settings, with its transfer section) and scene.json (patch polygons, light groups, materials, camera, tone
+    /// map, the Cortex-M4F cost model of firmware-sim/COST.md, and the exact f64 transfer vectors for the live
+    /// error). Nothing is fetched from elsewhere, but browsers do not run WebAssembly from file:// pages: serve
+    /// the folder with any static server, e.g. `python3 -m http.server -d DIR`, and open the address it prints.
+    /// The page: drag to orbit, a slider and a colour per light group (intensity) and sliders per material
+    /// (reflectance), the budget in work units per frame (each animation frame runs one bounded step), a plot of
+    /// the error against work since the last change, and the transfer-basis relight. `make web` builds the wasm and writes out/web.
+    View {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// The folder to write the viewer into (created if missing).
+        #[arg(long, value_name = "DIR")]
+        web: PathBuf,
+        /// The WebAssembly build of the radiosity-web crate (`cargo build -p radiosity-web --release --target
+        /// wasm32-unknown-unknown --target-dir target/web`, as `make web` runs it).
+        #[arg(
+            long,
+            value_name = "FILE",
+            default_value = "target/web/wasm32-unknown-unknown/release/radiosity_web.wasm"
+        )]
+        wasm: PathBuf,
+    },
     /// Bake the scene, run the device solver on the table (f32 and fixed point, a budget per frame, optional
     /// relighting) and compare every frame with the exact f64 answer; print the error decomposition.
     ///

@@ -567,6 +567,34 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 files.irradiance_scale
             )?;
         }
+        Command::View { scene, web, wasm } => {
+            check_scene_args(&scene)?;
+            if !wasm.is_file() {
+                return Err(format!(
+                    "{}: no WebAssembly build of the viewer's core; build it with `cargo build -p radiosity-web \
+                     --release --target wasm32-unknown-unknown --target-dir target/web` (or `make web`), or pass \
+                     --wasm FILE",
+                    wasm.display()
+                )
+                .into());
+            }
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            if !scene.quiet {
+                eprintln!("view: baking the table and solving the f64 transfer vectors");
+            }
+            let files = radiosity_host::web::write_viewer(&p, &web, &wasm)?;
+            for f in &files.files {
+                writeln!(out, "{}", f.display())?;
+            }
+            writeln!(
+                out,
+                "{} patches, table {} bytes. Serve the folder and open the address it prints:\n  python3 -m \
+                 http.server -d {}",
+                files.patches,
+                files.table_bytes,
+                files.dir.display()
+            )?;
+        }
         Command::Check { scene, table_scene, check, plot, format } => {
             if table_scene.is_none() && scene.scene.extension().is_some_and(|e| e == "rft") {
                 return Err(format!(

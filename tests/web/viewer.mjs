@@ -1,0 +1,94 @@
+// Drives the browser viewer (`radiosity view SCENE --web DIR`) in headless Chromium (WebGL2 through SwiftShader).
+// Usage: node viewer.mjs URL OUT_DIR
+// Loads the page, waits until the solver has converged, saves the canvas as OUT_DIR/viewer-before.png (and the
+// whole page as OUT_DIR/viewer-page.png), sets light
+// group 0 to intensity 0 through its slider, waits until converged again, saves OUT_DIR/viewer-after.png, and
+// prints one JSON object: the console errors, per phase the canvas's mean 8-bit value per channel, the solver's
+// radiosity and its error against the exact answer, and every frame's budget and units used.
+// CHROMIUM selects the browser binary (default /usr/bin/chromium).
+import { writeFileSync } from "node:fs";
+import { join } from "node:path";
+import puppeteer from "puppeteer-core";
+
+const [url, outDir] = process.argv.slice(2);
+if (!url || !outDir) {
+    console.error("usage: node viewer.mjs URL OUT_DIR");
+    process.exit(2);
+}
+const browser = await puppeteer.launch({
+    executablePath: process.env.CHROMIUM || "/usr/bin/chromium",
+    headless: true,
+    args: ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist"],
+});
+const errors = [];
+try {
+    const page = await browser.newPage();
+    page.on("console", (m) => {
+        if (m.type() === "error") {
+            errors.push(`console: ${m.text()}`);
+        }
+    });
+    page.on("pageerror", (e) => errors.push(`page error: ${e.message}`));
+    page.on("requestfailed", (r) => errors.push(`request failed: ${r.url()}`));
+    await page.setViewport({ width: 1000, height: 820, deviceScaleFactor: 1 });
+    await page.goto(url, { waitUntil: "load" });
+
+    // Waits until the page has run more than one frame past `frames` and converged (or failed).
+    const converged = async (frames) => {
+        await page.waitForFunction(
+            (f) => window.viewer?.error !== undefined || (window.viewer?.ready && window.viewer.stats.frames > f + 1
+                && window.viewer.converged),
+            { timeout: 120000, polling: 100 },
+            frames,
+        );
+        const error = await page.evaluate(() => window.viewer.error);
+        if (error !== undefined) {
+            throw new Error(`the page failed: ${error}`);
+        }
+    };
+    // The canvas's mean 8-bit value per channel, and its pixels saved as PNG.
+    const snapshot = async (name) => {
+        const dataUrl = await page.evaluate(() => document.getElementById("view").toDataURL("image/png"));
+        writeFileSync(join(outDir, name), Buffer.from(dataUrl.split(",")[1], "base64"));
+        const mean = await page.evaluate(() => {
+            const c = document.getElementById("view");
+            const copy = document.createElement("canvas");
+            copy.width = c.width;
+            copy.height = c.height;
+            const ctx = copy.getContext("2d");
+            ctx.drawImage(c, 0, 0);
+            const d = ctx.getImageData(0, 0, c.width, c.height).data;
+            const sum = [0, 0, 0];
+            for (let k = 0; k < d.length; k += 4) {
+                sum[0] += d[k];
+                sum[1] += d[k + 1];
+                sum[2] += d[k + 2];
+            }
+            return sum.map((s) => s / (d.length / 4));
+        });
+        const state = await page.evaluate(() => ({
+            frames: window.viewer.stats.frames,
+            work: window.viewer.stats.workSinceChange,
+            errorVsExact: window.viewer.error_vs_exact,
+            radiosity: window.viewer.radiosity(),
+        }));
+        return { mean, ...state };
+    };
+
+    await converged(0);
+    const before = await snapshot("viewer-before.png");
+    await page.screenshot({ path: join(outDir, "viewer-page.png") });
+    // The frame count at the change, read in the same task as the change: the next frame applies it, so
+    // convergence counts only after the frame after that.
+    const changedAt = await page.evaluate(() => {
+        window.viewer.setLight(0, 0);
+        return window.viewer.stats.frames;
+    });
+    await converged(changedAt);
+    const after = await snapshot("viewer-after.png");
+    const frames = await page.evaluate(() => window.viewer.frames);
+    const stats = await page.evaluate(() => window.viewer.stats);
+    console.log(JSON.stringify({ errors, before, after, frames, stats }));
+} finally {
+    await browser.close();
+}
