@@ -624,20 +624,29 @@ mod tests {
         }
     }
 
+    /// A row from `(mantissa, binade)` pairs: entries spread over many binades, then scaled so the row sums to at
+    /// most 1; returns the entries and their count.
+    fn spread_row(raw: &[(f32, i32)]) -> ([f32; 64], usize) {
+        let mut values = [0.0f32; 64];
+        let n = raw.len().min(64);
+        for (v, &(m, k)) in values.iter_mut().zip(raw) {
+            *v = m * pow2_f32(-k);
+        }
+        let s: f32 = values[..n].iter().sum();
+        if s > 1.0 {
+            for v in &mut values[..n] {
+                *v /= s * 1.0001;
+            }
+        }
+        (values, n)
+    }
+
     proptest! {
         #[test]
         fn row_sum_is_within_a_step_below_its_target(
             raw in proptest::collection::vec((0.0f32..1.0, 0i32..30), 1..64),
         ) {
-            let mut values = [0.0f32; 64];
-            let n = raw.len();
-            for (v, &(m, k)) in values.iter_mut().zip(&raw) {
-                *v = m * pow2_f32(-k);
-            }
-            let s: f32 = values[..n].iter().sum();
-            if s > 1.0 {
-                for v in &mut values[..n] { *v /= s * 1.0001; }
-            }
+            let (values, n) = spread_row(&raw);
             for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
                 check_row_sum(codec, &values[..n])?;
             }
@@ -647,16 +656,7 @@ mod tests {
         fn codec_error_bounds_hold_on_random_rows(
             raw in proptest::collection::vec((0.0f32..1.0, 0i32..30), 1..64),
         ) {
-            // Entries spread over many binades, then scaled so the row sums to at most 1.
-            let mut values = [0.0f32; 64];
-            let n = raw.len();
-            for (v, &(m, k)) in values.iter_mut().zip(&raw) {
-                *v = m * pow2_f32(-k);
-            }
-            let s: f32 = values[..n].iter().sum();
-            if s > 1.0 {
-                for v in &mut values[..n] { *v /= s * 1.0001; }
-            }
+            let (values, n) = spread_row(&raw);
             for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
                 check_row(codec, &values[..n])?;
             }
