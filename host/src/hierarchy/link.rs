@@ -243,6 +243,9 @@ pub(super) struct RefineCounts {
     pub(super) at_limit: u64,
     /// Links split.
     pub(super) split: u64,
+    /// Of those, the cluster links split because their estimate could not be trusted (see
+    /// [`MAX_CLUSTER_RELATIVE_ERROR`]), whatever their brightness.
+    pub(super) untrusted: u64,
 }
 
 /// Limits of refinement.
@@ -254,6 +257,9 @@ pub(super) struct Limits {
     pub(super) min_area: f64,
     /// Most nodes.
     pub(super) max_nodes: usize,
+    /// Most links, accepted and pending together: refinement stops with [`HierarchyError::TooManyLinks`]
+    /// before it would hold more.
+    pub(super) max_links: usize,
 }
 
 /// Whether `n` may be split: a cluster always, a surface while its children would be at least `min_area` and the
@@ -302,6 +308,9 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
     counts: &mut RefineCounts,
 ) -> Result<(), HierarchyError> {
     while !candidates.is_empty() {
+        if links.len() + candidates.len() > limits.max_links {
+            return Err(too_many_links(tree, limits, links.len(), candidates.len(), counts));
+        }
         let estimates: Vec<Estimate> = {
             let tree = &*tree;
             candidates.par_iter().map(|&(r, s)| estimator.estimate(tree, r, s)).collect()
@@ -322,6 +331,7 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
             }
             if split_link(tree, estimator.rules, spans, limits, a, b, &mut next)? {
                 counts.split += 1;
+                counts.untrusted += u64::from(!est.trusted);
             } else {
                 counts.at_limit += 1;
                 links.push(link);
@@ -330,6 +340,25 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
         candidates = next;
     }
     Ok(())
+}
+
+/// The error for refinement that would exceed `limits.max_links` (the pass is filled in by the driver).
+pub(super) fn too_many_links(
+    tree: &Tree,
+    limits: &Limits,
+    links: usize,
+    pending: usize,
+    counts: &RefineCounts,
+) -> HierarchyError {
+    HierarchyError::TooManyLinks {
+        limit: limits.max_links,
+        links,
+        pending,
+        leaves: tree.nodes.iter().filter(|n| n.children.is_empty()).count(),
+        split: counts.split,
+        untrusted: counts.untrusted,
+        pass: 0,
+    }
 }
 
 /// Whether either end of `link` can be split.

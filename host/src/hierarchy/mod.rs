@@ -76,6 +76,10 @@ pub const DEFAULT_EPSILON: f64 = 0.03;
 /// The direct-light stage's error bound per link, as a share of `epsilon` times the brightest face polygon's
 /// emitted power.
 pub const LINK_SHARE: f64 = 0.01;
+/// Default most links (accepted and pending together) before refinement stops with
+/// [`HierarchyError::TooManyLinks`]: a link costs a few hundred bytes at the peak of refinement (the link, its
+/// estimate, the budgets' ledger), so this keeps a solve within a few GiB.
+pub const DEFAULT_MAX_LINKS: usize = 10_000_000;
 /// Default smallest element area, relative to the scene's total surface area.
 pub const DEFAULT_MIN_AREA_FRACTION: f64 = 1e-5;
 /// Default limit on tree nodes.
@@ -110,6 +114,9 @@ pub struct HierarchyOptions {
     pub min_area_fraction: f64,
     /// Most tree nodes.
     pub max_nodes: usize,
+    /// Most links: refinement that would hold more (accepted and pending together) stops with
+    /// [`HierarchyError::TooManyLinks`] instead of exhausting memory.
+    pub max_links: usize,
     /// Point pairs of a link with a cluster at one end.
     pub cluster_samples: usize,
     /// Refinement passes.
@@ -131,6 +138,7 @@ impl Default for HierarchyOptions {
             epsilon: DEFAULT_EPSILON,
             min_area_fraction: DEFAULT_MIN_AREA_FRACTION,
             max_nodes: DEFAULT_MAX_NODES,
+            max_links: DEFAULT_MAX_LINKS,
             cluster_samples: DEFAULT_CLUSTER_SAMPLES,
             passes: DEFAULT_PASSES,
             solve_tolerance: DEFAULT_SOLVE_TOLERANCE,
@@ -161,6 +169,36 @@ pub enum HierarchyError {
     /// The estimator's rules or the occluders could not be set up.
     #[error(transparent)]
     FormFactor(#[from] FormFactorError),
+    /// Refinement would hold more links than [`HierarchyOptions::max_links`]: stopped before memory runs out.
+    #[error(
+        "refinement pass {pass} needs more than {limit} links ({links} accepted and {pending} pairs pending, at \
+         {leaves} leaves); {} of the {split} links split so far were cluster links whose estimate could not be \
+         trusted (surfaces nearly touching: the kernel 1/r^2 is heavy-tailed there), the rest were split for \
+         their error bound. {}",
+        percent(*untrusted, *split),
+        if *untrusted * 2 > *split {
+            "A larger --epsilon does not help against the first kind; move nearly touching surfaces apart or \
+             join them, or allow more links (--max-links) if memory allows (a few hundred bytes per link)"
+        } else {
+            "Raise --epsilon, or allow more links (--max-links) if memory allows (a few hundred bytes per link)"
+        }
+    )]
+    TooManyLinks {
+        /// The limit.
+        limit: usize,
+        /// Links accepted when refinement stopped.
+        links: usize,
+        /// Pairs waiting to be estimated.
+        pending: usize,
+        /// Leaves of the tree then.
+        leaves: usize,
+        /// Links split so far.
+        split: u64,
+        /// Of those, cluster links split because their estimate could not be trusted.
+        untrusted: u64,
+        /// The refinement pass (1 is the direct-light pass).
+        pass: usize,
+    },
     /// The iteration did not reach its tolerance.
     #[error("the push-pull iteration did not converge: relative change {change:.3e} after {sweeps} sweeps")]
     NotConverged {
@@ -169,6 +207,15 @@ pub enum HierarchyError {
         /// Relative change of the last sweep.
         change: f64,
     },
+}
+
+/// `part` as a percentage of `whole`, for messages.
+fn percent(part: u64, whole: u64) -> String {
+    if whole == 0 {
+        "none".to_owned()
+    } else {
+        format!("{:.1}%", 100.0 * part as f64 / whole as f64)
+    }
 }
 
 /// One refinement pass.
@@ -318,6 +365,9 @@ fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
     if options.cluster_samples < 2 {
         return bad("cluster_samples", "must be at least 2 (the standard error needs two)");
     }
+    if options.max_links == 0 {
+        return bad("max_links", "must be at least 1");
+    }
     if options.passes == 0 {
         return bad("passes", "must be at least 1");
     }
@@ -411,6 +461,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         threshold: options.epsilon * LINK_SHARE * brightest_power,
         min_area: options.min_area_fraction * total_area,
         max_nodes: options.max_nodes,
+        max_links: options.max_links,
     };
     let estimator = Estimator {
         rules: &rules,
@@ -427,6 +478,13 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let mut solution;
     loop {
         let before = counts;
+        let pass = passes.len() + 1;
+        let in_pass = |e: HierarchyError| match e {
+            HierarchyError::TooManyLinks { limit, links, pending, leaves, split, untrusted, .. } => {
+                HierarchyError::TooManyLinks { limit, links, pending, leaves, split, untrusted, pass }
+            }
+            e => e,
+        };
         if passes.is_empty() {
             refine(
                 &mut tree,
@@ -436,7 +494,8 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 std::mem::take(&mut candidates),
                 &mut links,
                 &mut counts,
-            )?;
+            )
+            .map_err(in_pass)?;
         } else {
             budget::refine_budgets(
                 &mut tree,
@@ -446,7 +505,8 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 options.epsilon,
                 &mut links,
                 &mut counts,
-            )?;
+            )
+            .map_err(in_pass)?;
         }
         solution = solve_with(&tree, &links, &solve::emission(&tree), options)?;
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();

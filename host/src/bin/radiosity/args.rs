@@ -333,6 +333,11 @@ pub enum Command {
         /// (progressive refinement, the order a device relights in); both reach the same answer.
         #[arg(long, value_enum)]
         solver: Option<HierarchySolverArg>,
+        /// Hierarchical only: most links refinement may hold (accepted and pending together); a scene that
+        /// needs more stops with an error naming why it needed them, before memory runs out (a link costs a
+        /// few hundred bytes at the peak) [default: 10000000].
+        #[arg(long, value_name = "N")]
+        max_links: Option<usize>,
     },
     /// Path trace the continuous scene (no mesh) and print every face's (OBJ face, or glTF triangle or joined fan) area-averaged radiosity with its
     /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.

@@ -9,7 +9,7 @@ use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions, DeviceF
 use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
-use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON};
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON, DEFAULT_MAX_LINKS};
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{patch_json, write_patch_csv};
 
@@ -125,6 +125,7 @@ fn solve_hierarchical_command(
     format: Format,
     epsilon: Option<f64>,
     solver: Option<args::HierarchySolverArg>,
+    max_links: Option<usize>,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
     if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
@@ -135,6 +136,7 @@ fn solve_hierarchical_command(
     let options = HierarchyOptions {
         epsilon: epsilon.unwrap_or(DEFAULT_EPSILON),
         solver: solver.map_or_else(Default::default, Into::into),
+        max_links: max_links.unwrap_or(DEFAULT_MAX_LINKS),
         form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
         progress: !scene.quiet,
         ..HierarchyOptions::default()
@@ -357,13 +359,16 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon, solver } => {
+        Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon, solver, max_links } => {
             check_scene_args(&scene)?;
-            solve_hierarchical_command(&scene, format, epsilon, solver, &mut out)?;
+            solve_hierarchical_command(&scene, format, epsilon, solver, max_links, &mut out)?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Flat, epsilon, solver } => {
+        Command::Solve { scene, format, method: SolveMethod::Flat, epsilon, solver, max_links } => {
             if epsilon.is_some() {
                 return Err("--epsilon applies to --method hierarchical only".into());
+            }
+            if max_links.is_some() {
+                return Err("--max-links applies to --method hierarchical only".into());
             }
             if solver.is_some() {
                 return Err(
