@@ -653,7 +653,8 @@ fn demo_without_qemu_runs_on_the_host_only() {
 /// `solve --method hierarchical --solver shooting` solves by progressive refinement and says so; its JSON has
 /// the answer split by light group like the flat solve's, and the two solvers agree on the mean radiosity to
 /// the iteration's tolerance (1e-7 relative change; the means are printed to 7 significant digits in text, so
-/// compared in JSON here within 1e-6). `--solver` with the flat method is refused.
+/// compared in JSON here within 1e-6). `--solver` and `--max-links` with the flat method are refused, and a link
+/// limit below what the scene needs stops the solve with an error that names it.
 #[test]
 fn hierarchical_solve_by_shooting() {
     let json = |solver: &str| -> serde_json::Value {
@@ -685,6 +686,28 @@ fn hierarchical_solve_by_shooting() {
     assert_fails(
         &["solve", MISSING, "--solver", "shooting"],
         &["--solver applies to --method hierarchical only"],
+    );
+    assert_fails(
+        &["solve", MISSING, "--max-links", "10"],
+        &["--max-links applies to --method hierarchical only"],
+    );
+    // A limit below what the scene needs: the error says so (and no patch table is printed).
+    let out = radiosity(&[
+        "solve",
+        &scene("two-rooms.obj"),
+        "-q",
+        "--method",
+        "hierarchical",
+        "--epsilon",
+        "0.1",
+        "--max-links",
+        "50",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && out.stdout.is_empty(), "{err}");
+    assert!(
+        err.contains("two-rooms.obj") && err.contains("more than 50 links") && err.contains("--max-links"),
+        "{err}"
     );
 }
 

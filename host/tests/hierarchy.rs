@@ -176,6 +176,7 @@ fn bad_options_and_dark_scenes_are_refused() {
         (HierarchyOptions { cluster_samples: 1, ..HierarchyOptions::default() }, "cluster_samples"),
         (HierarchyOptions { passes: 0, ..HierarchyOptions::default() }, "passes"),
         (HierarchyOptions { max_nodes: 2, ..HierarchyOptions::default() }, "max_nodes"),
+        (HierarchyOptions { max_links: 0, ..HierarchyOptions::default() }, "max_links"),
     ] {
         match solve_hierarchical(&s, &o) {
             Err(HierarchyError::InvalidOption { name: got, .. }) => assert_eq!(got, name),
@@ -222,5 +223,55 @@ fn the_answer_splits_by_light_source_and_relights() {
     let doubled = transfer.relight(&[Rgb::splat(2.0)]).unwrap();
     for ((d, r), t) in doubled.iter().zip(&relit).zip(&transfer.t[0]) {
         assert!((*d - *r - *t).abs().max_element() <= 1e-12 * d.max_element().max(1.0));
+    }
+}
+
+/// A grey floor lit by a ceiling light, with a small box hovering 1 mm above the floor: the cluster of the box's
+/// faces and the floor nearly touch, so their point-pair estimates cannot be trusted.
+const HOVERING_BOX: &str = "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\n\
+                            v -0.5 2 -0.5\nv 0.5 2 -0.5\nv 0.5 2 0.5\nv -0.5 2 0.5\n\
+                            v 0 0.001 0\nv 0.2 0.001 0\nv 0.2 0.001 0.2\nv 0 0.001 0.2\n\
+                            v 0 0.201 0\nv 0.2 0.201 0\nv 0.2 0.201 0.2\nv 0 0.201 0.2\n\
+                            usemtl grey\nf 1 4 3 2\nusemtl light\nf 5 6 7 8\nusemtl grey\n\
+                            f 9 10 11 12\nf 13 16 15 14\nf 9 13 14 10\nf 10 14 15 11\nf 11 15 16 12\nf 12 16 13 9\n";
+
+/// Refinement that would hold more links than `max_links` stops with an error that says how many there were,
+/// and which kind of split made them: none of the two facing squares' splits is of a cluster link (the root
+/// cluster's self-link expands straight into the surface pair), while the hovering box's cluster links near the
+/// floor are split because their estimates cannot be trusted. The limit is half the links the same scene ends
+/// with under the default limit.
+#[test]
+fn refinement_stops_with_a_clear_error_at_the_link_limit() {
+    let cases = [("facing-limit", FACING, FACING_MTL, false), ("hovering", HOVERING_BOX, FACING_MTL, true)];
+    for (name, obj, mtl, near) in cases {
+        let s = scene(name, obj, mtl);
+        let options = HierarchyOptions { epsilon: 0.1, ..HierarchyOptions::default() };
+        let full = solve_hierarchical(&s, &options).unwrap();
+        let total = full.stats.surface_links + full.stats.cluster_links;
+        let limit = total / 2;
+        match solve_hierarchical(&s, &HierarchyOptions { max_links: limit, ..options.clone() }) {
+            Err(e @ HierarchyError::TooManyLinks { .. }) => {
+                let HierarchyError::TooManyLinks { limit: l, links, pending, pass, split, untrusted, .. } = e
+                else {
+                    unreachable!()
+                };
+                assert_eq!(l, limit, "{name}");
+                assert!(
+                    links + pending > limit && links <= limit,
+                    "{name}: {links} + {pending}, limit {limit}"
+                );
+                assert!(pass >= 1 && pass <= options.passes, "{name}: pass {pass}");
+                assert!(untrusted <= split, "{name}");
+                assert_eq!(untrusted > 0, near, "{name}: {untrusted} of {split} splits were untrusted");
+                let text = e.to_string();
+                assert!(
+                    text.contains(&format!("more than {limit} links")) && text.contains("--max-links"),
+                    "{text}"
+                );
+            }
+            other => {
+                panic!("{name}: {total} links under a limit of {limit}: expected TooManyLinks, got {other:?}")
+            }
+        }
     }
 }

@@ -161,7 +161,12 @@ mod tests {
         let brightest =
             roots.iter().zip(&emission).map(|(p, e)| p.area * max_channel(*e)).fold(0.0, f64::max);
         let area: f64 = roots.iter().map(|p| p.area).sum();
-        let limits = Limits { threshold: 3e-3 * brightest, min_area: 1e-4 * area, max_nodes: 100_000, max_links: usize::MAX };
+        let limits = Limits {
+            threshold: 3e-3 * brightest,
+            min_area: 1e-4 * area,
+            max_nodes: 100_000,
+            max_links: usize::MAX,
+        };
         let estimator = Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1 };
         let mut spans = emission_bound(&tree);
         let (mut candidates, mut links, mut counts) = (Vec::new(), Vec::new(), RefineCounts::default());
