@@ -329,7 +329,12 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
                 links.push(link);
                 continue;
             }
-            if split_link(tree, estimator.rules, spans, limits, a, b, &mut next)? {
+            let split = if est.trusted {
+                split_link(tree, estimator.rules, spans, limits, a, b, &mut next)?
+            } else {
+                split_untrusted(tree, estimator.rules, spans, limits, a, b, &mut next)?
+            };
+            if split {
                 counts.split += 1;
                 counts.untrusted += u64::from(!est.trusted);
             } else {
@@ -381,6 +386,34 @@ pub(super) fn split_link(
     next: &mut Vec<(u32, u32)>,
 ) -> Result<bool, HierarchyError> {
     let first = if tree.nodes[r as usize].area >= tree.nodes[s as usize].area { r } else { s };
+    let second = if first == r { s } else { r };
+    Ok(split_end(tree, rules, spans, limits, r, s, first, next)?
+        || split_end(tree, rules, spans, limits, r, s, second, next)?)
+}
+
+/// Replaces a pair whose cluster estimate cannot be trusted by the pairs of the children of its cluster end (the
+/// larger if both are clusters), or of its other end if the cluster cannot be split: opening the cluster is what
+/// removes the doubt (its surfaces' pairs have the kernel integrated exactly), while splitting a surface facing
+/// an unopened cluster only repeats the doubtful estimate on every piece.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+fn split_untrusted(
+    tree: &mut Tree,
+    rules: &ElementRules,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    r: u32,
+    s: u32,
+    next: &mut Vec<(u32, u32)>,
+) -> Result<bool, HierarchyError> {
+    let (cr, cs) = (tree.is_cluster(r), tree.is_cluster(s));
+    let first = match (cr, cs) {
+        (true, false) => r,
+        (false, true) => s,
+        _ if tree.nodes[r as usize].area >= tree.nodes[s as usize].area => r,
+        _ => s,
+    };
     let second = if first == r { s } else { r };
     Ok(split_end(tree, rules, spans, limits, r, s, first, next)?
         || split_end(tree, rules, spans, limits, r, s, second, next)?)
