@@ -160,7 +160,7 @@ intensity = [1.0, 1.0, 1.0]
 
 
 def main():
-    if len(sys.argv) not in (2, 4):
+    if len(sys.argv) not in (2, 4) or sys.argv[1].startswith("-"):
         sys.exit("usage: make_office.py OUT_DIR [ROWS COLUMNS]")
     out = sys.argv[1]
     rows, columns = (int(sys.argv[2]), int(sys.argv[3])) if len(sys.argv) == 4 else (17, 21)

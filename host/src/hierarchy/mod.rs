@@ -38,11 +38,12 @@
 //! # Status
 //! Not yet the default of any command: `solve --method hierarchical` only (links refined for the default light
 //! intensities; the answer is also split by light source, [`HierarchicalSolution::transfer`]). Scenes
-//! with many small, nearly touching surfaces (`scenes/make_office.py`) are not solved in reasonable time yet:
-//! the direct-light pass splits links between nearly touching surfaces down to the resolution limit, so a few
-//! workstations already make tens of thousands of leaves and millions of links (the closing notes of issue 18
-//! have the measurements). A cluster link whose point-pair estimate is untrustworthy is split rather than
-//! trusted; an iteration that diverges anyway is reported as [`HierarchyError::NotConverged`].
+//! with many small, nearly touching surfaces (`scenes/make_office.py`) solve only when small: the budget passes
+//! push links down to the leaves (each leaf's chain charges add up), so links grow much faster than leaves, and
+//! a refinement that would exceed [`HierarchyOptions::max_links`] stops with [`HierarchyError::TooManyLinks`]
+//! (the closing notes of issue 18 have the measurements). A cluster link whose point-pair estimate is
+//! untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway is reported
+//! as [`HierarchyError::NotConverged`].
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
