@@ -203,7 +203,10 @@ fn phase(r: &Value, name: &str) -> Phase {
 
 /// The host simulator's converged answer on `table` (f32, the page's tolerance and overshoot), driven through the
 /// same sequence of warm starts as the page: converge at the defaults, then per change set it and converge.
-fn host_simulator(table: &Table<'_>, changes: &[&dyn Fn(&mut Solver<'_, f32>)]) -> Vec<Rgb> {
+/// A change of the solver's settings, as a page control makes it.
+type Change<'a> = dyn Fn(&mut Solver<'_, f32>) + 'a;
+
+fn host_simulator(table: &Table<'_>, changes: &[&Change<'_>]) -> Vec<Rgb> {
     let tolerance = TOLERANCE * unit_light_power(table);
     let mut store = OwnedBuffers::<f32>::for_table(table);
     let config =
@@ -232,9 +235,9 @@ fn certified_distance(dec: &Decoded, b: &[Rgb]) -> Vec<Rgb> {
     let n = b.len();
     let response: Vec<Rgb> = b.iter().zip(&dec.base).map(|(x, s)| *x - *s).collect();
     let (mut gathered, mut largest_in) = (vec![Rgb::ZERO; n], vec![0.0f64; n]);
-    for i in 0..n {
+    for (i, b) in response.iter().enumerate() {
         for (j, f) in dec.rows.row(i) {
-            gathered[j] += f * dec.area[i] * response[i];
+            gathered[j] += f * dec.area[i] * *b;
             largest_in[j] = largest_in[j].max(f);
         }
     }
@@ -247,9 +250,9 @@ fn certified_distance(dec: &Decoded, b: &[Rgb]) -> Vec<Rgb> {
     let mut change = Rgb::ZERO;
     for _ in 0..500 {
         let mut next = residual.clone();
-        for i in 0..n {
+        for (i, yi) in y.iter().enumerate() {
             for (j, f) in dec.rows.row(i) {
-                next[j] += dec.rho[j] * f * y[i];
+                next[j] += dec.rho[j] * f * *yi;
             }
         }
         change = next.iter().zip(&y).map(|(a, b)| *a - *b).sum();
@@ -372,16 +375,7 @@ fn viewer_relights_the_cornell_box_in_chromium() {
         worst_difference(&q, &exact_before)
     );
     first_view_matches_the_flat_render(p, &site, &out, &before.radiosity, &exact_before, &q, &certified);
-    colour_and_reflectance_controls_relight(
-        &r,
-        &table,
-        &decoded,
-        &exact,
-        &before,
-        &exact_before,
-        &certified,
-        white,
-    );
+    colour_and_reflectance_controls_relight(&r, &table, &decoded, &exact, &before, &certified, white);
 
     // Light slider to 0: the picture and the radiosity darken as the exact answer does.
     let lum = |b: &[Rgb]| b.iter().zip(&area).map(|(x, a)| a * luminance(*x)).sum::<f64>();
@@ -541,10 +535,10 @@ fn colour_and_reflectance_controls_relight(
     decoded: &Decoded,
     exact: &radiosity_host::reference::TransferVectors,
     before: &Phase,
-    exact_before: &[Rgb],
     certified_before: &[Rgb],
     material: usize,
 ) {
+    let exact_before = exact.relight(&[Rgb::from_array(before.intensity)]).unwrap();
     assert!(exact.b_static.iter().all(|b| *b == Rgb::ZERO), "the scene has a static light");
     let (colour, edited) = (phase(r, "colour"), phase(r, "reflectance"));
     let code = |at: usize| f64::from(u8::from_str_radix(&COLOUR[at..at + 2], 16).unwrap());
