@@ -405,9 +405,9 @@ fn viewer_relights_the_cornell_box_in_chromium() {
 ///
 /// **What "first view" means.** The page opens at the scene's camera (`scene.json`, the camera `radiosity render`
 /// uses) and runs one bounded step per animation frame, so its first frames show the partial answer of shooting
-/// from dark. The frame compared is the first one drawn after the solver converged at the default intensities,
-/// before any input (at the test's 3,000 units per frame, the frame count is printed); its radiosity is read back
-/// from the same page state. The canvas is `CANVAS` pixels square (`?size=`).
+/// from dark. The frame compared is the latest one drawn once the solver has converged at the default
+/// intensities, before any input (the first converged frame's number at the test's 3,000 units per frame is
+/// printed); the canvas and the radiosity read back are that frame's, read in the same task. The canvas is `CANVAS` pixels square (`?size=`).
 ///
 /// **Same mode.** The page draws every patch in one colour (its radiosity, tone mapped), so it is compared with
 /// `radiosity render --mode flat` (the library's [`render_view`] with [`RenderMode::Flat`], what the command
@@ -422,8 +422,8 @@ fn viewer_relights_the_cornell_box_in_chromium() {
 ///    fails this step.
 /// 2. **what it computed is the render's answer within the table's accuracy**: the render shows the exact f64
 ///    answer `E`; the page shows its converged table answer `P`, within `e` ([`certified_distance`], from `P`'s
-///    residual propagated through the table's system; core's a-priori bound `n tol / ((1 - rho_max) A_min)` is 30 W/m^2 here, which would allow any
-///    colour) of `Q`, the f64 solution of the table's own system (what `radiosity check` calls the device's
+///    residual propagated through the table's system; core's a-priori bound `n tol / ((1 - rho_max) A_min)`,
+///    printed, is far looser and would allow any colour) of `Q`, the f64 solution of the table's own system (what `radiosity check` calls the device's
 ///    answer). So both lie in the box from `min(E, Q - e)` to `max(E, Q + e)` per channel (clamped at 0), whose
 ///    display values span `[lo, hi]` (the tone map is monotone per channel: `common::picture::display_range`);
 ///    the 8-bit pixels differ by at most `hi - lo` plus 1 for the two roundings plus 0.5 for the GPU's
@@ -627,7 +627,7 @@ fn colour_and_reflectance_controls_relight(
         "the red reflectance edit shows no change"
     );
     eprintln!(
-        "colour {COLOUR} (k = {k:.4}): page vs exact relit at most {worst_exact:.3e} W/m^2 ({worst_ratio:.2} of its \
+        "colour {COLOUR} (k = {k:.4}): page vs exact relit at most {worst_exact:.3e} W/m^2 ({worst_ratio:.3} of its \
          bound; error shown {shown:.3e}), vs host simulator {worst_host:.3e} (certified at most {largest_colour:.3e}); white red \
          reflectance -> {REFLECTANCE}: page vs host simulator {worst_edited:.3e} W/m^2 (certified at most \
          {largest_edited:.3e})"

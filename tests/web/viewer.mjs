@@ -49,11 +49,10 @@ try {
             throw new Error(`the page failed: ${error}`);
         }
     };
-    // The canvas's mean 8-bit value per channel, and its pixels saved as PNG.
+    // The canvas's pixels (saved as PNG) and mean 8-bit value per channel, with the page's state, all read in
+    // one task: the canvas shows the frame whose radiosity is read back.
     const snapshot = async (name) => {
-        const dataUrl = await page.evaluate(() => document.getElementById("view").toDataURL("image/png"));
-        writeFileSync(join(outDir, name), Buffer.from(dataUrl.split(",")[1], "base64"));
-        const mean = await page.evaluate(() => {
+        const { dataUrl, ...state } = await page.evaluate(() => {
             const c = document.getElementById("view");
             const copy = document.createElement("canvas");
             copy.width = c.width;
@@ -67,20 +66,22 @@ try {
                 sum[1] += d[k + 1];
                 sum[2] += d[k + 2];
             }
-            return sum.map((s) => s / (d.length / 4));
+            return {
+                dataUrl: c.toDataURL("image/png"),
+                mean: sum.map((s) => s / (d.length / 4)),
+                width: c.width,
+                height: c.height,
+                frames: window.viewer.stats.frames,
+                intensity: window.viewer.intensity(0),
+                reflectance: Array.from(document.querySelectorAll("input[data-material][data-channel='0']"),
+                    (e) => window.viewer.reflectance(Number(e.dataset.material))),
+                work: window.viewer.stats.workSinceChange,
+                errorVsExact: window.viewer.error_vs_exact,
+                radiosity: window.viewer.radiosity(),
+            };
         });
-        const state = await page.evaluate(() => ({
-            width: document.getElementById("view").width,
-            height: document.getElementById("view").height,
-            frames: window.viewer.stats.frames,
-            intensity: window.viewer.intensity(0),
-            reflectance: Array.from(document.querySelectorAll("input[data-material][data-channel='0']"),
-                (e) => window.viewer.reflectance(Number(e.dataset.material))),
-            work: window.viewer.stats.workSinceChange,
-            errorVsExact: window.viewer.error_vs_exact,
-            radiosity: window.viewer.radiosity(),
-        }));
-        return { mean, ...state };
+        writeFileSync(join(outDir, name), Buffer.from(dataUrl.split(",")[1], "base64"));
+        return state;
     };
 
     await converged(0);
