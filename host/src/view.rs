@@ -114,6 +114,8 @@ pub fn solve_default(prepared: &Prepared) -> Result<Vec<Rgb>, ViewError> {
 pub enum RenderMode<'a> {
     /// Smoothly shaded radiosity, tone mapped ([`Colouring::Shaded`]).
     Shaded,
+    /// One radiosity value per patch, tone mapped ([`Colouring::Flat`]): what the browser viewer draws.
+    Flat,
     /// A distinct colour per patch, showing the mesh ([`Colouring::ByPatch`]).
     Patches,
     /// Per-patch relative error of the rendered radiosity against `reference`, false-coloured, with a legend
@@ -183,8 +185,8 @@ pub fn auto_camera(patches: &[Patch]) -> Result<Camera, ViewError> {
 
 /// Renders a view of `prepared` with per-patch radiosity `b` and returns the picture with its per-pixel data.
 ///
-/// Shaded views smooth `b` across compatible neighbours ([`SmoothShader`], default options) and tone map with the
-/// picture module's default (an exposure from a percentile of the visible luminances, extended Reinhard, sRGB).
+/// Shaded views smooth `b` across compatible neighbours ([`SmoothShader`], default options), flat views show
+/// each patch's own `b`; both tone map with the picture module's default (an exposure from a percentile of the visible luminances, extended Reinhard, sRGB).
 /// Error views colour by `b`'s error against the reference; the returned image has the legend appended.
 ///
 /// # Errors
@@ -200,6 +202,7 @@ pub fn render_view(prepared: &Prepared, b: &[Rgb], options: &RenderOptions<'_>) 
     let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
     let colouring = match options.mode {
         RenderMode::Shaded => Colouring::Shaded,
+        RenderMode::Flat => Colouring::Flat,
         RenderMode::Patches => Colouring::ByPatch,
         RenderMode::Error { reference } => Colouring::Error { reference, scale: None },
     };

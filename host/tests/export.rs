@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::picture::{decode_png, display_range};
 use common::web::{node, serve, web};
 
 use std::path::PathBuf;
@@ -22,7 +23,7 @@ use radiosity_host::picture::lightmap::{bake_light_map, LightMap, LightMapOption
 use radiosity_host::picture::render::{colour_view, trace_view, Colouring, Frame, ViewHits};
 use radiosity_host::picture::shading::{ShadingOptions, SmoothShader};
 use radiosity_host::picture::tonemap::{srgb_decode, srgb_encode};
-use radiosity_host::picture::{write_png, RgbImage, ToneMap};
+use radiosity_host::picture::{write_png, RgbImage};
 use radiosity_host::pipeline::Prepared;
 use radiosity_host::rgb::Rgb;
 use radiosity_host::view::{export_glb, solve_default, ExportFiles, PatchTracer};
@@ -98,22 +99,6 @@ fn accessor(json: &Value, bin: &[u8], index: u64) -> Vec<f64> {
             }
         })
         .collect()
-}
-
-/// An 8-bit PNG (RGB or RGBA) as RGB.
-fn decode_png(bytes: &[u8]) -> RgbImage {
-    let mut decoder = png::Decoder::new(std::io::Cursor::new(bytes));
-    decoder.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    let channels = info.color_type.samples();
-    assert!(channels == 3 || channels == 4, "{:?}", info.color_type);
-    let mut out = RgbImage::new(info.width, info.height);
-    for (k, px) in buf[..info.buffer_size()].chunks_exact(channels).enumerate() {
-        out.pixels[3 * k..3 * k + 3].copy_from_slice(&px[..3]);
-    }
-    out
 }
 
 /// The largest change of the linear value an 8-bit sRGB code `c` stands for, rounding half a code either way.
@@ -277,11 +262,6 @@ fn field_range(e: &Exported, face: usize, q: DVec3, reach: f64) -> (Rgb, Rgb) {
     (lo, hi)
 }
 
-/// Display value (unrounded 8-bit sRGB scale) of linear radiosity `c` under `tone`.
-fn display(tone: &ToneMap, c: Rgb) -> Rgb {
-    tone.map_linear(c).unwrap().map(|v| 255.0 * srgb_encode(v))
-}
-
 /// three.js, given the `.glb` and set up as README tells (Lambert materials of the file's colours and emission,
 /// light map from MOZ_lightmap on UV channel 1 with its intensity, no lights, the project's tone map as a custom
 /// tone mapping with exposure x pi, since three.js shows radiance B / pi), renders the Cornell box from the
@@ -384,13 +364,7 @@ fn three_js_renders_the_glb_as_the_project_does() {
             let code = (h_hi / e.files.irradiance_scale).map(|v| (255.0 * srgb_encode(v)).round());
             let d = m.reflectance * code.map(|c| half_step(c as u8)) * e.files.irradiance_scale;
             let (a, b) = ((lo - d).max(Rgb::ZERO), hi + d);
-            let (mut dmin, mut dmax) = (Rgb::INFINITY, Rgb::NEG_INFINITY);
-            for corner in 0..8 {
-                let pick = |k: usize| if corner >> k & 1 == 0 { a[k] } else { b[k] };
-                let shown = display(&tone, Rgb::new(pick(0), pick(1), pick(2)));
-                dmin = dmin.min(shown);
-                dmax = dmax.max(shown);
-            }
+            let (dmin, dmax) = display_range(&tone, a, b);
             let rect = e.map.rects.iter().find(|r| r.face == face).unwrap();
             let (ax, ay) = rect.atlas_coords(hit.point);
             let (engine, _) = engine_value(&png, scale, m.reflectance, m.emission, ax, ay);

@@ -137,6 +137,26 @@ fn cornell_box_looks_right() {
     );
 }
 
+/// The flat view (`render --mode flat`, what the browser viewer draws): every pixel shows its patch's own
+/// radiosity, tone mapped with the view's tone map, so every patch is one colour.
+#[test]
+fn flat_view_shows_each_patch_radiosity() {
+    let (_, b) = cornell();
+    let view = render_to(b, RenderMode::Flat, "cornell-flat.png");
+    let tone = view.tone.unwrap();
+    let mut seen = 0;
+    for (k, patch) in view.patch.iter().enumerate() {
+        let Some(patch) = patch else { continue };
+        assert_eq!(view.linear[k], b[*patch as usize], "pixel {k}");
+        assert_eq!(
+            view.image.get(k as u32 % SIZE, k as u32 / SIZE),
+            tone.map_srgb8(b[*patch as usize]).unwrap()
+        );
+        seen += 1;
+    }
+    assert!(seen > (SIZE * SIZE / 2) as usize, "only {seen} pixels see the box");
+}
+
 #[test]
 fn patch_and_error_views() {
     let (_, b) = cornell();

@@ -1,18 +1,21 @@
 // Drives the browser viewer (`radiosity view SCENE --web DIR`) in headless Chromium (WebGL2 through SwiftShader).
-// Usage: node viewer.mjs URL OUT_DIR
+// Usage: node viewer.mjs URL OUT_DIR COLOUR MATERIAL CHANNEL REFLECTANCE
 // Loads the page, waits until the solver has converged, saves the canvas as OUT_DIR/viewer-before.png (and the
-// whole page as OUT_DIR/viewer-page.png), sets light
-// group 0 to intensity 0 through its slider, waits until converged again, saves OUT_DIR/viewer-after.png, and
-// prints one JSON object: the console errors, per phase the canvas's mean 8-bit value per channel, the solver's
-// radiosity and its error against the exact answer, and every frame's budget and units used.
+// whole page as OUT_DIR/viewer-page.png); then changes the controls as a user does, through input events on the
+// page's own elements, waiting after each until converged again: light group 0's colour input to COLOUR
+// ("#rrggbb"; phase "colour"), the reflectance slider of MATERIAL's channel CHANNEL to REFLECTANCE (phase
+// "reflectance"), light group 0's intensity slider to 0 (phase "after"). Saves the canvas of each phase as
+// OUT_DIR/viewer-PHASE.png, and prints one JSON object: the console errors, per phase the canvas's size and mean
+// 8-bit value per channel, the solver's radiosity, its error against the exact answer, the intensities and
+// reflectances it was given, and every frame's budget and units used.
 // CHROMIUM selects the browser binary (default /usr/bin/chromium).
 import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 import puppeteer from "puppeteer-core";
 
-const [url, outDir] = process.argv.slice(2);
-if (!url || !outDir) {
-    console.error("usage: node viewer.mjs URL OUT_DIR");
+const [url, outDir, colour, material, channel, rho] = process.argv.slice(2);
+if (!url || !outDir || !colour || !material || !channel || !rho) {
+    console.error("usage: node viewer.mjs URL OUT_DIR COLOUR MATERIAL CHANNEL REFLECTANCE");
     process.exit(2);
 }
 const browser = await puppeteer.launch({
@@ -46,11 +49,10 @@ try {
             throw new Error(`the page failed: ${error}`);
         }
     };
-    // The canvas's mean 8-bit value per channel, and its pixels saved as PNG.
+    // The canvas's pixels (saved as PNG) and mean 8-bit value per channel, with the page's state, all read in
+    // one task: the canvas shows the frame whose radiosity is read back.
     const snapshot = async (name) => {
-        const dataUrl = await page.evaluate(() => document.getElementById("view").toDataURL("image/png"));
-        writeFileSync(join(outDir, name), Buffer.from(dataUrl.split(",")[1], "base64"));
-        const mean = await page.evaluate(() => {
+        const { dataUrl, ...state } = await page.evaluate(() => {
             const c = document.getElementById("view");
             const copy = document.createElement("canvas");
             copy.width = c.width;
@@ -64,31 +66,48 @@ try {
                 sum[1] += d[k + 1];
                 sum[2] += d[k + 2];
             }
-            return sum.map((s) => s / (d.length / 4));
+            return {
+                dataUrl: c.toDataURL("image/png"),
+                mean: sum.map((s) => s / (d.length / 4)),
+                width: c.width,
+                height: c.height,
+                frames: window.viewer.stats.frames,
+                intensity: window.viewer.intensity(0),
+                reflectance: Array.from(document.querySelectorAll("input[data-material][data-channel='0']"),
+                    (e) => window.viewer.reflectance(Number(e.dataset.material))),
+                work: window.viewer.stats.workSinceChange,
+                errorVsExact: window.viewer.error_vs_exact,
+                radiosity: window.viewer.radiosity(),
+            };
         });
-        const state = await page.evaluate(() => ({
-            frames: window.viewer.stats.frames,
-            work: window.viewer.stats.workSinceChange,
-            errorVsExact: window.viewer.error_vs_exact,
-            radiosity: window.viewer.radiosity(),
-        }));
-        return { mean, ...state };
+        writeFileSync(join(outDir, name), Buffer.from(dataUrl.split(",")[1], "base64"));
+        return state;
     };
 
     await converged(0);
     const before = await snapshot("viewer-before.png");
     await page.screenshot({ path: join(outDir, "viewer-page.png") });
-    // The frame count at the change, read in the same task as the change: the next frame applies it, so
-    // convergence counts only after the frame after that.
-    const changedAt = await page.evaluate(() => {
-        window.viewer.setLight(0, 0);
+    // Sets an input element's value and fires its input event, as a user's edit does, and returns the frame
+    // count read in the same task: the next frame applies the change, so convergence counts only after the frame
+    // after that.
+    const change = (selector, value) => page.evaluate((s, v) => {
+        const input = document.querySelector(s);
+        if (!input) {
+            throw new Error(`no element ${s}`);
+        }
+        input.value = v;
+        input.dispatchEvent(new Event("input", { bubbles: true }));
         return window.viewer.stats.frames;
-    });
-    await converged(changedAt);
+    }, selector, value);
+    await converged(await change("input[data-group-colour='0']", colour));
+    const colourPhase = await snapshot("viewer-colour.png");
+    await converged(await change(`input[data-material='${material}'][data-channel='${channel}']`, rho));
+    const reflectance = await snapshot("viewer-reflectance.png");
+    await converged(await change("input[data-group='0']", "0"));
     const after = await snapshot("viewer-after.png");
     const frames = await page.evaluate(() => window.viewer.frames);
     const stats = await page.evaluate(() => window.viewer.stats);
-    console.log(JSON.stringify({ errors, before, after, frames, stats }));
+    console.log(JSON.stringify({ errors, before, colour: colourPhase, reflectance, after, frames, stats }));
 } finally {
     await browser.close();
 }

@@ -7,7 +7,8 @@
 //! - `radiosity_web.wasm`, the caller's build of `radiosity-web` (the core as is, with a small C ABI);
 //! - `scene.rft`, the table baked at default settings with its transfer section;
 //! - `scene.json` ([`ViewerScene`]): the patch polygons (scene units), light-group and material names with their
-//!   defaults, the camera, the tone map, the Cortex-M4 cost model (from `firmware-sim/COST.md`), and the exact
+//!   defaults, the camera, the tone map (that of `radiosity render --mode flat` through the same camera), the
+//!   Cortex-M4 cost model (from `firmware-sim/COST.md`), and the exact
 //!   f64 answer as transfer vectors `B = B_static + sum_g I_g T_g` on the scene's own form factors, for the live
 //!   error (it holds for the scene's reflectances).
 //!
@@ -20,11 +21,11 @@ use serde::Serialize;
 
 use crate::bake::{bake, BakeError, BakeInput, BakeOptions};
 use crate::files::{write_atomic, FileError};
-use crate::picture::{PictureError, ToneMap};
+use crate::picture::PictureError;
 use crate::pipeline::Prepared;
 use crate::reference::{exact_transfer, Method, ReferenceError};
-use crate::rgb::{luminance, Rgb};
-use crate::view::{default_camera, ViewError};
+use crate::rgb::Rgb;
+use crate::view::{default_camera, render_view, RenderMode, RenderOptions, ViewError};
 
 /// The page (static HTML; it loads `viewer.js`).
 const INDEX_HTML: &str = include_str!("index.html");
@@ -34,6 +35,11 @@ const VIEWER_JS: &str = include_str!("viewer.js");
 const COST_MD: &str = include_str!("../../../firmware-sim/COST.md");
 /// The build of `COST.md` the page quotes: core in f32 on a Cortex-M4F.
 const COST_BUILD: &str = "m4-f32";
+
+/// Side in pixels of the view whose tone map the page uses: `radiosity render --mode flat` at its default size
+/// (512 x 512) through the scene's camera picks its exposure from the visible pixels, and the page takes it, so
+/// that its first view, at the scene's camera, is that picture.
+pub const TONE_VIEW_SIZE: u32 = 512;
 
 /// Why the viewer could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -163,7 +169,8 @@ pub struct ViewerScene {
     pub materials: Vec<ViewerMaterial>,
     /// The starting camera.
     pub camera: ViewerCamera,
-    /// Tone map of the default answer: exposure (1 / (W/m^2)) and white point, as the project's pictures.
+    /// Tone map of the default answer: exposure (1 / (W/m^2)) and white point, those of `radiosity render --mode
+    /// flat` through the scene's camera at [`TONE_VIEW_SIZE`].
     pub tone: ToneMapJson,
     /// The Cortex-M4 cost model.
     pub cost: CostModel,
@@ -223,9 +230,17 @@ pub fn write_viewer(prepared: &Prepared, dir: &Path, wasm: &Path) -> Result<View
     let baked = bake(&input, &BakeOptions { transfer: true, ..BakeOptions::default() })?;
     let exact = exact_transfer(&p.lighting, &p.form_factors, &Method::for_size(p.patches.len()))?;
     let b = exact.relight(&p.lighting.default_intensity)?;
-    let luminances: Vec<f64> = b.iter().map(|&c| luminance(c)).collect();
-    let tone = ToneMap::from_percentile(&luminances, ToneMap::DEFAULT_PERCENTILE, ToneMap::DEFAULT_WHITE)?;
     let camera = default_camera(p)?;
+    // The tone map of `radiosity render --mode flat` at its default size: the page's first view is that picture.
+    let size = TONE_VIEW_SIZE;
+    let view = render_view(
+        p,
+        &b,
+        &RenderOptions { camera: Some(camera), width: size, height: size, mode: RenderMode::Flat },
+    )?;
+    let tone = view
+        .tone
+        .ok_or(WebError::Picture(PictureError::invalid("viewer tone map", "the flat view has none")))?;
     let (mut lo, mut hi) = (Rgb::INFINITY, Rgb::NEG_INFINITY);
     let mut polygon_start = vec![0u32];
     let mut vertices = Vec::new();

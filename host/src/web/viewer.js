@@ -7,8 +7,18 @@
 // map (Reinhard with a white point, sRGB). The error against the exact f64 answer is plotted against the work
 // spent since the last change.
 //
+// The page opens at the scene's camera (scene.json: the camera `radiosity render` uses) with the tone map of
+// `radiosity render --mode flat` through it, so once converged at the default intensities its first view is that
+// picture, up to the table's quantization and 8-bit rounding.
+//
+// URL parameters: `budget=N` (exact work units per frame until the slider moves), `tolerance=T` (convergence,
+// relative to the table's unit light power), `size=WxH` (the canvas's size in CSS pixels instead of the window's
+// remainder; tests compare it with a render of that size).
+//
 // For tests, `window.viewer` exposes the state: `ready`, `error`, `stats` (frames, largest budget overrun),
-// `frames` (the last frames' budget and units used), `converged`, `radiosity()` and `setLight(g, s)`.
+// `frames` (the last frames' budget and units used), `converged`, `radiosity()`, `intensity(g)` and
+// `reflectance(m)` (what the solver was given), and `setLight(g, s)`. The controls carry `data-group` (intensity
+// sliders), `data-group-colour` (colour inputs) and `data-material` with `data-channel` (reflectance sliders).
 
 const LUMINANCE = [0.2126, 0.7152, 0.0722];
 const params = new URLSearchParams(location.search);
@@ -220,6 +230,7 @@ async function main() {
     lightSliders.forEach((s, k) => {
         const input = document.createElement("input");
         Object.assign(input, { type: "color", value: "#ffffff", title: `${scene.groups[k].name}: colour` });
+        input.dataset.groupColour = String(k);
         input.addEventListener("input", () => {
             const hex = input.value.slice(1);
             lightColour[k] = [0, 2, 4].map((at) => srgbDecode(parseInt(hex.slice(at, at + 2), 16) / 255));
@@ -235,11 +246,14 @@ async function main() {
         title.className = "note";
         title.textContent = mat.name;
         box.append(title);
-        ["R", "G", "B"].forEach((c, k) =>
-            slider(box, c, 0, 0.95, 0.01, reflectance[m][k], (v) => {
+        ["R", "G", "B"].forEach((c, k) => {
+            const input = slider(box, c, 0, 0.95, 0.01, reflectance[m][k], (v) => {
                 reflectance[m][k] = v;
                 pendingMaterials.add(m);
-            }));
+            });
+            input.dataset.material = String(m);
+            input.dataset.channel = String(k);
+        });
         $("materials").append(box);
     });
 
@@ -301,6 +315,10 @@ async function main() {
 
     // Geometry.
     const canvas = $("view");
+    const size = /^(\d+)x(\d+)$/.exec(params.get("size") ?? "");
+    if (size) {
+        Object.assign(canvas.style, { flex: "none", width: `${size[1]}px`, height: `${size[2]}px` });
+    }
     const gl = canvas.getContext("webgl2", { preserveDrawingBuffer: true, antialias: false });
     if (!gl) {
         throw new Error("this browser has no WebGL2");
@@ -328,6 +346,8 @@ async function main() {
     gl.uniform1f(gl.getUniformLocation(prog, "white"), scene.tone.white);
     gl.enable(gl.DEPTH_TEST);
     gl.enable(gl.CULL_FACE);
+    // Every pixel is the shader's colour rounded to 8 bits, as the project's pictures are (no dithering).
+    gl.disable(gl.DITHER);
 
     // Orbit camera around `target`, about the scene's up axis.
     const cam = scene.camera;
@@ -417,6 +437,8 @@ async function main() {
         return new Float32Array(w.memory.buffer, radiosityAt, 3 * n).slice();
     };
     viewer.radiosity = () => Array.from(radiosity);
+    viewer.intensity = (g) => intensityOf(g);
+    viewer.reflectance = (m) => reflectance[m].slice();
     viewer.setLight = (g, s) => {
         lightSliders[g].value = String(s);
         lightSliders[g].dispatchEvent(new Event("input"));

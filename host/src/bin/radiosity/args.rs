@@ -347,8 +347,8 @@ pub enum Command {
     /// `face,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b,se_r,se_g,se_b,samples`. Deterministic for a seed,
     /// whatever `--threads`.
     Reference(ReferenceArgs),
-    /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, or one colour per
-    /// patch to show the mesh). Prints the output path.
+    /// Solve the scene in f64 (as `solve`) and render a view of it to a PNG (smoothly shaded, flat: one radiosity
+    /// per patch, or one colour per patch to show the mesh). Prints the output path.
     Render {
         #[command(flatten)]
         scene: SceneArgs,
@@ -584,6 +584,8 @@ impl ReferenceArgs {
 pub enum RenderModeArg {
     /// Smoothly shaded radiosity, tone mapped.
     Shaded,
+    /// One radiosity value per patch, tone mapped (what the browser viewer of `view --web` draws).
+    Flat,
     /// One colour per patch (the mesh).
     Patches,
     /// The device's converged f32 answer on a table (`--table`, or one baked at default settings), false-coloured

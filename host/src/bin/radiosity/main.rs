@@ -440,7 +440,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
             if table.is_some() && !matches!(mode, RenderModeArg::Error) {
                 return Err(
-                    "--table applies to --mode error only (shaded and patches pictures show the f64 \
+                    "--table applies to --mode error only (shaded, flat and patches pictures show the f64 \
                             solve of the scene)"
                         .into(),
                 );
@@ -451,6 +451,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             let exact = view::solve_default(&p)?;
             let (b, mode) = match mode {
                 RenderModeArg::Shaded => (exact.clone(), view::RenderMode::Shaded),
+                RenderModeArg::Flat => (exact.clone(), view::RenderMode::Flat),
                 RenderModeArg::Patches => (exact.clone(), view::RenderMode::Patches),
                 RenderModeArg::Error => {
                     let bytes = match table {
