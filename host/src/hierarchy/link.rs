@@ -73,6 +73,42 @@ pub(super) struct Estimator<'a, C: ?Sized> {
     pub(super) cluster_samples: usize,
     /// Seed of the cluster links' streams.
     pub(super) seed: u64,
+    /// Where refinement reports how far it got on stderr (long passes), if anywhere.
+    pub(super) progress: Option<&'a Progress>,
+}
+
+/// Refinement's progress lines: at most one every [`Progress::EVERY`] of wall time.
+pub(super) struct Progress {
+    /// When the solve started.
+    started: std::time::Instant,
+    /// Milliseconds after `started` of the last line (or of the start).
+    last: std::sync::atomic::AtomicU64,
+}
+
+impl Progress {
+    /// Time between two lines.
+    const EVERY: std::time::Duration = std::time::Duration::from_secs(5);
+
+    /// Progress measured from now.
+    pub(super) fn new() -> Progress {
+        Progress { started: std::time::Instant::now(), last: std::sync::atomic::AtomicU64::new(0) }
+    }
+
+    /// Prints where refinement stands if the last line is older than [`Progress::EVERY`].
+    fn report(&self, tree: &Tree, links: usize, pending: usize) {
+        use std::sync::atomic::Ordering;
+        let now = self.started.elapsed();
+        let last = std::time::Duration::from_millis(self.last.load(Ordering::Relaxed));
+        if now < last + Self::EVERY {
+            return;
+        }
+        self.last.store(now.as_millis() as u64, Ordering::Relaxed);
+        let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
+        eprintln!(
+            "hierarchy: {links} links, {pending} pairs to estimate, {leaves} leaves after {:.0} s",
+            now.as_secs_f64()
+        );
+    }
 }
 
 /// The range of the point kernel from probes of `r` (its centroid and its vertices moved inward) to `s`, or `None`
@@ -310,6 +346,9 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
     while !candidates.is_empty() {
         if links.len() + candidates.len() > limits.max_links {
             return Err(too_many_links(tree, limits, links.len(), candidates.len(), counts));
+        }
+        if let Some(p) = estimator.progress {
+            p.report(tree, links.len(), candidates.len());
         }
         let estimates: Vec<Estimate> = {
             let tree = &*tree;

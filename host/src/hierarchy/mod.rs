@@ -456,6 +456,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         return Err(HierarchyError::NoEmission);
     }
     let rules = ElementRules::new(&options.form_factors)?;
+    let progress = link::Progress::new();
     let mut tree = Tree::new(&rules, roots, rho, emission);
     let total_area: f64 = roots.iter().map(|p| p.area).sum();
     let limits = Limits {
@@ -469,6 +470,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         caster,
         cluster_samples: options.cluster_samples,
         seed: options.form_factors.seed,
+        progress: options.progress.then_some(&progress),
     };
     let mut spans = solve::emission_bound(&tree);
     let mut links = Vec::new();

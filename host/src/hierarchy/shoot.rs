@@ -167,7 +167,8 @@ mod tests {
             max_nodes: 100_000,
             max_links: usize::MAX,
         };
-        let estimator = Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1 };
+        let estimator =
+            Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1, progress: None };
         let mut spans = emission_bound(&tree);
         let (mut candidates, mut links, mut counts) = (Vec::new(), Vec::new(), RefineCounts::default());
         expand_self(&tree, 0, &mut candidates);
