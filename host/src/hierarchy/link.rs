@@ -488,3 +488,70 @@ pub(super) fn split_end(
     }
     Ok(true)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formfactor::FormFactorOptions;
+    use crate::lighting::PatchLighting;
+    use crate::mesh::{mesh, MeshOptions};
+    use crate::scene::Scene;
+
+    /// A pair of a cluster and a larger surface: with a trusted estimate the larger end (the surface) is split,
+    /// with an untrusted one the cluster is opened, whatever the areas.
+    #[test]
+    fn an_untrusted_pair_opens_its_cluster() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
+        let scene = Scene::load(&path).unwrap();
+        let roots =
+            mesh(&scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(&scene) })
+                .unwrap()
+                .patches;
+        let lighting = PatchLighting::new(&scene, &roots);
+        let rules = ElementRules::new(&FormFactorOptions { progress: false, ..FormFactorOptions::default() })
+            .unwrap();
+        let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
+        let limits = Limits { threshold: 0.0, min_area: 0.0, max_nodes: 100_000, max_links: usize::MAX };
+        // The largest surface, and a cluster smaller than it that does not hold it.
+        let n = tree.nodes.len() as u32;
+        let surface = (0..n)
+            .filter(|&k| !tree.is_cluster(k))
+            .max_by(|&x, &y| tree.nodes[x as usize].area.total_cmp(&tree.nodes[y as usize].area))
+            .unwrap();
+        let holds = |c: u32| {
+            let mut k = surface;
+            while k != super::super::tree::NONE {
+                if k == c {
+                    return true;
+                }
+                k = tree.nodes[k as usize].parent;
+            }
+            false
+        };
+        let cluster = (0..n)
+            .find(|&k| {
+                tree.is_cluster(k)
+                    && !holds(k)
+                    && tree.nodes[k as usize].area < tree.nodes[surface as usize].area
+            })
+            .unwrap();
+        for untrusted in [false, true] {
+            // A fresh tree each time (built deterministically: the same node numbers).
+            let mut t = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
+            let (mut spans, mut next) = (vec![Span::ZERO; t.nodes.len()], Vec::new());
+            let split = if untrusted {
+                split_untrusted(&mut t, &rules, &mut spans, &limits, surface, cluster, &mut next).unwrap()
+            } else {
+                split_link(&mut t, &rules, &mut spans, &limits, surface, cluster, &mut next).unwrap()
+            };
+            assert!(split && !next.is_empty());
+            let opened = if untrusted { cluster } else { surface };
+            let children = &t.nodes[opened as usize].children;
+            for &(r, s) in &next {
+                let (child, other) = if untrusted { (s, r) } else { (r, s) };
+                assert!(children.contains(&child), "untrusted {untrusted}: pair ({r}, {s})");
+                assert_eq!(other, if untrusted { surface } else { cluster });
+            }
+        }
+    }
+}
