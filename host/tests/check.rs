@@ -294,14 +294,15 @@ fn discretization_component_compares_face_averages_with_the_continuous_reference
         assert_eq!(row.mesh, (sum + hidden * want.emission) / (a + hidden), "face {}", row.face);
         assert_eq!((row.reference, row.reference_standard_error), (want.radiosity, want.standard_error));
         assert_eq!(row.relative_difference, (row.mesh - row.reference) / row.reference);
-        assert_eq!(row.line, p.scene.faces[row.face].line);
+        assert_eq!(row.source, p.scene.faces[row.face].place());
         mesh.push(row.mesh);
         area.push(a);
     }
     let faces: Vec<Rgb> = reference.faces.iter().map(|f| f.radiosity).collect();
     assert_eq!(d.component.error, compare(&mesh, &faces, &area).unwrap());
     let text = r.to_string();
-    assert!(text.contains("discretization per OBJ face") && text.contains(&d.reference_summary), "{text}");
+    assert!(text.contains("discretization per face") && text.contains(&d.reference_summary), "{text}");
+    assert!(text.contains(&format!("  {}\n", p.scene.faces[1].place())), "rows name their faces: {text}");
 }
 
 /// Bad options of the continuous reference are refused by the check before any work.
