@@ -61,6 +61,16 @@ pub(super) fn load_gltf(
 ) -> Result<(Vec<Face>, Vec<Material>), SceneError> {
     let bytes = std::fs::read(file).map_err(|source| SceneError::Io { file: file.to_path_buf(), source })?;
     let parse = |problem: String| SceneError::GltfParse { file: file.to_path_buf(), problem };
+    // The `gltf` crate (1.4) subtracts the 12-byte header from a GLB's declared length unchecked (a panic with
+    // overflow checks on, found by the fuzz target `gltf`).
+    if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|r| r.get(4..8)) {
+        let declared = u32::from_le_bytes([declared[0], declared[1], declared[2], declared[3]]);
+        if declared < 12 {
+            return Err(parse(format!(
+                "GLB header declares a length of {declared} bytes, less than the header's 12"
+            )));
+        }
+    }
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| parse(e.to_string()))?;
     let json = document.into_json();
