@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # `make fuzz`: fuzzes the table parser past the CRC (core/fuzz, target parse_crc) from a corpus seeded with real
-# tables, then tallies which TableError kinds the corpus reaches; then the relight-script parser and the scene
-# loader (host/fuzz, targets script and scene) from the bundled scripts and scenes. Not part of `make test`.
+# tables, then tallies which TableError kinds the corpus reaches; then the relight-script parser, the scene
+# loader and its glTF path (host/fuzz, targets script, scene and gltf) from the bundled scripts and scenes. Not
+# part of `make test`.
 #
 # Needs a nightly toolchain and cargo-fuzz; installs cargo-fuzz from crates.io if missing, and nightly through
 # rustup if missing. FUZZ_RUNS (default 10,000,000) executions of the table target, FUZZ_AUX_RUNS (default
-# 1,000,000) of each of the other two; the corpora grow under out/fuzz/ (not committed).
+# 1,000,000) of each of the other three; the corpora grow under out/fuzz/ (not committed). Inputs that once
+# crashed a target stay in host/fuzz/regressions/TARGET/ (committed; host/tests/gltf.rs replays the glTF ones).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 runs="${FUZZ_RUNS:-10000000}"
@@ -75,4 +77,27 @@ step "fuzz the relight-script parser: $aux_runs executions"
 
 step "fuzz the scene loader: $aux_runs executions"
 (cd host/fuzz && cargo +nightly fuzz run scene ../../out/fuzz/scene ../../out/fuzz/scene-seeds -- \
+    -runs="$aux_runs" -max_len=65536 -print_final_stats=1)
+
+step "seed glTF files"
+mkdir -p out/fuzz/gltf-seeds out/fuzz/gltf
+cp scenes/*.glb out/fuzz/gltf-seeds/
+if compgen -G 'host/fuzz/regressions/gltf/*' > /dev/null; then
+    cp host/fuzz/regressions/gltf/* out/fuzz/gltf-seeds/
+fi
+# The JSON form of each .glb, its buffer as a base64 data URI (the target writes one file: no .bin beside it).
+for glb in scenes/*.glb; do
+    python3 - "$glb" "out/fuzz/gltf-seeds/$(basename "${glb%.glb}").gltf" << 'PY'
+import base64, json, struct, sys
+data = open(sys.argv[1], "rb").read()
+n = struct.unpack_from("<I", data, 12)[0]
+doc = json.loads(data[20:20 + n])
+m = struct.unpack_from("<I", data, 20 + n)[0]
+doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data[28 + n:28 + n + m]).decode()
+open(sys.argv[2], "w").write(json.dumps(doc))
+PY
+done
+
+step "fuzz the glTF loader: $aux_runs executions"
+(cd host/fuzz && cargo +nightly fuzz run gltf ../../out/fuzz/gltf ../../out/fuzz/gltf-seeds -- \
     -runs="$aux_runs" -max_len=65536 -print_final_stats=1)

@@ -235,6 +235,34 @@ fn degraded_codec_is_caught() {
     assert!(regress::check_baseline(&b, &scene(""), &honest).expect("runs").passed());
 }
 
+/// `regress` ships every scene of the folder, glTF (`.gltf`, `.glb`, any case) as well as OBJ, and nothing
+/// else (MTL, TOML, a glTF's `.bin` buffer); a shipped glTF scene missing from the baseline is a problem that
+/// names it, like an OBJ one.
+#[test]
+fn regress_scans_gltf_scenes_too() {
+    let dir = std::env::temp_dir().join(format!("radiosity-regress-scan-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in ["a.obj", "a.mtl", "a.toml", "b.gltf", "b.bin", "c.glb", "D.GLB", "e.png", "f.obj.txt"] {
+        std::fs::write(dir.join(name), b"").unwrap();
+    }
+    std::fs::create_dir(dir.join("g.glb")).unwrap(); // a folder, not a scene
+    let names = regress::scene_files(&dir).unwrap();
+    assert_eq!(names, ["D.GLB", "a.obj", "b.gltf", "c.glb"]);
+    // No entry to measure: the check only lists what the baseline lacks.
+    let empty = regress::Baseline { about: String::new(), seeds: 5, k: 0.0, entries: Vec::new() };
+    let report = regress::check_baseline(&empty, &dir, &CheckSelection::default()).unwrap();
+    assert!(!report.passed());
+    for name in &names {
+        for bits in regress::CODECS {
+            let want = format!("{name} ({bits}-bit) is shipped but not in the baseline");
+            assert!(report.problems.iter().any(|p| p.starts_with(&want)), "{want}: {:?}", report.problems);
+        }
+    }
+    assert_eq!(report.problems.len(), 2 * names.len(), "{:?}", report.problems);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The noise multiplier is the derived prediction-interval factor.
 #[test]
 fn noise_multiplier_is_derived() {
@@ -294,14 +322,15 @@ fn discretization_component_compares_face_averages_with_the_continuous_reference
         assert_eq!(row.mesh, (sum + hidden * want.emission) / (a + hidden), "face {}", row.face);
         assert_eq!((row.reference, row.reference_standard_error), (want.radiosity, want.standard_error));
         assert_eq!(row.relative_difference, (row.mesh - row.reference) / row.reference);
-        assert_eq!(row.line, p.scene.faces[row.face].line);
+        assert_eq!(row.source, p.scene.faces[row.face].place());
         mesh.push(row.mesh);
         area.push(a);
     }
     let faces: Vec<Rgb> = reference.faces.iter().map(|f| f.radiosity).collect();
     assert_eq!(d.component.error, compare(&mesh, &faces, &area).unwrap());
     let text = r.to_string();
-    assert!(text.contains("discretization per OBJ face") && text.contains(&d.reference_summary), "{text}");
+    assert!(text.contains("discretization per face") && text.contains(&d.reference_summary), "{text}");
+    assert!(text.contains(&format!("  {}\n", p.scene.faces[1].place())), "rows name their faces: {text}");
 }
 
 /// Bad options of the continuous reference are refused by the check before any work.

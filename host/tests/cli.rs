@@ -123,6 +123,8 @@ fn output_files_need_an_existing_folder_and_folders_the_tool_creates_are_checked
         assert_fails(&["render", MISSING, "-o", &t("png")], &[expect]);
         assert_fails(&["lightmap", MISSING, "-o", &t("map")], &[expect]);
         assert_fails(&["export", MISSING, "-o", &t("glb")], &[expect]);
+        assert_fails(&["convert", MISSING, "-o", &t("glb")], &[expect]);
+        assert_fails(&["convert", MISSING, "-o", &t("gltf")], &[expect]);
         assert_fails(&["check", MISSING, "--plot", &t("plot")], &[expect]);
         assert_fails(&["relight", &scene("cornell-box.obj"), "--csv", &t("csv")], &[expect]);
         assert_fails(&["relight", &scene("cornell-box.obj"), "--plot", &t("plot")], &[expect]);

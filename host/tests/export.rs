@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::field::field_range;
 use common::picture::{decode_png, display_range};
 use common::web::{node, serve, web};
 
@@ -237,29 +238,13 @@ fn glb_passes_the_khronos_gltf_validator() {
     );
 }
 
-/// Per-channel range of the smooth field over the points of face `face`'s patches within `reach` of `q`: `q`
-/// and 4 rings of 16 directions in the face's plane.
-fn field_range(e: &Exported, face: usize, q: DVec3, reach: f64) -> (Rgb, Rgb) {
+/// Per-channel range of the smooth field over the points of face `face`'s patches within `reach` of `q`, in the
+/// plane of the face's light-map rectangle.
+fn face_field_range(e: &Exported, face: usize, q: DVec3, reach: f64) -> (Rgb, Rgb) {
     let rect = e.map.rects.iter().find(|r| r.face == face).unwrap();
     let on: Vec<usize> =
         (0..e.prepared.patches.len()).filter(|&i| e.prepared.patches[i].face == face).collect();
-    let (mut lo, mut hi) = (Rgb::INFINITY, Rgb::NEG_INFINITY);
-    let mut add = |x: DVec3| {
-        if let Some(&m) = on.iter().find(|&&m| e.shader.distance_in_plane(m, x) <= e.shader.tolerance()) {
-            let f = e.shader.shade(&e.b, m, x).unwrap();
-            lo = lo.min(f);
-            hi = hi.max(f);
-        }
-    };
-    add(q);
-    for ring in 1..=4 {
-        let r = reach * f64::from(ring) / 4.0;
-        for k in 0..16 {
-            let a = std::f64::consts::TAU * f64::from(k) / 16.0;
-            add(q + (rect.u_axis * a.cos() + rect.v_axis * a.sin()) * r);
-        }
-    }
-    (lo, hi)
+    field_range(&e.shader, &e.b, &on, q, (rect.u_axis, rect.v_axis), reach)
 }
 
 /// three.js, given the `.glb` and set up as README tells (Lambert materials of the file's colours and emission,
@@ -358,7 +343,7 @@ fn three_js_renders_the_glb_as_the_project_does() {
             }
             let hit = hits.hits[(y * i64::from(SIZE) + x) as usize].unwrap();
             let m = &materials[e.prepared.patches[hit.patch].material];
-            let (lo, hi) = field_range(e, face, hit.point, reach);
+            let (lo, hi) = face_field_range(e, face, hit.point, reach);
             // Half an 8-bit step of the light map at the brightest value in reach, times the reflectance.
             let h_hi = ((hi - m.emission) / m.reflectance.max(Rgb::splat(1e-12))).max(Rgb::ZERO);
             let code = (h_hi / e.files.irradiance_scale).map(|v| (255.0 * srgb_encode(v)).round());

@@ -13,7 +13,7 @@ use glam::DVec3;
 use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::rgb::Rgb;
-use radiosity_host::scene::{Scene, SceneError};
+use radiosity_host::scene::{Scene, SceneError, SceneGltf};
 use serde_json::{json, Value};
 
 /// glTF's `mode` numbers.
@@ -186,34 +186,6 @@ impl Writer {
     }
 }
 
-/// The glTF form of a loaded scene, faces in the scene's order: one root node, one mesh, one primitive (indexed
-/// triangles) per run of faces with one material, each face's polygons written as triangle fans from their first
-/// vertex over vertices of their own.
-fn writer_of(scene: &Scene) -> Writer {
-    let mut w = Writer::default();
-    for m in &scene.materials {
-        w.material(&m.name, m.reflectance, m.emission);
-    }
-    let mut prims = Vec::new();
-    for run in scene.faces.chunk_by(|a, b| a.material == b.material) {
-        let mut pos: Vec<[f32; 3]> = Vec::new();
-        let mut idx: Vec<u32> = Vec::new();
-        for poly in run.iter().flat_map(|f| &f.polygons) {
-            let first = pos.len() as u32;
-            pos.extend(poly.vertices.iter().map(|v| [v.x as f32, v.y as f32, v.z as f32]));
-            for k in 1..poly.vertices.len() as u32 - 1 {
-                idx.extend([first, first + k, first + k + 1]);
-            }
-        }
-        let p = w.positions(&pos);
-        let i = w.indices(&idx);
-        prims.push((p, Some(i), Some(run[0].material), TRIANGLES));
-    }
-    let mesh = w.mesh("scene", &prims);
-    w.node(json!({"name": "root", "mesh": mesh}), true);
-    w
-}
-
 /// The unit square in z = 0, counter-clockwise seen from +z, as a fan (0, 1, 2), (0, 2, 3).
 const SQUARE: [[f32; 3]; 4] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
 const SQUARE_FAN: [u32; 6] = [0, 1, 2, 0, 2, 3];
@@ -255,7 +227,10 @@ fn cornell_box_as_gltf_loads_and_solves_like_the_obj() {
     let obj = Scene::load(&obj_path).unwrap();
     let dir = temp_dir("cornell");
     let gltf_path = dir.join("cornell-box.gltf");
-    writer_of(&obj).write_gltf(&gltf_path);
+    let converted = SceneGltf::of(&obj).unwrap();
+    let (json, bin) = converted.to_gltf("cornell-box.bin").unwrap();
+    std::fs::write(dir.join("cornell-box.bin"), bin).unwrap();
+    std::fs::write(&gltf_path, json).unwrap();
     std::fs::copy(common::scene("cornell-box.toml"), dir.join("cornell-box.toml")).unwrap();
     let gltf = Scene::load(&gltf_path).unwrap();
 
@@ -473,10 +448,12 @@ fn strips_fans_and_unindexed_triangles_are_surfaces() {
 #[test]
 fn glb_and_gltf_with_a_bin_file_load_the_same_scene() {
     let obj = Scene::load(common::scene("cornell-box.obj")).unwrap();
-    let w = writer_of(&obj);
+    let w = SceneGltf::of(&obj).unwrap();
     let dir = temp_dir("glb");
-    w.write_gltf(&dir.join("box.gltf"));
-    w.write_glb(&dir.join("box.glb"));
+    let (json, bin) = w.to_gltf("box.bin").unwrap();
+    std::fs::write(dir.join("box.bin"), bin).unwrap();
+    std::fs::write(dir.join("box.gltf"), json).unwrap();
+    std::fs::write(dir.join("box.glb"), w.to_glb().unwrap()).unwrap();
     let a = Scene::load(dir.join("box.gltf")).unwrap();
     let b = Scene::load(dir.join("box.glb")).unwrap();
     assert_eq!(a.faces, b.faces);
@@ -775,6 +752,114 @@ fn the_command_line_solves_a_glb_scene() {
     assert_close("form factor from the solve", grey / (0.5 * lamp), 0.199825, 1e-3);
 }
 
+/// The per-face reports name a glTF face by its place in the file (node, mesh, primitive, triangles), as the
+/// loader's errors do, where an OBJ face shows its line: the continuous reference's CSV (last column, quoted as
+/// it holds commas), its text table and its JSON, for a `.glb` of two squares placed by two nodes.
+#[test]
+fn per_face_reports_name_gltf_faces_by_node_mesh_primitive_and_triangles() {
+    let (mut w, mesh) = square_writer();
+    let grey = w.material("grey", Rgb::splat(0.5), Rgb::ZERO);
+    let p = w.positions(&SQUARE);
+    let i = w.indices(&SQUARE_FAN);
+    let down = w.mesh("down", &[(p, Some(i), Some(grey), TRIANGLES)]);
+    w.node(json!({"mesh": mesh}), true);
+    w.node(
+        json!({"name": "top", "mesh": down, "scale": [1.0, 1.0, -1.0], "translation": [0.0, 0.0, 1.0]}),
+        true,
+    );
+    let path = temp_dir("source").join("pair.glb");
+    w.write_glb(&path);
+    let want = [
+        "node 0, mesh 'square' (0), primitive 0, triangles 0..=1",
+        "node 'top' (1), mesh 'down' (1), primitive 0, triangles 0..=1",
+    ];
+    let scene = Scene::load(&path).unwrap();
+    let places: Vec<String> = scene.faces.iter().map(|f| f.place()).collect();
+    assert_eq!(places, want, "the loader's names");
+    let run = |format: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+            .args(["reference", path.to_str().unwrap(), "--samples", "16", "-q", "--format", format])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let csv = run("csv");
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows[0], radiosity_host::montecarlo::FACE_CSV_HEADER);
+    assert!(rows[0].ends_with(",samples,source"), "{}", rows[0]);
+    assert_eq!(rows.len(), 3, "{csv}");
+    for (k, (row, place)) in rows[1..].iter().zip(want).enumerate() {
+        assert!(row.starts_with(&format!("{k},")), "{row}");
+        assert!(row.ends_with(&format!(",16,\"{place}\"")), "row {k} names its face: {row}");
+    }
+    let text = run("text");
+    for place in want {
+        assert!(text.lines().any(|l| l.ends_with(&format!("  {place}"))), "{place} in {text}");
+    }
+    let json: Value = serde_json::from_str(&run("json")).unwrap();
+    let sources: Vec<&str> =
+        json["faces"].as_array().unwrap().iter().map(|f| f["source"].as_str().unwrap()).collect();
+    assert_eq!(sources, want);
+}
+
+/// `scenes/cornell-box.glb` is what `radiosity convert scenes/cornell-box.obj -o scenes/cornell-box.glb` writes
+/// now (regenerate it with that command when the writer changes), and loads: with the Cornell box's TOML beside
+/// it, as the same scene as the OBJ (`cornell_box_as_gltf_loads_and_solves_like_the_obj` compares the two), and
+/// `radiosity solve` takes it as the README's tour shows. The `.gltf` + `.bin` form loads as the same scene.
+#[test]
+fn the_shipped_cornell_box_glb_is_what_convert_writes() {
+    let obj = Scene::load(common::scene("cornell-box.obj")).unwrap();
+    let shipped = std::fs::read(common::scene("cornell-box.glb")).unwrap();
+    let now = SceneGltf::of(&obj).unwrap().to_glb().unwrap();
+    assert!(now == shipped, "scenes/cornell-box.glb is stale: run `radiosity convert scenes/cornell-box.obj -o scenes/cornell-box.glb`");
+    let dir = temp_dir("convert");
+    let convert = |out: &Path| {
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+            .args(["convert", "-q", common::scene("cornell-box.obj").to_str().unwrap(), "-o"])
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        String::from_utf8(run.stdout).unwrap()
+    };
+    let printed = convert(&dir.join("box.glb"));
+    assert!(printed.contains("box.glb") && printed.contains("19 faces, 4 materials"), "{printed}");
+    assert_eq!(std::fs::read(dir.join("box.glb")).unwrap(), shipped, "the command writes the same bytes");
+    convert(&dir.join("box.gltf"));
+    let glb = Scene::load(common::scene("cornell-box.glb")).unwrap();
+    let gltf =
+        Scene::load_with_toml(&dir.join("box.gltf"), Some(&common::scene("cornell-box.toml"))).unwrap();
+    assert_eq!(
+        (&glb.faces, &glb.materials, &glb.light_groups),
+        (&gltf.faces, &gltf.materials, &gltf.light_groups)
+    );
+    assert_eq!(glb.light_groups, obj.light_groups, "cornell-box.toml is read beside the .glb");
+    // Anything but .glb or .gltf is refused before any work.
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args(["convert", common::scene("cornell-box.obj").to_str().unwrap(), "-o"])
+        .arg(dir.join("box.obj"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success() && err.contains("box.obj") && err.contains(".glb or .gltf"), "{err}");
+
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_radiosity"))
+        .args([
+            "solve",
+            common::scene("cornell-box.glb").to_str().unwrap(),
+            "--no-subdivide",
+            "--format",
+            "csv",
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = String::from_utf8(out.stdout).unwrap();
+    assert!(csv.lines().count() > glb.faces.len(), "a row per patch: {csv}");
+}
+
 /// Damaged files must give an error or a scene, never a panic: a small two-square `.glb` and `.gltf` cut at
 /// every length and with seeded byte changes (anywhere in the `.glb`; digits of the `.gltf`'s JSON, where
 /// counts, offsets and indices live). This found two panics inside the `gltf` crate (an attribute's accessor
@@ -830,4 +915,77 @@ fn damaged_files_never_panic() {
     }
     eprintln!("damaged files: {loaded} loaded, {refused} refused");
     assert!(refused > glb.len(), "most damage is refused");
+}
+
+/// Buffer and image URIs that the `gltf` crate would panic on (a percent escape that is not UTF-8 once decoded)
+/// or read without end (a device such as `/dev/zero`, as a path or a `file:` URI) are refused, naming the URI.
+#[test]
+fn uris_that_are_not_utf8_or_not_files_are_refused() {
+    let (mut w, mesh) = square_writer();
+    w.node(json!({"mesh": mesh}), true);
+    let dir = temp_dir("uri");
+    std::fs::write(dir.join("square.bin"), &w.bin).unwrap();
+    let load = |name: &str, doc: &Value| {
+        let path = dir.join(name);
+        std::fs::write(&path, serde_json::to_vec(doc).unwrap()).unwrap();
+        let e = Scene::load(&path).expect_err("refused").to_string();
+        assert!(e.contains(name), "{e}");
+        e
+    };
+    let e = load("percent.gltf", &w.json(Some("%FF%FE.bin")));
+    assert!(e.contains("buffer 0") && e.contains("'%FF%FE.bin' is not UTF-8"), "{e}");
+    for uri in ["/dev/zero", "file:///dev/zero", "file:/dev/zero", "."] {
+        let e = load("device.gltf", &w.json(Some(uri)));
+        assert!(e.contains(&format!("URI '{uri}' names")) && e.contains("not a regular file"), "{uri}: {e}");
+    }
+    // The same for an image: the base colour texture's image named by URI.
+    let mut doc = w.json(Some("square.bin"));
+    doc["images"] = json!([{"uri": "/dev/zero"}]);
+    doc["textures"] = json!([{"source": 0}]);
+    doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+    let e = load("image.gltf", &doc);
+    assert!(e.contains("base colour texture 0, image 0") && e.contains("not a regular file"), "{e}");
+    doc["images"] = json!([{"uri": "%C0.png"}]);
+    let e = load("image.gltf", &doc);
+    assert!(e.contains("'%C0.png' is not UTF-8"), "{e}");
+}
+
+/// The glTF fuzz target's inputs replayed (`host/fuzz`, target `gltf`, which writes its bytes as a `.glb` and
+/// loads it): its seeds (`scripts/fuzz.sh` seeds it with `scenes/*.glb`) and every input that once crashed it
+/// (kept in `host/fuzz/regressions/gltf/`, if any), and the shipped Cornell box cut at 64 lengths and with 256
+/// seeded byte changes. Each must load or be refused naming the file, never panic.
+#[test]
+fn fuzz_seeds_and_regressions_load_without_panic() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut inputs: Vec<(String, Vec<u8>)> = Vec::new();
+    for dir in [root.join("../scenes"), root.join("fuzz/regressions/gltf")] {
+        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        for path in entries.map(|e| e.unwrap().path()) {
+            let seed = dir.ends_with("gltf") || path.extension().is_some_and(|e| e == "glb");
+            if seed && path.is_file() {
+                inputs.push((path.display().to_string(), std::fs::read(&path).unwrap()));
+            }
+        }
+    }
+    let glb = std::fs::read(common::scene("cornell-box.glb")).unwrap();
+    assert!(inputs.iter().any(|(_, bytes)| *bytes == glb), "the Cornell box is a seed");
+    for k in 0..64 {
+        inputs.push((format!("cut {k}"), glb[..k * glb.len() / 64].to_vec()));
+    }
+    let mut rng = radiosity_host::rng::SplitMix64::new(64);
+    for k in 0..256 {
+        let mut g = glb.clone();
+        for _ in 0..1 + k % 4 {
+            let at = (rng.next_u64() % g.len() as u64) as usize;
+            g[at] = rng.next_u64() as u8;
+        }
+        inputs.push((format!("flip {k}"), g));
+    }
+    let path = temp_dir("fuzz-replay").join("scene.glb");
+    for (what, bytes) in &inputs {
+        std::fs::write(&path, bytes).unwrap();
+        if let Err(e) = Scene::load_with_toml(&path, None) {
+            assert!(e.to_string().contains("scene.glb"), "{what}: {e}");
+        }
+    }
 }

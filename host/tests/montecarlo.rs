@@ -227,7 +227,12 @@ fn command_line_refuses_bad_options() {
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines[0], radiosity_host::montecarlo::FACE_CSV_HEADER);
     assert_eq!(lines.len(), 7);
-    assert!(lines[1].starts_with("0,1,0.9,0.9,0.9,1,1,1,") && lines[1].ends_with(",64"), "{}", lines[1]);
+    // The last column names the face's place in its file: the first `f` statement is on line 18.
+    assert!(
+        lines[1].starts_with("0,1,0.9,0.9,0.9,1,1,1,") && lines[1].ends_with(",64,line 18"),
+        "{}",
+        lines[1]
+    );
 }
 
 /// The differential-area-to-rectangle form factor, point over a corner of an `a x b` rectangle parallel to its

@@ -3,6 +3,8 @@
 
 mod common;
 
+use common::field::{field_at, field_range};
+
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
@@ -216,42 +218,6 @@ fn light_map_maps_every_face() {
     assert!(missing.is_empty(), "faces without a light-map rectangle: {missing:?}");
 }
 
-/// The smooth field on the patches `on` at `q`: the shader on the first of them whose polygon contains `q` (`None`
-/// when none does).
-fn field_at(shader: &SmoothShader, b: &[Rgb], on: &[usize], q: DVec3) -> Option<Rgb> {
-    let inside = on.iter().find(|&&m| shader.distance_in_plane(m, q) <= shader.tolerance())?;
-    Some(shader.shade(b, *inside, q).unwrap())
-}
-
-/// Per-channel range of the smooth field over the points of the patches `on` within `reach` of `q` (in the plane
-/// spanned by `u` and `v`): `q` itself and 6 rings of 24 directions.
-fn field_range(
-    shader: &SmoothShader,
-    b: &[Rgb],
-    on: &[usize],
-    q: DVec3,
-    u: DVec3,
-    v: DVec3,
-    reach: f64,
-) -> (Rgb, Rgb) {
-    let (mut lo, mut hi) = (Rgb::INFINITY, Rgb::NEG_INFINITY);
-    let mut add = |x: DVec3| {
-        if let Some(f) = field_at(shader, b, on, x) {
-            lo = lo.min(f);
-            hi = hi.max(f);
-        }
-    };
-    add(q);
-    for ring in 1..=6 {
-        let r = reach * f64::from(ring) / 6.0;
-        for k in 0..24 {
-            let a = std::f64::consts::TAU * f64::from(k) / 24.0;
-            add(q + (u * a.cos() + v * a.sin()) * r);
-        }
-    }
-    (lo, hi)
-}
-
 /// Points of a patch where a filter is tried: its corners, three points on every edge, and its centroid.
 fn probe_points(patch: &radiosity_host::patch::Patch) -> Vec<DVec3> {
     let n = patch.vertices.len();
@@ -313,7 +279,7 @@ fn light_map_filtering_stays_in_each_chart_and_agrees_across_coplanar_faces() {
                     );
                 }
                 let s = map.bilinear(ax, ay);
-                let range = field_range(&shader, b, &chart, q, rect.u_axis, rect.v_axis, reach);
+                let range = field_range(&shader, b, &chart, q, (rect.u_axis, rect.v_axis), reach);
                 assert!(
                     within(s, range),
                     "face {} at {q}: filtered {s} outside the field's range {range:?} over {reach} mm",

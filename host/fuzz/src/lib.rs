@@ -1,6 +1,6 @@
 //! What the host-side fuzz targets share: the relight-script exercise (parse, then run every accepted script
-//! through the device loop on a small synthetic table) and the scene exercise (OBJ + MTL + TOML bytes written
-//! to a scratch folder and loaded).
+//! through the device loop on a small synthetic table), the scene exercise (OBJ + MTL + TOML bytes written
+//! to a scratch folder and loaded) and the glTF exercise (bytes written as a `.glb` and loaded).
 
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -82,4 +82,13 @@ pub fn scene(data: &[u8]) {
         }
     }
     let _ = Scene::load(dir.join("scene.obj"));
+}
+
+/// Writes `data` as `scene.glb` in this process's scratch folder and loads it (the glTF loader tells binary from
+/// JSON glTF by the first bytes, not the extension, so this reaches both), without a `NAME.toml` (light groups
+/// by material name): the loader must return a scene or an error, never panic.
+pub fn gltf(data: &[u8]) {
+    let path = scratch().join("scene.glb");
+    std::fs::write(&path, data).expect("scratch write");
+    let _ = Scene::load_with_toml(&path, None);
 }

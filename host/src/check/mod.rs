@@ -15,7 +15,7 @@
 //!
 //! | component | answer | against |
 //! |---|---|---|
-//! | discretization (optional) | f64 solve, averaged per OBJ face | continuous path-traced reference ([`crate::montecarlo`]), with its standard error |
+//! | discretization (optional) | f64 solve, averaged per face | continuous path-traced reference ([`crate::montecarlo`]), with its standard error |
 //! | form-factor estimation | f64 solve, matrix at the chosen samples/rays | f64 solve, matrix at `ff_factor` times both |
 //! | reciprocity | f64 solve, shooting form of the full matrix | f64 solve of the full matrix |
 //! | sparsification | f64 solve, shooting form of the sparsified matrix | f64 solve, shooting form of the full matrix |

@@ -228,31 +228,31 @@ impl fmt::Display for CheckReport {
 fn write_discretization(f: &mut fmt::Formatter<'_>, d: &Discretization) -> fmt::Result {
     writeln!(
         f,
-        "\ndiscretization per OBJ face: f64 mesh answer (area-averaged) vs continuous reference; noise floor \
+        "\ndiscretization per face: f64 mesh answer (area-averaged) vs continuous reference; noise floor \
          (reference SE, rel L2) {:.3e}",
         d.noise_rel_l2
     )?;
     writeln!(f, "reference: {}", d.reference_summary)?;
     writeln!(
         f,
-        "{:>5} {:>6} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}",
-        "face", "line", "mesh Y", "ref Y", "diff r", "diff g", "diff b", "rel SE", "|d|/SE"
+        "{:>5} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}  source",
+        "face", "mesh Y", "ref Y", "diff r", "diff g", "diff b", "rel SE", "|d|/SE"
     )?;
     for row in &d.faces {
         let (_, sigmas) = row.worst_channel();
         let diff = row.relative_difference;
         writeln!(
             f,
-            "{:>5} {:>6} {:>11.5e} {:>11.5e} {:>+9.3e} {:>+9.3e} {:>+9.3e} {:>9.2e} {:>8.1}",
+            "{:>5} {:>11.5e} {:>11.5e} {:>+9.3e} {:>+9.3e} {:>+9.3e} {:>9.2e} {:>8.1}  {}",
             row.face,
-            row.line,
             rgb::luminance(row.mesh),
             rgb::luminance(row.reference),
             diff.x,
             diff.y,
             diff.z,
             row.reference_relative_se,
-            sigmas
+            sigmas,
+            row.source
         )?;
     }
     Ok(())

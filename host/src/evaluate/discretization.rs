@@ -23,10 +23,11 @@ pub const DISCRETIZATION: &str = "discretization";
 /// One face's row: mesh answer, reference, difference, and the reference's standard error.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FaceDiscretization {
-    /// Index of the face in OBJ order.
+    /// Index of the face in load order (OBJ order for an OBJ file).
     pub face: usize,
-    /// Line of its `f` statement in the OBJ file.
-    pub line: usize,
+    /// Where the face is in its file ([`Face::place`](crate::scene::Face::place)): `line 12` for an OBJ face,
+    /// its node, mesh, primitive and triangles for a glTF face.
+    pub source: String,
     /// Area of the face.
     pub area: f64,
     /// The mesh's f64 answer averaged over the face's patches (by area).
@@ -125,7 +126,7 @@ pub fn discretization(
             };
             FaceDiscretization {
                 face: f.face,
-                line: f.line,
+                source: f.source.clone(),
                 area: f.area,
                 mesh: m,
                 reference: f.radiosity,
@@ -145,7 +146,7 @@ pub fn discretization(
         component: Component {
             name: DISCRETIZATION.into(),
             compares:
-                "f64 mesh answer averaged per OBJ face vs the continuous path-traced reference (metrics over \
+                "f64 mesh answer averaged per face vs the continuous path-traced reference (metrics over \
                        faces; includes the reference's noise)"
                     .into(),
             error,

@@ -366,7 +366,7 @@ fn estimate<C: RayCaster + ?Sized>(
             let m = &moments[f];
             FaceReference::new(
                 f,
-                face.line,
+                face.place(),
                 face.area,
                 rho[f],
                 emission[f],

@@ -83,8 +83,10 @@ pub fn probe_radiosity(
             invalid(
                 "probe",
                 format!(
-                    "probe {k}: point {} is not on face {} (OBJ line {})",
-                    probe.point, probe.face, scene.faces[probe.face].line
+                    "probe {k}: point {} is not on face {} ({})",
+                    probe.point,
+                    probe.face,
+                    scene.faces[probe.face].place()
                 ),
             )
         })?;

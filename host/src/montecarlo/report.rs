@@ -10,20 +10,21 @@ use crate::rgb::Rgb;
 
 /// Header of the per-face CSV ([`ContinuousReference::write_csv`]).
 pub const FACE_CSV_HEADER: &str =
-    "face,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b,se_r,se_g,se_b,samples";
+    "face,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b,se_r,se_g,se_b,samples,source";
 
 /// The largest relative standard error over the channels with `b > 0` (0 if none).
 pub(super) fn relative_error(b: Rgb, se: Rgb) -> f64 {
     (0..3).filter(|&c| b[c] > 0.0).map(|c| se[c] / b[c]).fold(0.0, f64::max)
 }
 
-/// The estimate for one OBJ face.
+/// The estimate for one face of the scene.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FaceReference {
-    /// Index of the face in OBJ order.
+    /// Index of the face in load order (OBJ order for an OBJ file).
     pub face: usize,
-    /// Line of its `f` statement in the OBJ file.
-    pub line: usize,
+    /// Where the face is in its file ([`Face::place`](crate::scene::Face::place)): `line 12` for an OBJ face,
+    /// its node, mesh, primitive and triangles for a glTF face.
+    pub source: String,
     /// Area (scene units squared).
     pub area: f64,
     /// Reflectance.
@@ -41,12 +42,12 @@ pub struct FaceReference {
 }
 
 impl FaceReference {
-    /// The estimate of face `face` (OBJ line `line`, area `area`), with its relative error computed.
+    /// The estimate of face `face` (at `source` in its file, area `area`), with its relative error computed.
     #[allow(clippy::too_many_arguments)]
     #[must_use]
     pub fn new(
         face: usize,
-        line: usize,
+        source: String,
         area: f64,
         rho: Rgb,
         emission: Rgb,
@@ -57,7 +58,7 @@ impl FaceReference {
         let relative_standard_error = relative_error(radiosity, standard_error);
         FaceReference {
             face,
-            line,
+            source,
             area,
             rho,
             emission,
@@ -69,10 +70,10 @@ impl FaceReference {
     }
 }
 
-/// The continuous reference of a scene: one [`FaceReference`] per OBJ face, in OBJ order.
+/// The continuous reference of a scene: one [`FaceReference`] per face, in load order.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ContinuousReference {
-    /// Per face, in OBJ order.
+    /// Per face, in load order.
     pub faces: Vec<FaceReference>,
     /// The relative standard error aimed at, if any (`None`: a fixed number of paths per face).
     pub target: Option<f64>,
@@ -121,7 +122,9 @@ impl ContinuousReference {
         self.faces.iter().map(|f| f.relative_standard_error).fold(0.0, f64::max)
     }
 
-    /// Writes the per-face CSV: [`FACE_CSV_HEADER`], then one row per face in shortest round-trip formatting.
+    /// Writes the per-face CSV: [`FACE_CSV_HEADER`], then one row per face in shortest round-trip formatting;
+    /// the last column, `source`, is quoted as RFC 4180 says when it holds a comma or a quote (a glTF face's
+    /// place does).
     ///
     /// # Errors
     /// Any error of `out`.
@@ -132,7 +135,7 @@ impl ContinuousReference {
             for v in [f.rho, f.emission, f.radiosity, f.standard_error] {
                 write!(out, ",{},{},{}", v.x, v.y, v.z)?;
             }
-            writeln!(out, ",{}", f.samples)?;
+            writeln!(out, ",{},{}", f.samples, crate::text::csv_field(&f.source))?;
         }
         Ok(())
     }
@@ -162,21 +165,21 @@ impl fmt::Display for ContinuousReference {
         writeln!(f, "continuous reference (path traced, seed {}): {}", self.seed, self.summary())?;
         writeln!(
             f,
-            "{:>5} {:>6} {:>11} {:>11} {:>11} {:>11} {:>9} {:>9}",
-            "face", "line", "area", "B r", "B g", "B b", "rel SE", "paths"
+            "{:>5} {:>11} {:>11} {:>11} {:>11} {:>9} {:>9}  source",
+            "face", "area", "B r", "B g", "B b", "rel SE", "paths"
         )?;
         for r in &self.faces {
             writeln!(
                 f,
-                "{:>5} {:>6} {:>11.4e} {:>11.5e} {:>11.5e} {:>11.5e} {:>9.2e} {:>9}",
+                "{:>5} {:>11.4e} {:>11.5e} {:>11.5e} {:>11.5e} {:>9.2e} {:>9}  {}",
                 r.face,
-                r.line,
                 r.area,
                 r.radiosity.x,
                 r.radiosity.y,
                 r.radiosity.z,
                 r.relative_standard_error,
-                r.samples
+                r.samples,
+                r.source
             )?;
         }
         Ok(())

@@ -30,7 +30,8 @@
 //! edge: the charts' gutters are sized for that ([`super::lightmap`]).
 //!
 //! The container: a 12-byte header (`glTF`, version 2, total length), a JSON chunk padded with spaces and a binary
-//! chunk padded with zeros, each to 4 bytes (glTF 2.0 specification, "Binary glTF Layout").
+//! chunk padded with zeros, each to 4 bytes (glTF 2.0 specification, "Binary glTF Layout"), written by
+//! [`crate::scene::glb_container`].
 
 use std::collections::BTreeMap;
 
@@ -325,27 +326,9 @@ pub fn encode_glb(
             "units": "positions in scene units",
         }},
     });
-    let mut text =
+    let text =
         serde_json::to_vec(&document).map_err(|e| PictureError::invalid("glTF JSON", e.to_string()))?;
-    while text.len() % 4 != 0 {
-        text.push(b' ');
-    }
-    let mut bin = b.bin;
-    while bin.len() % 4 != 0 {
-        bin.push(0);
-    }
-    let total = 12 + 8 + text.len() + 8 + bin.len();
-    let total32 = u32::try_from(total).map_err(|_| {
-        PictureError::invalid("glTF export", format!("{total} bytes: over glTF's 4 GiB limit"))
-    })?;
-    let mut bytes = Vec::with_capacity(total);
-    bytes.extend_from_slice(b"glTF");
-    bytes.extend_from_slice(&2u32.to_le_bytes());
-    bytes.extend_from_slice(&total32.to_le_bytes());
-    for (chunk, kind) in [(&text, b"JSON"), (&bin, b"BIN\0")] {
-        bytes.extend_from_slice(&(chunk.len() as u32).to_le_bytes());
-        bytes.extend_from_slice(kind);
-        bytes.extend_from_slice(chunk);
-    }
+    let bytes =
+        crate::scene::glb_container(&text, &b.bin).map_err(|e| PictureError::invalid("glTF export", e))?;
     Ok(Glb { bytes, irradiance, irradiance_scale, triangles, vertices })
 }

@@ -102,7 +102,7 @@ pub struct ComponentStats {
 /// The baseline of one scene and codec.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Entry {
-    /// Scene file name in the scenes folder (`cornell-box.obj`).
+    /// Scene file name in the scenes folder (`cornell-box.obj`, `cornell-box.glb`).
     pub scene: String,
     /// Form-factor code width (16 or 8).
     pub bits: u32,
@@ -133,7 +133,8 @@ pub struct Baseline {
     pub entries: Vec<Entry>,
 }
 
-/// The shipped scenes: `*.obj` file names in `dir`, sorted.
+/// The shipped scenes: the file names in `dir` that are scenes ([`crate::scene::is_scene_file`]: `*.obj`,
+/// `*.gltf`, `*.glb`; files, not folders), sorted.
 ///
 /// # Errors
 /// [`RegressError::Io`] if the folder cannot be listed.
@@ -142,7 +143,7 @@ pub fn scene_files(dir: &Path) -> Result<Vec<String>, RegressError> {
     let mut names = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(io)? {
         let path = entry.map_err(io)?.path();
-        if path.extension().is_some_and(|e| e == "obj") {
+        if crate::scene::is_scene_file(&path) && path.is_file() {
             if let Some(name) = path.file_name().and_then(|n| n.to_str()) {
                 names.push(name.to_string());
             }

@@ -2,7 +2,7 @@
 //! a checked-in baseline (`tests/baseline/quantization.json`).
 //!
 //! # What is measured
-//! For every scene `scenes/*.obj` and each codec (16-bit [`radiosity_core::FfCodec::FLOAT16`], 8-bit [`radiosity_core::FfCodec::FLOAT8`]),
+//! For every scene `scenes/*.obj`, `*.gltf` and `*.glb` and each codec (16-bit [`radiosity_core::FfCodec::FLOAT16`], 8-bit [`radiosity_core::FfCodec::FLOAT8`]),
 //! [`crate::check::check`] runs with the scene's regression settings ([`SceneSettings`]: meshing, samples and
 //! rays per pair, kept in the baseline so the test stays fast) and the default check options otherwise (solver
 //! run to convergence, so iteration truncation is identically zero and not tracked). Tracked components
@@ -132,7 +132,7 @@ pub struct RegressOptions {
     pub update: bool,
     /// The baseline file.
     pub baseline: PathBuf,
-    /// The folder of shipped scenes (`*.obj`).
+    /// The folder of shipped scenes (`*.obj`, `*.gltf`, `*.glb`).
     pub scenes: PathBuf,
     /// Seeds measured by `--update` (the noise estimate; 2..=11).
     pub seeds: usize,

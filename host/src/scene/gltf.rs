@@ -61,6 +61,16 @@ pub(super) fn load_gltf(
 ) -> Result<(Vec<Face>, Vec<Material>), SceneError> {
     let bytes = std::fs::read(file).map_err(|source| SceneError::Io { file: file.to_path_buf(), source })?;
     let parse = |problem: String| SceneError::GltfParse { file: file.to_path_buf(), problem };
+    // The `gltf` crate (1.4) subtracts the 12-byte header from a GLB's declared length unchecked (a panic with
+    // overflow checks on, found by the fuzz target `gltf`).
+    if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|r| r.get(4..8)) {
+        let declared = u32::from_le_bytes([declared[0], declared[1], declared[2], declared[3]]);
+        if declared < 12 {
+            return Err(parse(format!(
+                "GLB header declares a length of {declared} bytes, less than the header's 12"
+            )));
+        }
+    }
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| parse(e.to_string()))?;
     let json = document.into_json();
@@ -198,6 +208,9 @@ fn load_buffers(
                 format!("buffer {} ('{}')", buffer.index(), base.join(uri).display())
             }
         };
+        if let gltf::buffer::Source::Uri(uri) = buffer.source() {
+            check_external(base, uri).map_err(|p| at(place.clone(), p))?;
+        }
         let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
             .map_err(|e| at(place.clone(), format!("cannot be read: {e}")))?;
         if data.len() < buffer.length() {
@@ -228,6 +241,54 @@ fn load_buffers(
         }
     }
     Ok(buffers)
+}
+
+/// Checks an external buffer or image URI before the `gltf` crate (1.4) reads it, resolved as the crate
+/// resolves it: a `file://` or `file:` URI is the path after the prefix, a URI without a scheme is
+/// percent-decoded and taken relative to `base`; data URIs and other schemes are left to the crate (which decodes
+/// the one and refuses the others). The crate's decoding panics on a percent escape that is not UTF-8, and it
+/// would read a device such as `/dev/zero` until memory runs out: both are refused here, naming the URI.
+fn check_external(base: &Path, uri: &str) -> Result<(), String> {
+    let path =
+        if uri.contains(':') {
+            match uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
+                Some(rest) => PathBuf::from(rest),
+                None => return Ok(()),
+            }
+        } else {
+            base.join(percent_decode(uri).ok_or_else(|| {
+                format!("URI '{uri}' is not UTF-8 text once its percent escapes are decoded")
+            })?)
+        };
+    match std::fs::metadata(&path) {
+        Ok(m) if !m.is_file() => {
+            Err(format!("URI '{uri}' names '{}', which is not a regular file", path.display()))
+        }
+        // A missing or unreadable file is reported by the crate's read, with the OS's reason.
+        _ => Ok(()),
+    }
+}
+
+/// `text` with its `%XX` escapes (two hex digits) decoded, as `gltf` 1.4 decodes a relative URI (other `%`
+/// signs stay as they are); `None` if the result is not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut k = 0;
+    while k < bytes.len() {
+        let hex = |b: u8| char::from(b).to_digit(16);
+        match (bytes[k], bytes.get(k + 1).copied().and_then(hex), bytes.get(k + 2).copied().and_then(hex)) {
+            (b'%', Some(hi), Some(lo)) => {
+                out.push((hi * 16 + lo) as u8);
+                k += 3;
+            }
+            (b, _, _) => {
+                out.push(b);
+                k += 1;
+            }
+        }
+    }
+    String::from_utf8(out).ok()
 }
 
 /// The file's materials, checked like MTL ones (reflectance in `[0, 1)`, emission finite and `>= 0`).
@@ -314,6 +375,9 @@ fn texture_mean(
         }
         _ => format!("{what}, image {}", image.index()),
     };
+    if let gltf::image::Source::Uri { uri, .. } = image.source() {
+        check_external(base, uri).map_err(|p| at(place.clone(), p))?;
+    }
     let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
         .map_err(|e| at(place.clone(), format!("cannot be decoded: {e}")))?;
     use gltf::image::Format;

@@ -62,6 +62,8 @@
 //! - `config`: the `NAME.toml` file and its [`MeshingLimits`].
 //! - `light_group`: [`LightGroup`]s from the TOML file and the emitting materials, and the warnings about light
 //!   that cannot be emitted.
+//! - `gltf_write`: the way back, a loaded scene written as glTF ([`SceneGltf`], `radiosity convert`), and the
+//!   `.glb` container ([`glb_container`]) that the light-map export shares.
 //!
 //! This module depends on no later stage: meshing ([`crate::mesh`]) reads the scene, never the other way.
 
@@ -70,6 +72,7 @@ mod error;
 mod extent;
 mod face;
 mod gltf;
+mod gltf_write;
 mod light_group;
 mod material;
 mod obj;
@@ -84,6 +87,7 @@ pub(crate) use error::length;
 pub use error::{SceneError, SceneWarning};
 pub use extent::{MAX_ORIGIN_DISTANCE, MAX_SCENE_SIZE, MIN_SCENE_SIZE};
 pub use face::{Face, GltfPlace, DEGENERATE_TOLERANCE, NON_PLANAR_LIMIT, PLANAR_TOLERANCE};
+pub use gltf_write::{glb_container, SceneGltf};
 pub use light_group::LightGroup;
 pub use material::Material;
 pub use overlap::OVERLAP_TOLERANCE;
@@ -115,6 +119,14 @@ pub struct Scene {
     /// Problems that did not stop loading (non-planar faces split into triangles, light groups without faces, no
     /// emitting face). Not printed here: the command line prints them on stderr.
     pub warnings: Vec<SceneWarning>,
+}
+
+/// Whether `path` names a file [`Scene::load`] reads as a scene: extension `obj`, `gltf` or `glb` (any case).
+/// A folder of scenes lists its scenes with it (`regress` does); the MTL, TOML, buffer and image files beside
+/// them are not scenes.
+#[must_use]
+pub fn is_scene_file(path: &Path) -> bool {
+    is_gltf(path) || path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("obj"))
 }
 
 impl Scene {

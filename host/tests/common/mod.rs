@@ -1,6 +1,7 @@
 //! What several host test files share: the bundled scenes and a coarse Cornell box.
 #![allow(dead_code)] // each test file uses some of these
 
+pub mod field;
 pub mod picture;
 pub mod web;
 

@@ -179,7 +179,7 @@ pub struct RegressArgs {
     /// The baseline file.
     #[arg(long, default_value = "tests/baseline/quantization.json")]
     pub baseline: PathBuf,
-    /// The folder of shipped scenes (`*.obj`).
+    /// The folder of shipped scenes (`*.obj`, `*.gltf`, `*.glb`).
     #[arg(long, default_value = "scenes")]
     pub scenes: PathBuf,
     /// Seeds measured by `--update` (the noise estimate; 2..=11).
@@ -445,6 +445,24 @@ pub enum Command {
         output: PathBuf,
         #[command(flatten)]
         light_map: LightMapArgs,
+    },
+    /// Write a scene as glTF 2.0, to load as the same scene: OUT.glb, or OUT.gltf with its buffer OUT.bin.
+    ///
+    /// One node, one mesh, one primitive per run of faces with one material, every face's polygon as a triangle
+    /// fan (the loader joins it back); materials keep their names, reflectance as baseColorFactor, emission in
+    /// W/m^2 as emissiveFactor times KHR_materials_emissive_strength. Positions in the scene's units, as f32.
+    /// Light groups and meshing limits stay in NAME.toml, which the loader reads beside NAME.glb as beside
+    /// NAME.obj (copy it along). No meshing, no solve: `scenes/cornell-box.glb` is
+    /// `radiosity convert scenes/cornell-box.obj -o scenes/cornell-box.glb`.
+    Convert {
+        /// The scene: an OBJ file (its MTL files are read too) or a glTF 2.0 file, with its NAME.toml if any.
+        scene: PathBuf,
+        /// The file to write, .glb or .gltf (with NAME.bin beside it); its folder must exist.
+        #[arg(short, long, value_name = "OUT.glb")]
+        output: PathBuf,
+        /// Do not print the scene's warnings.
+        #[arg(short, long)]
+        quiet: bool,
     },
     /// Write a browser viewer of the scene: the device core, built as WebAssembly, relights it live in a
     /// WebGL2 page.

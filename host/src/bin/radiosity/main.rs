@@ -22,7 +22,7 @@ use radiosity_host::pipeline::{prepare, PrepareOptions};
 use radiosity_host::reference::{exact_transfer, Method};
 use radiosity_host::relight;
 use radiosity_host::rgb::Rgb;
-use radiosity_host::scene::Scene;
+use radiosity_host::scene::{Scene, SceneGltf};
 use radiosity_host::text::counted;
 use radiosity_host::view;
 
@@ -571,6 +571,48 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 files.height,
                 files.texel_size,
                 files.irradiance_scale
+            )?;
+        }
+        Command::Convert { scene, output, quiet } => {
+            let ext = output.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+            let bin = output.with_extension("bin");
+            match ext.as_deref() {
+                Some("glb") => check_outputs([&output])?,
+                Some("gltf") => check_outputs([&output, &bin])?,
+                _ => {
+                    return Err(
+                        format!("{}: the output must be a .glb or .gltf file", output.display()).into()
+                    )
+                }
+            }
+            let loaded = Scene::load(&scene)?;
+            if !quiet {
+                for w in &loaded.warnings {
+                    eprintln!("warning: {w}");
+                }
+            }
+            let gltf = SceneGltf::of(&loaded).map_err(|e| format!("{}: {e}", scene.display()))?;
+            let fail = |e: String| format!("{}: {e}", output.display());
+            if ext.as_deref() == Some("glb") {
+                files::write_atomic(&output, &gltf.to_glb().map_err(fail)?)?;
+            } else {
+                let uri = bin.file_name().and_then(|n| n.to_str()).ok_or_else(|| {
+                    format!(
+                        "{}: the buffer's file name must be UTF-8 (it is a URI in the .gltf)",
+                        bin.display()
+                    )
+                })?;
+                let (json, bytes) = gltf.to_gltf(uri).map_err(fail)?;
+                files::write_atomic(&bin, bytes)?;
+                files::write_atomic(&output, &json)?;
+                writeln!(out, "{}", bin.display())?;
+            }
+            writeln!(out, "{}", output.display())?;
+            writeln!(
+                out,
+                "{}, {}",
+                counted(loaded.faces.len(), "face", "faces"),
+                counted(loaded.materials.len(), "material", "materials")
             )?;
         }
         Command::View { scene, web, wasm } => {
