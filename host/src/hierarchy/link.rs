@@ -425,6 +425,25 @@ pub(super) fn split_link(
     next: &mut Vec<(u32, u32)>,
 ) -> Result<bool, HierarchyError> {
     let first = if tree.nodes[r as usize].area >= tree.nodes[s as usize].area { r } else { s };
+    split_either(tree, rules, spans, limits, r, s, first, next)
+}
+
+/// Splits the pair `(r, s)` at `first` (one of its ends), or at the other end if `first` cannot be split;
+/// returns false if neither can.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+#[allow(clippy::too_many_arguments)]
+fn split_either(
+    tree: &mut Tree,
+    rules: &ElementRules,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    r: u32,
+    s: u32,
+    first: u32,
+    next: &mut Vec<(u32, u32)>,
+) -> Result<bool, HierarchyError> {
     let second = if first == r { s } else { r };
     Ok(split_end(tree, rules, spans, limits, r, s, first, next)?
         || split_end(tree, rules, spans, limits, r, s, second, next)?)
@@ -453,9 +472,7 @@ fn split_untrusted(
         _ if tree.nodes[r as usize].area >= tree.nodes[s as usize].area => r,
         _ => s,
     };
-    let second = if first == r { s } else { r };
-    Ok(split_end(tree, rules, spans, limits, r, s, first, next)?
-        || split_end(tree, rules, spans, limits, r, s, second, next)?)
+    split_either(tree, rules, spans, limits, r, s, first, next)
 }
 
 /// Replaces the pair `(a, b)` by the pairs of the children of its end `end` (`a` or `b`) with the other end, if
