@@ -1,6 +1,7 @@
 //! The hierarchical solver on closed forms, against the dense solve of its own leaves, and on its own invariants:
 //! the first bounce between two squares, the white furnace, the Cornell box leaf by leaf within the oracle's
-//! claimed bound, determinism across thread counts, and clear errors for bad options and scenes without light.
+//! claimed bound, determinism across thread counts, the exported tree and links (what a device table is written
+//! from) solving to the same answer by shooting, and clear errors for bad options and scenes without light.
 
 use std::path::PathBuf;
 
@@ -162,8 +163,135 @@ fn answers_do_not_depend_on_the_thread_count() {
     assert_eq!(one.stats, two.stats);
     assert_eq!(one.b, two.b);
     assert_eq!(one.leaves, two.leaves);
+    assert_eq!(one.network, two.network);
     // Clusters take part: the box's faces are far enough apart for some cluster links.
     assert!(one.stats.clusters > 0);
+}
+
+#[test]
+fn the_exported_network_is_well_formed_and_solves_to_the_answer_by_shooting() {
+    // The Cornell box at a coarse epsilon (clusters take part), its gathering solve run to a tight tolerance.
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let tolerance = 1e-12;
+    let sol = solve_hierarchical(
+        &s,
+        &HierarchyOptions { epsilon: 0.3, solve_tolerance: tolerance, ..HierarchyOptions::default() },
+    )
+    .unwrap();
+    let net = &sol.network;
+    let n = net.nodes.len();
+    assert!(
+        net.nodes.iter().any(|x| x.cluster)
+            && net.links.len() == sol.stats.surface_links + sol.stats.cluster_links
+    );
+    // Structure: parents first, children contiguous and pointing back, areas summing up, every leaf once.
+    let mut seen = vec![false; sol.leaves.len()];
+    assert_eq!(net.nodes[0].parent, None);
+    for (k, node) in net.nodes.iter().enumerate() {
+        if k > 0 {
+            let p = node.parent.expect("only the top has no parent") as usize;
+            assert!(p < k && net.nodes[p].children.contains(&(k as u32)), "node {k}");
+        }
+        if node.children.is_empty() {
+            let leaf = node.leaf.expect("a leaf node names its leaf") as usize;
+            assert!(!seen[leaf], "leaf {leaf} named twice");
+            seen[leaf] = true;
+            assert!((node.area - sol.leaves[leaf].area).abs() <= 1e-12 * node.area);
+        } else {
+            assert!(
+                node.leaf.is_none() && node.children.start as usize > k && node.children.end as usize <= n
+            );
+            let sum: f64 = node.children.clone().map(|c| net.nodes[c as usize].area).sum();
+            assert!((sum - node.area).abs() <= 1e-9 * node.area, "node {k}: {sum} vs {}", node.area);
+        }
+    }
+    assert!(seen.iter().all(|&x| x), "every leaf has a node");
+    for l in &net.links {
+        let (a, b) = (&net.nodes[l.a as usize], &net.nodes[l.b as usize]);
+        assert!(l.f_ab >= 0.0 && l.f_ba >= 0.0);
+        assert!(
+            (a.area * l.f_ab - b.area * l.f_ba).abs() <= 1e-12 * a.area * l.f_ab.max(1e-300),
+            "reciprocity"
+        );
+    }
+    // Shooting over the sender runs (what a device does): each node keeps the power below it not yet shot over
+    // its own links; a shot gives each receiver `F_sr` of it as incident power, shared by area among the leaves
+    // below the receiver, each of which reflects `rho` of its share into itself and every ancestor's unshot power.
+    let runs = net.sender_runs();
+    assert_eq!(runs.iter().map(Vec::len).sum::<usize>(), 2 * net.links.len());
+    let mut below: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for k in (0..n).rev() {
+        if net.nodes[k].children.is_empty() {
+            below[k].push(k as u32);
+        }
+        if let Some(p) = net.nodes[k].parent {
+            let mine = below[k].clone();
+            below[p as usize].extend(mine);
+        }
+    }
+    let mut power = vec![Rgb::ZERO; n];
+    let mut unshot = vec![Rgb::ZERO; n];
+    let add = |unshot: &mut [Rgb], power: &mut [Rgb], leaf: usize, p: Rgb| {
+        power[leaf] += p;
+        let mut k = Some(leaf as u32);
+        while let Some(j) = k {
+            unshot[j as usize] += p;
+            k = net.nodes[j as usize].parent;
+        }
+    };
+    for (k, node) in net.nodes.iter().enumerate() {
+        if let Some(leaf) = node.leaf {
+            add(&mut unshot, &mut power, k, sol.emission[leaf as usize] * node.area);
+        }
+    }
+    let emitted: f64 = power.iter().map(|p| p.max_element()).sum();
+    let shooters: Vec<usize> = (0..n).filter(|&k| !runs[k].is_empty()).collect();
+    let stop = 1e-14 * emitted;
+    loop {
+        let (s, u) = shooters
+            .iter()
+            .map(|&k| (k, unshot[k]))
+            .max_by(|x, y| x.1.max_element().total_cmp(&y.1.max_element()))
+            .unwrap();
+        if u.max_element() <= stop {
+            break;
+        }
+        unshot[s] = Rgb::ZERO;
+        for &(r, f) in &runs[s] {
+            let area = net.nodes[r as usize].area;
+            for &l in &below[r as usize] {
+                let node = &net.nodes[l as usize];
+                let leaf = node.leaf.unwrap() as usize;
+                add(&mut unshot, &mut power, l as usize, sol.rho[leaf] * (u * f * node.area / area));
+            }
+        }
+    }
+    // Both iterations stopped short of the fixed point. With `q = rho_max * (largest leaf row sum)` the iteration's
+    // contraction factor in the largest-leaf norm, the gathering solve (stopped at a relative change `t` of
+    // `sum A B`) is within `q / (1 - q) * t * sum A B / A_min` of it at any leaf, and shooting (stopped with at
+    // most `stop` unshot at every shooter, unshot at `m` nodes) within `m * stop / (A_min (1 - q))`.
+    let rho_max = sol.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
+    let q = rho_max * sol.stats.row_sums.1;
+    assert!(q < 1.0, "the iteration contracts: q = {q}");
+    let a_min = sol.leaves.iter().map(|p| p.area).fold(f64::INFINITY, f64::min);
+    let total: f64 = sol.leaves.iter().zip(&sol.b).map(|(p, b)| p.area * b.max_element()).sum();
+    let allowed =
+        q / (1.0 - q) * tolerance * total / a_min + shooters.len() as f64 * stop / (a_min * (1.0 - q));
+    let mut worst = 0.0f64;
+    for node in net.nodes.iter().enumerate().filter_map(|(k, x)| x.leaf.map(|l| (k, l as usize))) {
+        let (k, leaf) = node;
+        let b = power[k] / net.nodes[k].area;
+        let diff = (b - sol.b[leaf]).abs().max_element();
+        worst = worst.max(diff);
+        assert!(
+            diff <= allowed,
+            "leaf {leaf}: shooting {b} vs the solve's {}, allowed {allowed}",
+            sol.b[leaf]
+        );
+    }
+    let mean = total / sol.leaves.iter().map(|p| p.area).sum::<f64>();
+    println!("largest leaf difference {worst:.3e} W/m^2, allowed {allowed:.3e} (mean radiosity {mean:.3e})");
+    assert!(allowed < 1e-6 * mean, "the allowance must be far below the answer to say anything");
 }
 
 #[test]

@@ -49,10 +49,12 @@
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
 //! node) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
-//! -> this module (options, the driver, results).
+//! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
+//! results).
 
 mod budget;
 mod link;
+mod network;
 mod shoot;
 mod solve;
 mod span;
@@ -68,6 +70,8 @@ use crate::raycast::RayCaster;
 use crate::reference::TransferVectors;
 use crate::rgb::{max_channel, Rgb};
 use crate::scene::Scene;
+
+pub use network::{LinkNetwork, NetworkLink, NetworkNode};
 
 use link::{expand_self, refine, Estimator, Limits, RefineCounts};
 use tree::{Kind, Tree};
@@ -326,6 +330,9 @@ pub struct HierarchicalSolution {
     /// refined for the emission the solve was given (the default intensities), so other intensities are solved
     /// on links chosen for those. `None` when no sources were given.
     pub transfer: Option<TransferVectors>,
+    /// The tree and links the answer was solved on (leaves point back into [`Self::leaves`]): what a device
+    /// table is written from.
+    pub network: LinkNetwork,
     /// What it took.
     pub stats: HierarchyStats,
 }
@@ -654,6 +661,7 @@ fn finish(
         error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
         average_error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
         transfer: None,
+        network: LinkNetwork::default(),
         stats: HierarchyStats {
             polygons,
             clusters,
@@ -690,6 +698,11 @@ fn finish(
             }
         }
     }
+    let mut leaf_index = vec![tree::NONE; tree.nodes.len()];
+    for (i, &k) in leaves.iter().enumerate() {
+        leaf_index[k] = i as u32;
+    }
+    out.network = LinkNetwork::new(tree, links, &leaf_index);
     if bound.is_some() {
         out.stats.claimed_error = Some(if radiosity > 0.0 { claimed / radiosity } else { 0.0 });
     }
