@@ -184,24 +184,35 @@ fn the_exported_network_is_well_formed_and_solves_to_the_answer_by_shooting() {
         net.nodes.iter().any(|x| x.cluster)
             && net.links.len() == sol.stats.surface_links + sol.stats.cluster_links
     );
-    // Structure: parents first, children contiguous and pointing back, areas summing up, every leaf once.
+    // Structure: preorder (each node's subtree is the range up to its `subtree_end`, nested in its parent's), areas
+    // summing up over the children, every leaf once.
     let mut seen = vec![false; sol.leaves.len()];
     assert_eq!(net.nodes[0].parent, None);
+    assert_eq!(net.nodes[0].subtree_end as usize, n);
     for (k, node) in net.nodes.iter().enumerate() {
+        let end = node.subtree_end as usize;
+        assert!(end > k && end <= n, "node {k}: subtree end {end}");
         if k > 0 {
             let p = node.parent.expect("only the top has no parent") as usize;
-            assert!(p < k && net.nodes[p].children.contains(&(k as u32)), "node {k}");
+            assert!(
+                p < k && end <= net.nodes[p].subtree_end as usize,
+                "node {k} lies inside its parent's subtree"
+            );
         }
-        if node.children.is_empty() {
+        let children: Vec<u32> = net.children(k as u32).collect();
+        assert!(
+            children.iter().all(|&c| net.nodes[c as usize].parent == Some(k as u32)),
+            "node {k}'s children"
+        );
+        if end == k + 1 {
+            assert!(children.is_empty());
             let leaf = node.leaf.expect("a leaf node names its leaf") as usize;
             assert!(!seen[leaf], "leaf {leaf} named twice");
             seen[leaf] = true;
             assert!((node.area - sol.leaves[leaf].area).abs() <= 1e-12 * node.area);
         } else {
-            assert!(
-                node.leaf.is_none() && node.children.start as usize > k && node.children.end as usize <= n
-            );
-            let sum: f64 = node.children.clone().map(|c| net.nodes[c as usize].area).sum();
+            assert!(node.leaf.is_none() && !children.is_empty());
+            let sum: f64 = children.iter().map(|&c| net.nodes[c as usize].area).sum();
             assert!((sum - node.area).abs() <= 1e-9 * node.area, "node {k}: {sum} vs {}", node.area);
         }
     }
@@ -219,16 +230,8 @@ fn the_exported_network_is_well_formed_and_solves_to_the_answer_by_shooting() {
     // below the receiver, each of which reflects `rho` of its share into itself and every ancestor's unshot power.
     let runs = net.sender_runs();
     assert_eq!(runs.iter().map(Vec::len).sum::<usize>(), 2 * net.links.len());
-    let mut below: Vec<Vec<u32>> = vec![Vec::new(); n];
-    for k in (0..n).rev() {
-        if net.nodes[k].children.is_empty() {
-            below[k].push(k as u32);
-        }
-        if let Some(p) = net.nodes[k].parent {
-            let mine = below[k].clone();
-            below[p as usize].extend(mine);
-        }
-    }
+    let below =
+        |r: u32| (r..net.nodes[r as usize].subtree_end).filter(|&k| net.nodes[k as usize].leaf.is_some());
     let mut power = vec![Rgb::ZERO; n];
     let mut unshot = vec![Rgb::ZERO; n];
     let add = |unshot: &mut [Rgb], power: &mut [Rgb], leaf: usize, p: Rgb| {
@@ -259,7 +262,7 @@ fn the_exported_network_is_well_formed_and_solves_to_the_answer_by_shooting() {
         unshot[s] = Rgb::ZERO;
         for &(r, f) in &runs[s] {
             let area = net.nodes[r as usize].area;
-            for &l in &below[r as usize] {
+            for l in below(r) {
                 let node = &net.nodes[l as usize];
                 let leaf = node.leaf.unwrap() as usize;
                 add(&mut unshot, &mut power, l as usize, sol.rho[leaf] * (u * f * node.area / area));

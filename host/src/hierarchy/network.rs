@@ -1,8 +1,6 @@
-//! The solved hierarchy as data: the tree renumbered breadth-first (every parent before its children, the
-//! children of a node contiguous) and its links, which is what a device table is written from and what a solve
-//! outside this module can run on.
-
-use std::ops::Range;
+//! The solved hierarchy as data: the tree renumbered in preorder (every node before its subtree, each subtree a
+//! contiguous range of nodes, so the leaves below a node are contiguous too) and its links, which is what a device
+//! table is written from and what a solve outside this module can run on.
 
 use super::link::Link;
 use super::tree::{Tree, NONE};
@@ -12,8 +10,9 @@ use super::tree::{Tree, NONE};
 pub struct NetworkNode {
     /// The parent, `None` for the top node (node 0); always a smaller index than the node.
     pub parent: Option<u32>,
-    /// The children: a contiguous range of larger indices, empty for a leaf.
-    pub children: Range<u32>,
+    /// One past the last node of the subtree: the node's descendants are the nodes after it up to here (none
+    /// for a leaf, whose `subtree_end` is its index plus one).
+    pub subtree_end: u32,
     /// Surface area (for a cluster, the sum over its surfaces).
     pub area: f64,
     /// Whether the node is a cluster (receives isotropically: every surface below it gets the same irradiance).
@@ -42,7 +41,7 @@ pub struct NetworkLink {
 /// its ancestors (push), and an inner node's `B` is the area mean of its children's (pull).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LinkNetwork {
-    /// Nodes, breadth-first from the top.
+    /// Nodes, in preorder from the top (children in the solver's order).
     pub nodes: Vec<NetworkNode>,
     /// Links, in the solve's order, between nodes of [`Self::nodes`].
     pub links: Vec<NetworkLink>,
@@ -51,32 +50,39 @@ pub struct LinkNetwork {
 impl LinkNetwork {
     /// The network of `tree` and `links`, with `leaf_index[n]` the answer's index of leaf node `n`.
     pub(super) fn new(tree: &Tree, links: &[Link], leaf_index: &[u32]) -> LinkNetwork {
-        // Breadth-first order: the top first, then each node's children together.
-        let mut order: Vec<u32> = vec![0];
-        let mut new_index = vec![NONE; tree.nodes.len()];
-        new_index[0] = 0;
-        let mut k = 0;
-        while k < order.len() {
-            for &c in &tree.nodes[order[k] as usize].children {
-                new_index[c as usize] = order.len() as u32;
-                order.push(c);
-            }
-            k += 1;
+        // Preorder by an explicit stack (children pushed in reverse so the first child comes out first).
+        let mut order: Vec<u32> = Vec::with_capacity(tree.nodes.len());
+        let mut stack = vec![0u32];
+        while let Some(n) = stack.pop() {
+            order.push(n);
+            stack.extend(tree.nodes[n as usize].children.iter().rev());
         }
-        let mut nodes = Vec::with_capacity(order.len());
-        let mut next_child = 1u32;
-        for &old in &order {
-            let node = &tree.nodes[old as usize];
-            let count = node.children.len() as u32;
-            nodes.push(NetworkNode {
-                parent: (node.parent != NONE).then(|| new_index[node.parent as usize]),
-                children: if count == 0 { 0..0 } else { next_child..next_child + count },
-                area: node.area,
-                cluster: tree.is_cluster(old),
-                leaf: (node.children.is_empty() && leaf_index[old as usize] != NONE)
-                    .then(|| leaf_index[old as usize]),
-            });
-            next_child += count;
+        let mut new_index = vec![NONE; tree.nodes.len()];
+        for (k, &old) in order.iter().enumerate() {
+            new_index[old as usize] = k as u32;
+        }
+        let mut nodes: Vec<NetworkNode> = order
+            .iter()
+            .enumerate()
+            .map(|(k, &old)| {
+                let node = &tree.nodes[old as usize];
+                NetworkNode {
+                    parent: (node.parent != NONE).then(|| new_index[node.parent as usize]),
+                    subtree_end: k as u32 + 1,
+                    area: node.area,
+                    cluster: tree.is_cluster(old),
+                    leaf: (node.children.is_empty() && leaf_index[old as usize] != NONE)
+                        .then(|| leaf_index[old as usize]),
+                }
+            })
+            .collect();
+        // Children come after their parents: a reverse pass carries every subtree's end up.
+        for k in (1..nodes.len()).rev() {
+            let (end, parent) = (nodes[k].subtree_end, nodes[k].parent);
+            if let Some(p) = parent {
+                let p = &mut nodes[p as usize];
+                p.subtree_end = p.subtree_end.max(end);
+            }
         }
         let links = links
             .iter()
@@ -88,6 +94,15 @@ impl LinkNetwork {
             })
             .collect();
         LinkNetwork { nodes, links }
+    }
+
+    /// The children of node `n`, in order: the first follows `n`, each next one follows the previous one's
+    /// subtree.
+    pub fn children(&self, n: u32) -> impl Iterator<Item = u32> + '_ {
+        let end = self.nodes[n as usize].subtree_end;
+        std::iter::successors(Some(n + 1).filter(|&c| c < end), move |&c| {
+            Some(self.nodes[c as usize].subtree_end).filter(|&next| next < end)
+        })
     }
 
     /// The links grouped by sender, in shooting form: `runs[s]` lists `(r, F_sr)` for every link at `s`, with
