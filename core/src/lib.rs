@@ -209,7 +209,10 @@ pub use codec::{FfCodec, Frac};
 pub use format::write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };
-pub use format::{group_id, Row, SectionSizes, Table, TableError, FORMAT_VERSION, MAGIC};
+pub use format::{
+    group_id, hier_required_len, write_hier_table, HierSpec, HierTable, NodeSpec, Row, SectionSizes, Table,
+    TableError, TreeFault, FORMAT_VERSION, HIER_FORMAT_VERSION, MAGIC,
+};
 pub use scalar::{Fixed, Scalar};
 #[cfg(any(test, feature = "std"))]
 pub use solver::OwnedBuffers;
