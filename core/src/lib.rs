@@ -200,6 +200,7 @@ pub mod base;
 pub mod codec;
 pub mod crc;
 pub mod format;
+pub mod hier;
 pub mod scalar;
 pub mod solver;
 pub mod transfer;
@@ -209,7 +210,13 @@ pub use codec::{FfCodec, Frac};
 pub use format::write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };
-pub use format::{group_id, Row, SectionSizes, Table, TableError, FORMAT_VERSION, MAGIC};
+pub use format::{
+    group_id, hier_required_len, write_hier_table, HierSpec, HierTable, NodeSpec, Row, SectionSizes, Table,
+    TableError, TreeFault, FORMAT_VERSION, HIER_FORMAT_VERSION, MAGIC,
+};
+#[cfg(any(test, feature = "std"))]
+pub use hier::HierOwnedBuffers;
+pub use hier::{hier_convergence_floor, HierBufferSizes, HierBuffers, HierSolver, HierStaticBuffers};
 pub use scalar::{Fixed, Scalar};
 #[cfg(any(test, feature = "std"))]
 pub use solver::OwnedBuffers;

@@ -123,6 +123,43 @@ pub enum TableError {
         /// The member's patch.
         patch: u32,
     },
+    /// [`Table::parse`](super::Table::parse) was given a hierarchical table (format version
+    /// [`HIER_FORMAT_VERSION`](super::HIER_FORMAT_VERSION)): read it with [`HierTable::parse`](super::HierTable::parse).
+    HierarchicalTable,
+    /// [`HierTable::parse`](super::HierTable::parse) was given a flat table (format version
+    /// [`FORMAT_VERSION`](super::FORMAT_VERSION)): read it with [`Table::parse`](super::Table::parse).
+    FlatTable,
+    /// A hierarchical table's node tree is malformed (format docs, "Hierarchical tables").
+    BadTree {
+        /// The first node found at fault.
+        node: u32,
+        /// What is wrong there.
+        fault: TreeFault,
+    },
+    /// A node's area differs from the sum of its children's areas by more than f32 rounding allows.
+    NodeAreaMismatch {
+        /// The node.
+        node: u32,
+    },
+    /// The decoded run sums along a leaf's chain (the leaf and all its ancestors) exceed 1: the power the leaf
+    /// reflects would be shot more than once (format docs, "Hierarchical tables", the convergence bound).
+    ChainSumExceedsOne {
+        /// The leaf (its index among the leaves).
+        leaf: u32,
+    },
+}
+
+/// What is wrong with a hierarchical table's node tree ([`TableError::BadTree`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TreeFault {
+    /// The subtree end is not in `node + 1..=node_count`, or a child's subtree reaches past its parent's.
+    SubtreeEnd,
+    /// The stored parent is not the node whose child list (or the root list) holds the node.
+    Parent,
+    /// A node's leaf start is not the number of leaves before it in node order.
+    LeafStart,
+    /// The leaf-node map does not list the leaf nodes in node order, or the leaf count differs from the header.
+    LeafNode,
 }
 
 /// The quantization parameter a [`TableError::BadQuantParams`] refers to.
@@ -160,11 +197,13 @@ pub enum IndexArray {
     EntryReceiver,
     /// The state map: patch of each slot.
     StatePatch,
+    /// Hierarchical tables: link receivers (nodes, bound: the node count).
+    LinkReceiver,
 }
 
 impl TableError {
     /// Every variant's name, in declaration order: what [`TableError::kind`] returns.
-    pub const KINDS: [&'static str; 21] = [
+    pub const KINDS: [&'static str; 26] = [
         "BadMagic",
         "UnsupportedVersion",
         "BadHeader",
@@ -186,6 +225,11 @@ impl TableError {
         "UnsortedStateMap",
         "StateMaterialMismatch",
         "MemberWithoutState",
+        "HierarchicalTable",
+        "FlatTable",
+        "BadTree",
+        "NodeAreaMismatch",
+        "ChainSumExceedsOne",
     ];
 
     /// The variant's name without its fields (`"CrcMismatch"`), e.g. for counting which checks a corpus reaches.
@@ -213,6 +257,11 @@ impl TableError {
             TableError::UnsortedStateMap { .. } => "UnsortedStateMap",
             TableError::StateMaterialMismatch { .. } => "StateMaterialMismatch",
             TableError::MemberWithoutState { .. } => "MemberWithoutState",
+            TableError::HierarchicalTable => "HierarchicalTable",
+            TableError::FlatTable => "FlatTable",
+            TableError::BadTree { .. } => "BadTree",
+            TableError::NodeAreaMismatch { .. } => "NodeAreaMismatch",
+            TableError::ChainSumExceedsOne { .. } => "ChainSumExceedsOne",
         }
     }
 }
@@ -278,6 +327,17 @@ impl fmt::Display for TableError {
             TableError::MemberWithoutState { position, patch } => {
                 write!(f, "light-group member {position}: patch {patch} has no run-time state")
             }
+            TableError::HierarchicalTable => {
+                write!(f, "a hierarchical table (format version 4): read it with HierTable::parse")
+            }
+            TableError::FlatTable => write!(f, "a flat table (format version 3): read it with Table::parse"),
+            TableError::BadTree { node, fault } => write!(f, "node tree: node {node}: {fault:?}"),
+            TableError::NodeAreaMismatch { node } => {
+                write!(f, "node {node}: area differs from the sum of its children's")
+            }
+            TableError::ChainSumExceedsOne { leaf } => {
+                write!(f, "leaf {leaf}: decoded run sums over the leaf and its ancestors exceed 1")
+            }
         }
     }
 }
@@ -312,6 +372,11 @@ mod tests {
             TableError::UnsortedStateMap { slot: 0 },
             TableError::StateMaterialMismatch { slot: 0 },
             TableError::MemberWithoutState { position: 0, patch: 0 },
+            TableError::HierarchicalTable,
+            TableError::FlatTable,
+            TableError::BadTree { node: 0, fault: TreeFault::Parent },
+            TableError::NodeAreaMismatch { node: 0 },
+            TableError::ChainSumExceedsOne { leaf: 0 },
         ];
         assert_eq!(one_of_each.map(|e| e.kind()), TableError::KINDS);
         for (i, a) in TableError::KINDS.iter().enumerate() {

@@ -9,12 +9,16 @@
 #![doc = include_str!("../../../docs/format.md")]
 
 mod error;
+mod hier;
+pub mod hier_write;
 mod layout;
 mod parse;
 mod view;
 pub mod write;
 
-pub use error::{IndexArray, OffsetArray, QuantParam, TableError};
+pub use error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
+pub use hier::{HierSectionSizes, HierTable};
+pub use hier_write::{hier_required_len, write_hier_table, HierSpec, NodeSpec};
 pub use layout::SectionSizes;
 pub use parse::Table;
 pub use view::{Entries, Member, Row};
@@ -42,8 +46,12 @@ pub const fn group_id(name: &str) -> u32 {
     h
 }
 
-/// The format version this crate reads and writes.
+/// The format version of flat tables ([`Table`]), which this crate reads and writes. The version names the
+/// layout: flat tables keep version 3, hierarchical tables are version [`HIER_FORMAT_VERSION`].
 pub const FORMAT_VERSION: u16 = 3;
+
+/// The format version of hierarchical tables ([`HierTable`], `docs/format.md`, "Hierarchical tables").
+pub const HIER_FORMAT_VERSION: u16 = 4;
 
 #[cfg(test)]
 mod tests {

@@ -3,7 +3,7 @@
 
 use super::error::{IndexArray, OffsetArray, QuantParam, TableError};
 use super::layout::{le_f32, le_u16, le_u32, Header, Prefix, SectionSizes};
-use super::{FORMAT_VERSION, MAGIC};
+use super::{FORMAT_VERSION, HIER_FORMAT_VERSION, MAGIC};
 use crate::codec::transfer::{TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPONENT};
 use crate::codec::{CodecParamError, FfCodec, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
@@ -58,6 +58,9 @@ impl<'a> Table<'a> {
         let (prefix, _) = postcard::take_from_bytes::<Prefix>(bytes).map_err(header_error)?;
         if prefix.magic != MAGIC {
             return Err(TableError::BadMagic { found: prefix.magic });
+        }
+        if prefix.version == HIER_FORMAT_VERSION {
+            return Err(TableError::HierarchicalTable);
         }
         if prefix.version != FORMAT_VERSION {
             return Err(TableError::UnsupportedVersion { found: prefix.version, expected: FORMAT_VERSION });
@@ -241,7 +244,7 @@ impl<'a> Table<'a> {
     }
 }
 
-fn header_error(e: postcard::Error) -> TableError {
+pub(super) fn header_error(e: postcard::Error) -> TableError {
     match e {
         postcard::Error::DeserializeUnexpectedEnd => TableError::TruncatedHeader,
         _ => TableError::BadHeader,
@@ -249,7 +252,7 @@ fn header_error(e: postcard::Error) -> TableError {
 }
 
 /// `index` (read at `position` of `array`) is below `bound`, or the error that says where it is not.
-fn in_range(array: IndexArray, position: u32, index: u32, bound: u32) -> Result<(), TableError> {
+pub(super) fn in_range(array: IndexArray, position: u32, index: u32, bound: u32) -> Result<(), TableError> {
     if index < bound {
         Ok(())
     } else {
@@ -257,7 +260,7 @@ fn in_range(array: IndexArray, position: u32, index: u32, bound: u32) -> Result<
     }
 }
 
-fn check_offsets(s: &[u8], count: u32, total: u32, array: OffsetArray) -> Result<(), TableError> {
+pub(super) fn check_offsets(s: &[u8], count: u32, total: u32, array: OffsetArray) -> Result<(), TableError> {
     let mut prev = 0u32;
     for k in 0..=count {
         let o = le_u32(s, k as usize);

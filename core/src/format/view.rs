@@ -308,6 +308,18 @@ pub struct Row<'a> {
 }
 
 impl<'a> Row<'a> {
+    /// A row over its receiver and code bytes (proven in range by the caller's parse).
+    pub(super) fn new(
+        receivers: &'a [u8],
+        codes: &'a [u8],
+        index_bytes: usize,
+        codec: FfCodec,
+        exponent: u8,
+        start: u32,
+    ) -> Self {
+        Row { receivers, codes, index_bytes, codec, exponent, start }
+    }
+
     /// Table positions of the row's entries.
     #[must_use]
     pub fn positions(&self) -> core::ops::Range<u32> {

@@ -165,6 +165,25 @@ pub enum WriteError {
         /// The member's patch.
         patch: u32,
     },
+    /// Hierarchical tables: the nodes are not in preorder (a parent after its child, or a subtree not
+    /// contiguous).
+    BadTree {
+        /// The first node at fault.
+        node: usize,
+    },
+    /// Hierarchical tables: the tree has a different number of leaves than the leaf list.
+    LeafCount {
+        /// Leaves in the tree (nodes without children).
+        tree: usize,
+        /// Leaves given.
+        given: usize,
+    },
+    /// Hierarchical tables: the form factors on a leaf's chain (its run and its ancestors') sum to more than
+    /// `1 + ROW_SUM_SLACK`.
+    ChainSumExceedsOne {
+        /// The leaf.
+        leaf: usize,
+    },
 }
 
 impl fmt::Display for WriteError {
@@ -205,13 +224,22 @@ impl fmt::Display for WriteError {
             WriteError::MemberWithoutState { position, patch } => {
                 write!(f, "light group member at position {position}: patch {patch} has no run-time state")
             }
+            WriteError::BadTree { node } => {
+                write!(f, "node {node}: nodes not in preorder (parents first, subtrees contiguous)")
+            }
+            WriteError::LeafCount { tree, given } => {
+                write!(f, "the node tree has {tree} leaves, {given} leaves given")
+            }
+            WriteError::ChainSumExceedsOne { leaf } => {
+                write!(f, "leaf {leaf}: form factors over the leaf and its ancestors sum to more than 1")
+            }
         }
     }
 }
 
 impl core::error::Error for WriteError {}
 
-fn count(n: usize, what: &'static str) -> Result<u32, WriteError> {
+pub(super) fn count(n: usize, what: &'static str) -> Result<u32, WriteError> {
     u32::try_from(n).map_err(|_| WriteError::TooMany { what })
 }
 
@@ -259,7 +287,7 @@ pub fn required_len(spec: &TableSpec<'_>) -> Result<usize, WriteError> {
     SectionSizes::of_header(&h, hl).map(|s| s.total()).ok_or(WriteError::TooMany { what: "bytes" })
 }
 
-fn check_value(what: &'static str, position: usize, v: f32, ok: bool) -> Result<(), WriteError> {
+pub(super) fn check_value(what: &'static str, position: usize, v: f32, ok: bool) -> Result<(), WriteError> {
     if ok {
         Ok(())
     } else {
@@ -267,7 +295,11 @@ fn check_value(what: &'static str, position: usize, v: f32, ok: bool) -> Result<
     }
 }
 
-fn emission_codes(what: &'static str, position: usize, rgb: [f32; 3]) -> Result<[u16; 3], WriteError> {
+pub(super) fn emission_codes(
+    what: &'static str,
+    position: usize,
+    rgb: [f32; 3],
+) -> Result<[u16; 3], WriteError> {
     let mut out = [0u16; 3];
     for (o, v) in out.iter_mut().zip(rgb) {
         *o = codec::encode_emission(v).ok_or(WriteError::BadValue { what, position, value: v })?;
@@ -276,25 +308,25 @@ fn emission_codes(what: &'static str, position: usize, rgb: [f32; 3]) -> Result<
 }
 
 /// A cursor over the output buffer (the length was checked up front, writes past it are dropped).
-struct Out<'b> {
-    buf: &'b mut [u8],
-    at: usize,
+pub(super) struct Out<'b> {
+    pub(super) buf: &'b mut [u8],
+    pub(super) at: usize,
 }
 
 impl Out<'_> {
-    fn bytes(&mut self, b: &[u8]) {
+    pub(super) fn bytes(&mut self, b: &[u8]) {
         if let Some(d) = self.buf.get_mut(self.at..self.at + b.len()) {
             d.copy_from_slice(b);
         }
         self.at += b.len();
     }
-    fn u16(&mut self, v: u16) {
+    pub(super) fn u16(&mut self, v: u16) {
         self.bytes(&v.to_le_bytes());
     }
-    fn u32(&mut self, v: u32) {
+    pub(super) fn u32(&mut self, v: u32) {
         self.bytes(&v.to_le_bytes());
     }
-    fn index(&mut self, v: u32, width: u8) {
+    pub(super) fn index(&mut self, v: u32, width: u8) {
         if width == 2 {
             self.u16(v as u16);
         } else {
@@ -519,7 +551,7 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
 /// The row rounding needs the codes of a row at once, held in a stack block of `BLOCK` codes: longer rows are
 /// quantized as consecutive chunks under one row exponent, each chunk rounded against what is left of the
 /// row's target, so the decoded row sum stays `<= target`.
-fn quantize_row_into(
+pub(super) fn quantize_row_into(
     codec: FfCodec,
     values: &[f32],
     receivers: &[u32],

@@ -25,7 +25,7 @@ use crate::base::{emission, static_radiosity_with};
 use crate::codec::{decode_reflectance, Frac};
 use crate::format::Table;
 use crate::scalar::Scalar;
-use buffers::block_shift;
+pub(crate) use buffers::block_shift;
 use sweep::Sweep;
 
 /// A row being applied: shooter, next entry position, end of row, and the power being shot.
