@@ -78,6 +78,7 @@
 mod capacities;
 mod codec;
 mod decode;
+mod hier;
 mod ids;
 mod report;
 mod solve;
@@ -92,6 +93,7 @@ use thiserror::Error;
 pub use capacities::{patches_within, table_bytes_bound, Capacities, DeviceFit};
 pub use codec::{codec_for_bits, decoded_row_sum_tolerance};
 pub use decode::{decode_table, Decoded};
+pub use hier::{bake_hierarchy, BakedHierarchy};
 pub use ids::{group_id, group_ids, scene_fingerprint};
 pub use report::{BakeReport, GroupReport};
 pub(crate) use solve::solve_one;

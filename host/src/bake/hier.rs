@@ -1,0 +1,327 @@
+//! Baking a hierarchical device table (core's format version 4) from a hierarchical solution: the solve's tree
+//! and links ([`LinkNetwork`]) become the table's nodes and sender runs, the leaves carry their materials and the
+//! static base, and the dynamic light groups' members are leaves.
+//!
+//! # Chain sums
+//! A leaf's power leaves through the runs of its whole chain (its own and its ancestors'), each at the node's
+//! average share, so a leaf that sees less than its ancestors' average (one in a corner) may send on more than
+//! it holds: the sum of its chain's runs exceeds 1, although over an ancestor's leaves the shares average to at
+//! most 1. Core accepts a table only if every chain sums to at most 1 (so that shooting converges whatever the
+//! reflectances are set to). The bake takes such a leaf's excess off its own run (scaled down; where its own run
+//! is too small, every run above it is scaled by the worst leaf below), and reports how many leaves and how much
+//! power that touched ([`BakedHierarchy::capped`]).
+//!
+//! # The table's own answer
+//! The device converges to the answer of the table's system (after that cap), which the bake solves in f64 on
+//! the sender runs: [`BakedHierarchy::radiosity`] (every light group at its default intensity) and the static
+//! radiosity, whose gathered light is the static base `G_s`, so that static light costs the device no work.
+
+use radiosity_core::{
+    hier_required_len, write_hier_table, FfCodec, GroupSpec, HierSpec, HierTable, MemberSpec, NodeSpec,
+    PatchSpec, RowsSpec,
+};
+
+use super::codec::codec_for_bits;
+use super::ids::{group_ids, scene_fingerprint};
+use super::BakeError;
+use crate::hierarchy::{HierarchicalSolution, LinkNetwork};
+use crate::lighting::PatchLighting;
+use crate::rgb::{max_channel, Rgb};
+use crate::scene::Scene;
+
+/// Relative change per sweep at which the f64 solve of the table's system stops.
+pub const HIER_BAKE_TOLERANCE: f64 = 1e-13;
+
+/// Most sweeps of that solve.
+const MAX_SWEEPS: usize = 100_000;
+
+/// What the chain-sum cap changed.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ChainCap {
+    /// Leaves whose chain summed to more than 1.
+    pub leaves: usize,
+    /// The largest chain sum before the cap.
+    pub largest: f64,
+    /// The power the cap keeps from being sent on, at the default intensities, as a share of all the leaves'
+    /// power.
+    pub power_share: f64,
+}
+
+/// A hierarchical table and what it was made from.
+#[derive(Clone, Debug)]
+pub struct BakedHierarchy {
+    /// The table bytes.
+    pub table: Vec<u8>,
+    /// For each table leaf (in node order), its index in the solution's leaves.
+    pub solution_leaf: Vec<usize>,
+    /// The f64 answer of the table's system (before quantization) with every light group at its default
+    /// intensity, per table leaf (W/m^2): what the device converges to but for its codes and arithmetic.
+    pub radiosity: Vec<Rgb>,
+    /// The f64 static radiosity of the table's system per table leaf (W/m^2).
+    pub static_radiosity: Vec<Rgb>,
+    /// Nodes, leaves, links (each link is an entry in both ends' runs).
+    pub counts: (usize, usize, usize),
+    /// What the chain-sum cap changed.
+    pub capped: ChainCap,
+    /// Largest chain sum after the cap (at most 1), the table system's `rho_max` times which is its contraction.
+    pub chain_sum: f64,
+}
+
+/// The sender runs of a network with their sums along each leaf's chain.
+struct Runs<'a> {
+    net: &'a LinkNetwork,
+    /// Per sender node: `(receiver node, F_sr)`.
+    runs: Vec<Vec<(u32, f64)>>,
+}
+
+impl Runs<'_> {
+    /// Each node's run sum.
+    fn sums(&self) -> Vec<f64> {
+        self.runs.iter().map(|r| r.iter().map(|&(_, f)| f).sum()).collect()
+    }
+
+    /// Each node's chain sum: its run sum plus its ancestors'.
+    fn chains(&self) -> Vec<f64> {
+        let sums = self.sums();
+        let mut chain = vec![0.0; sums.len()];
+        for k in 0..sums.len() {
+            chain[k] = sums[k] + self.net.nodes[k].parent.map_or(0.0, |p| chain[p as usize]);
+        }
+        chain
+    }
+
+    /// Scales run `k` by `factor`.
+    fn scale(&mut self, k: usize, factor: f64) {
+        for e in &mut self.runs[k] {
+            e.1 *= factor;
+        }
+    }
+
+    /// Caps every leaf's chain sum at 1 (module docs).
+    fn cap(&mut self) {
+        let n = self.net.nodes.len();
+        let before = self.sums();
+        let chain = self.chains();
+        // A leaf's own run takes its excess where it can.
+        for k in 0..n {
+            if self.net.nodes[k].leaf.is_some() && chain[k] > 1.0 && before[k] > 0.0 {
+                self.scale(k, ((before[k] - (chain[k] - 1.0)) / before[k]).max(0.0));
+            }
+        }
+        // What remains: every run scaled by the worst chain below it.
+        let chain = self.chains();
+        let mut worst = vec![1.0f64; n];
+        for k in (0..n).rev() {
+            if self.net.nodes[k].leaf.is_some() {
+                worst[k] = worst[k].max(chain[k]);
+            }
+            if let Some(p) = self.net.nodes[k].parent {
+                worst[p as usize] = worst[p as usize].max(worst[k]);
+            }
+        }
+        for (k, &w) in worst.iter().enumerate() {
+            if w > 1.0 {
+                self.scale(k, 1.0 / w);
+            }
+        }
+    }
+
+    /// The irradiance each leaf node gathers (zero elsewhere) from radiosity `b` per node (leaves set, inner
+    /// nodes ignored): every node's power is the sum over the leaves below it, each sender sends `F_sr` of it to
+    /// receiver `r`, which spreads it over its area, and a leaf adds up what its chain received.
+    fn gather(&self, b: &[Rgb]) -> Vec<Rgb> {
+        let nodes = &self.net.nodes;
+        let n = nodes.len();
+        let mut power = vec![Rgb::ZERO; n];
+        for k in (0..n).rev() {
+            if nodes[k].leaf.is_some() {
+                power[k] = nodes[k].area * b[k];
+            }
+            if let Some(p) = nodes[k].parent {
+                let mine = power[k];
+                power[p as usize] += mine;
+            }
+        }
+        let mut irradiance = vec![Rgb::ZERO; n];
+        for (s, run) in self.runs.iter().enumerate() {
+            for &(r, f) in run {
+                irradiance[r as usize] += f * power[s];
+            }
+        }
+        for k in 0..n {
+            irradiance[k] /= nodes[k].area;
+            if let Some(p) = nodes[k].parent {
+                let above = irradiance[p as usize];
+                irradiance[k] += above;
+            }
+        }
+        irradiance
+    }
+
+    /// The radiosity per node (leaves) of `B = E + rho G(B)` by Jacobi sweeps, `e` and `rho` per node.
+    fn solve(&self, e: &[Rgb], rho: &[Rgb]) -> Result<Vec<Rgb>, BakeError> {
+        let mut b = e.to_vec();
+        for _ in 0..MAX_SWEEPS {
+            let g = self.gather(&b);
+            let (mut moved, mut total) = (0.0, 0.0);
+            for (k, node) in self.net.nodes.iter().enumerate() {
+                if node.leaf.is_some() {
+                    let new = e[k] + rho[k] * g[k];
+                    moved += node.area * max_channel((new - b[k]).abs());
+                    total += node.area * max_channel(new);
+                    b[k] = new;
+                }
+            }
+            if !(moved.is_finite() && total.is_finite()) {
+                break;
+            }
+            if moved <= HIER_BAKE_TOLERANCE * total {
+                return Ok(b);
+            }
+        }
+        Err(BakeError::Input("the hierarchical table's f64 system did not converge".to_owned()))
+    }
+}
+
+/// Bakes `solution` (of `scene`, from [`crate::hierarchy::solve_hierarchical`]) into a hierarchical table with
+/// `bits`-wide form-factor codes.
+///
+/// # Errors
+/// [`BakeError::Input`] if the network and the leaves disagree or the table's system does not converge;
+/// [`BakeError::BadBits`]; [`BakeError::GroupIdCollision`]; [`BakeError::Write`] / [`BakeError::Parse`] from
+/// core's writer and parser.
+pub fn bake_hierarchy(
+    scene: &Scene,
+    solution: &HierarchicalSolution,
+    bits: u32,
+) -> Result<BakedHierarchy, BakeError> {
+    let codec: FfCodec = codec_for_bits(bits)?;
+    let net = &solution.network;
+    let lighting = PatchLighting::new(scene, &solution.leaves);
+    // Table leaves in node order.
+    let solution_leaf: Vec<usize> = net.nodes.iter().filter_map(|x| x.leaf.map(|l| l as usize)).collect();
+    if solution_leaf.len() != solution.leaves.len() {
+        return Err(BakeError::Input(format!(
+            "the network has {} leaves, the solution {}",
+            solution_leaf.len(),
+            solution.leaves.len()
+        )));
+    }
+    let per_node = |v: &[Rgb]| -> Vec<Rgb> {
+        net.nodes.iter().map(|x| x.leaf.map_or(Rgb::ZERO, |l| v[l as usize])).collect()
+    };
+    let rho = per_node(&lighting.rho);
+    let e_static = per_node(&lighting.static_emission);
+    let mut e_default = e_static.clone();
+    for (k, node) in net.nodes.iter().enumerate() {
+        if let Some(l) = node.leaf.map(|l| l as usize) {
+            if let Some(g) = lighting.group[l] {
+                e_default[k] += lighting.default_intensity[g] * lighting.unit_emission[l];
+            }
+        }
+    }
+
+    let mut runs = Runs { net, runs: net.sender_runs() };
+    let largest = runs
+        .chains()
+        .iter()
+        .zip(&net.nodes)
+        .filter(|(_, x)| x.leaf.is_some())
+        .map(|(c, _)| *c)
+        .fold(0.0, f64::max);
+    let over = runs.chains().iter().zip(&net.nodes).filter(|(c, x)| x.leaf.is_some() && **c > 1.0).count();
+    let before = runs.sums();
+    runs.cap();
+    let chain_sum = runs
+        .chains()
+        .iter()
+        .zip(&net.nodes)
+        .filter(|(_, x)| x.leaf.is_some())
+        .map(|(c, _)| *c)
+        .fold(0.0, f64::max);
+    let b_static = runs.solve(&e_static, &rho)?;
+    let b_default = runs.solve(&e_default, &rho)?;
+    let irradiance = runs.gather(&b_static);
+    // The power kept back by the cap: each node's removed share of the power below it.
+    let mut power = vec![0.0; net.nodes.len()];
+    for k in (0..net.nodes.len()).rev() {
+        if net.nodes[k].leaf.is_some() {
+            power[k] = net.nodes[k].area * max_channel(b_default[k]);
+        }
+        if let Some(p) = net.nodes[k].parent {
+            let mine = power[k];
+            power[p as usize] += mine;
+        }
+    }
+    let kept: f64 = before.iter().zip(&runs.sums()).zip(&power).map(|((b, a), p)| (b - a) * p).sum();
+    let capped =
+        ChainCap { leaves: over, largest, power_share: if power[0] > 0.0 { kept / power[0] } else { 0.0 } };
+
+    let leaves: Vec<PatchSpec> = net
+        .nodes
+        .iter()
+        .enumerate()
+        .filter_map(|(k, node)| node.leaf.map(|l| (k, l as usize)))
+        .map(|(k, l)| PatchSpec {
+            area: solution.leaves[l].area as f32,
+            material: u32::try_from(solution.leaves[l].material).unwrap_or(u32::MAX),
+            base_emission: lighting.static_emission[l].as_vec3().to_array(),
+            base_irradiance: irradiance[k].as_vec3().to_array(),
+        })
+        .collect();
+    let nodes: Vec<NodeSpec> = net.nodes.iter().map(|x| NodeSpec { parent: x.parent }).collect();
+    let names: Vec<String> =
+        lighting.dynamic_groups.iter().map(|&g| scene.light_groups[g].name.clone()).collect();
+    let ids = group_ids(&names)?;
+    let mut members: Vec<Vec<MemberSpec>> = vec![Vec::new(); ids.len()];
+    for (t, &l) in solution_leaf.iter().enumerate() {
+        if let Some(g) = lighting.group[l] {
+            members[g].push(MemberSpec {
+                patch: t as u32,
+                emission: lighting.unit_emission[l].as_vec3().to_array(),
+            });
+        }
+    }
+    let groups: Vec<GroupSpec<'_>> = ids
+        .iter()
+        .zip(&members)
+        .zip(&lighting.default_intensity)
+        .map(|((&id, m), &d)| GroupSpec { id, default_intensity: d.as_vec3().to_array(), members: m })
+        .collect();
+    let mut row_start = Vec::with_capacity(runs.runs.len() + 1);
+    let (mut receiver, mut form_factor) = (Vec::new(), Vec::new());
+    row_start.push(0u32);
+    for run in &runs.runs {
+        for &(r, f) in run {
+            receiver.push(r);
+            form_factor.push(f as f32);
+        }
+        row_start.push(receiver.len() as u32);
+    }
+    let materials: Vec<[f32; 3]> =
+        scene.materials.iter().map(|m| m.reflectance.as_vec3().to_array()).collect();
+    let spec = HierSpec {
+        nodes: &nodes,
+        leaves: &leaves,
+        materials: &materials,
+        groups: &groups,
+        links: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
+        codec,
+        base_solved: true,
+        fingerprint: scene_fingerprint(&solution.leaves),
+    };
+    let mut table = vec![0u8; hier_required_len(&spec).map_err(BakeError::Write)?];
+    let written = write_hier_table(&spec, &mut table).map_err(BakeError::Write)?;
+    table.truncate(written);
+    HierTable::parse(&table).map_err(BakeError::Parse)?;
+    let leaf_nodes: Vec<usize> = (0..net.nodes.len()).filter(|&k| net.nodes[k].leaf.is_some()).collect();
+    Ok(BakedHierarchy {
+        radiosity: leaf_nodes.iter().map(|&k| b_default[k]).collect(),
+        static_radiosity: leaf_nodes.iter().map(|&k| b_static[k]).collect(),
+        counts: (net.nodes.len(), solution_leaf.len(), net.links.len()),
+        capped,
+        chain_sum,
+        solution_leaf,
+        table,
+    })
+}

@@ -1,0 +1,104 @@
+//! A hierarchical device table baked from the hierarchical solve of the Cornell box, relit by core's
+//! hierarchical shooting solver (f32): it converges to the f64 answer of the same links within the error its
+//! quantization and arithmetic allow.
+//!
+//! Bounds from core's crate docs ("Error bounds"): FLOAT16 form factors relative `< 2^-12` (`u`); reflectance
+//! absolute `<= 2^-17`; emission and irradiance codes relative `<= 2^-11`; f32 additions relative `eps_32 / 2`
+//! each.
+
+use radiosity_core::{Config, HierOwnedBuffers, HierSolver, HierTable, Outcome};
+use radiosity_host::bake::bake_hierarchy;
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions};
+use radiosity_host::scene::Scene;
+
+#[test]
+fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
+    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let solution = solve_hierarchical(
+        &scene,
+        &HierarchyOptions { epsilon: 0.1, solve_tolerance: 1e-12, ..HierarchyOptions::default() },
+    )
+    .unwrap();
+    let baked = bake_hierarchy(&scene, &solution, 16).unwrap();
+    let table = HierTable::parse(&baked.table).unwrap();
+    let (nodes, leaves, links) = baked.counts;
+    assert_eq!((table.node_count() as usize, table.leaf_count() as usize), (nodes, leaves));
+    assert_eq!(table.link_count() as usize, 2 * links, "each link is a run entry at both ends");
+    assert!(baked.chain_sum <= 1.0 + 1e-12, "capped chains: {}", baked.chain_sum);
+    println!(
+        "chain cap: {} leaves over 1 (largest {:.4}), {:.2e} of the power kept back",
+        baked.capped.leaves, baked.capped.largest, baked.capped.power_share
+    );
+    // The cap is a correction of the hierarchy's averages, small against the answer: what it changed is the
+    // table system's answer against the hierarchical solve's.
+    let (mut moved, mut total) = (0.0, 0.0);
+    for (t, b) in baked.radiosity.iter().enumerate() {
+        let p = &solution.leaves[baked.solution_leaf[t]];
+        moved += p.area * (*b - solution.b[baked.solution_leaf[t]]).abs().max_element();
+        total += p.area * b.max_element();
+    }
+    println!("table system vs hierarchical solve: area-weighted relative difference {:.2e}", moved / total);
+
+    // Converge: the tolerance is a tiny share of the emitted power, so that its term below is negligible.
+    let emitted: f64 =
+        solution.leaves.iter().zip(&solution.emission).map(|(p, e)| p.area * e.element_sum()).sum();
+    let tolerance = 1e-9 * emitted;
+    let mut buffers = HierOwnedBuffers::<f32>::for_table(&table);
+    let mut solver =
+        HierSolver::new(&table, buffers.buffers(), Config { tolerance: tolerance as f32, overshoot: 0 })
+            .unwrap();
+    let mut steps = 0;
+    while !matches!(solver.step(1_000_000), Outcome::Converged { .. }) {
+        steps += 1;
+        assert!(steps < 10_000, "no convergence after {steps} steps");
+    }
+
+    // The bound, in total power `sum_l A_l |B_device - B_f64|` (largest channel), the norm in which the table's
+    // shooting system contracts by `q = rho_max * c` (`c` the largest chain sum, at most 1 after the cap): the
+    // codes change each shot share by at most `u` relatively (entries in the codec's float range, down to
+    // `2^-14` of their run's largest; below it by at most that range's step, `2^-26` of the run's largest, each)
+    // and each reflected share by `2^-17` absolutely, the emission by `2^-11`; so the fixed points differ by at
+    // most `(2^-11 P_E + (u rho_max + 2^-17) c P + 2^-26 L P) / (1 - q)` (`P_E` emitted and `P` total power,
+    // `L` the longest run). Converged with at most `tolerance` unshot at each
+    // of the `nodes` adds `nodes * tolerance / (1 - q)`, and f32 arithmetic `eps_32 / 2` of at most the largest
+    // leaf power per addition, one per link the shots walked (`solver.links()`) and leaf.
+    let u = 2f64.powi(-12);
+    let rho_max = solution.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
+    let c = baked.chain_sum;
+    let q = rho_max * c;
+    let leaf_power: Vec<f64> = baked
+        .radiosity
+        .iter()
+        .enumerate()
+        .map(|(t, b)| solution.leaves[baked.solution_leaf[t]].area * b.max_element())
+        .collect();
+    let p_total: f64 = leaf_power.iter().sum();
+    let p_leaf_max = leaf_power.iter().copied().fold(0.0, f64::max);
+    let eps32 = f64::from(f32::EPSILON);
+    let codes = (2f64.powi(-11) * emitted
+        + (u * rho_max + 2f64.powi(-17)) * c * p_total
+        + 2f64.powi(-26) * f64::from(table.longest_run()) * p_total)
+        / (1.0 - q);
+    let unshot = nodes as f64 * tolerance / (1.0 - q);
+    let arithmetic = 0.5 * eps32 * (solver.links() as f64 + leaves as f64) * p_leaf_max;
+    let allowed = codes + unshot + arithmetic;
+    let mut worst = 0.0f64;
+    let mut error = 0.0;
+    for (t, want) in baked.radiosity.iter().enumerate() {
+        let got = solver.radiosity(t as u32).unwrap();
+        let diff = (0..3).map(|c| (f64::from(got[c]) - want[c]).abs()).fold(0.0, f64::max);
+        worst = worst.max(diff / want.max_element());
+        error += solution.leaves[baked.solution_leaf[t]].area * diff;
+    }
+    println!(
+        "{leaves} leaves, {links} links, {} bytes ({:.0} per leaf): power error {error:.3e} of {p_total:.3e} \
+         (relative {:.2e}; allowed {allowed:.3e}: codes {codes:.1e}, unshot {unshot:.1e}, f32 {arithmetic:.1e}), \
+         worst leaf relative {worst:.2e}, {} shots",
+        baked.table.len(),
+        baked.table.len() as f64 / leaves as f64,
+        error / p_total,
+        solver.shots()
+    );
+    assert!(error <= allowed, "device power error {error:.3e} above the allowed {allowed:.3e}");
+    assert!(allowed < 0.01 * p_total, "an allowance this large would say nothing");
+}
