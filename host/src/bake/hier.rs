@@ -325,3 +325,161 @@ pub fn bake_hierarchy(
         table,
     })
 }
+
+/// Work units per frame of the cold relight [`HierBakeSummary::measure`] runs.
+pub const SUMMARY_FRAME_UNITS: u32 = 10_000;
+
+/// Most frames of that relight.
+const SUMMARY_MAX_FRAMES: usize = 100_000;
+
+/// The relight's convergence tolerance (core's unshot power per node) as a share of the power the lights emit:
+/// small enough that what remains unshot is far below the 16-bit codes' error floor.
+pub const SUMMARY_TOLERANCE: f64 = 1e-7;
+
+/// What a hierarchical bake made and what it costs the device: sizes, the chain cap, and core's hierarchical
+/// solver (f32) relighting it from cold (every light group switched on at its default intensity) in frames of
+/// [`SUMMARY_FRAME_UNITS`] work units, judged against the f64 answer of the table's own system.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HierBakeSummary {
+    /// Tree nodes.
+    pub nodes: usize,
+    /// Leaves (the elements the device gives radiosity for).
+    pub leaves: usize,
+    /// Links (each an entry in both ends' runs).
+    pub links: usize,
+    /// Table bytes.
+    pub bytes: usize,
+    /// RAM of core's solver buffers for the table in f32 (`HierBufferSizes::bytes`).
+    pub ram_f32: usize,
+    /// Leaves whose chain summed to more than 1, and what the cap changed.
+    pub cap_leaves: usize,
+    /// The largest chain sum before the cap.
+    pub cap_largest: f64,
+    /// The power the cap keeps from being sent on, as a share of all the leaves' power.
+    pub cap_power_share: f64,
+    /// The table system's f64 answer against the hierarchical solve's: area-weighted relative L1 difference
+    /// (largest channel), what the cap changed.
+    pub cap_difference: f64,
+    /// Work units until the device's area-weighted relative L1 error (largest channel) was below 1%, if it got
+    /// there.
+    pub units_to_one_percent: Option<u64>,
+    /// Work units until the device converged (every node's unshot power within [`SUMMARY_TOLERANCE`] of the
+    /// emitted power).
+    pub units_to_converge: Option<u64>,
+    /// The converged device's error (same measure): the codes' and f32's floor.
+    pub error_floor: Option<f64>,
+    /// Shots and link entries walked until convergence.
+    pub shots: u32,
+    /// See `shots`.
+    pub links_walked: u64,
+}
+
+/// Area-weighted relative L1 difference (largest channel) of `got` against `want`.
+fn relative_l1(area: &[f64], got: impl Iterator<Item = Rgb>, want: &[Rgb]) -> f64 {
+    let (mut diff, mut total) = (0.0, 0.0);
+    for ((a, g), w) in area.iter().zip(got).zip(want) {
+        diff += a * max_channel((g - *w).abs());
+        total += a * max_channel(*w);
+    }
+    if total > 0.0 {
+        diff / total
+    } else {
+        0.0
+    }
+}
+
+impl HierBakeSummary {
+    /// Measures `baked` (from `solution`) as the type's docs say.
+    ///
+    /// # Errors
+    /// [`BakeError::Parse`] if the table does not parse, [`BakeError::Input`] if core's solver refuses it.
+    pub fn measure(baked: &BakedHierarchy, solution: &HierarchicalSolution) -> Result<Self, BakeError> {
+        use radiosity_core::{Config, HierBufferSizes, HierOwnedBuffers, HierSolver, Outcome};
+        let table = HierTable::parse(&baked.table).map_err(BakeError::Parse)?;
+        let emitted: f64 =
+            solution.leaves.iter().zip(&solution.emission).map(|(p, e)| p.area * max_channel(*e)).sum();
+        let area: Vec<f64> = baked.solution_leaf.iter().map(|&l| solution.leaves[l].area).collect();
+        let hierarchy: Vec<Rgb> = baked.solution_leaf.iter().map(|&l| solution.b[l]).collect();
+        let mut buffers = HierOwnedBuffers::<f32>::for_table(&table);
+        let mut solver = HierSolver::new(
+            &table,
+            buffers.buffers(),
+            Config { tolerance: (SUMMARY_TOLERANCE * emitted) as f32, overshoot: 0 },
+        )
+        .map_err(|e| BakeError::Input(format!("core's hierarchical solver refuses the table: {e:?}")))?;
+        let device = |s: &HierSolver<'_, f32>| -> Vec<Rgb> {
+            (0..baked.radiosity.len() as u32)
+                .map(|t| {
+                    let b = s.radiosity(t).unwrap_or([0.0; 3]);
+                    Rgb::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
+                })
+                .collect()
+        };
+        let (mut units, mut to_one, mut converged) = (0u64, None, None);
+        for _ in 0..SUMMARY_MAX_FRAMES {
+            let outcome = solver.step(SUMMARY_FRAME_UNITS);
+            let used = match outcome {
+                Outcome::Converged { used } => used,
+                _ => SUMMARY_FRAME_UNITS,
+            };
+            units += u64::from(used);
+            if to_one.is_none() && relative_l1(&area, device(&solver).into_iter(), &baked.radiosity) < 0.01 {
+                to_one = Some(units);
+            }
+            if matches!(outcome, Outcome::Converged { .. }) {
+                converged = Some(units);
+                break;
+            }
+        }
+        Ok(HierBakeSummary {
+            nodes: baked.counts.0,
+            leaves: baked.counts.1,
+            links: baked.counts.2,
+            bytes: baked.table.len(),
+            ram_f32: HierBufferSizes::of(&table).bytes::<f32>(),
+            cap_leaves: baked.capped.leaves,
+            cap_largest: baked.capped.largest,
+            cap_power_share: baked.capped.power_share,
+            cap_difference: relative_l1(&area, baked.radiosity.iter().copied(), &hierarchy),
+            units_to_one_percent: to_one,
+            units_to_converge: converged,
+            error_floor: converged.map(|_| relative_l1(&area, device(&solver).into_iter(), &baked.radiosity)),
+            shots: solver.shots(),
+            links_walked: solver.links(),
+        })
+    }
+}
+
+impl std::fmt::Display for HierBakeSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let opt = |v: Option<u64>| v.map_or_else(|| "not reached".to_owned(), |u| format!("{u} units"));
+        writeln!(f, "hierarchical table {} nodes, {} leaves, {} links", self.nodes, self.leaves, self.links)?;
+        writeln!(
+            f,
+            "table size         {} bytes ({:.0} per leaf); solver RAM {} bytes in f32",
+            self.bytes,
+            self.bytes as f64 / self.leaves.max(1) as f64,
+            self.ram_f32
+        )?;
+        writeln!(
+            f,
+            "chain cap          {} leaves over 1 (largest {:.4}), {:.2e} of the power kept back, answer moved \
+             {:.2e}",
+            self.cap_leaves, self.cap_largest, self.cap_power_share, self.cap_difference
+        )?;
+        writeln!(
+            f,
+            "device (f32)       cold lights-on in frames of {SUMMARY_FRAME_UNITS} units: 1% error after {}, \
+             converged after {}",
+            opt(self.units_to_one_percent),
+            opt(self.units_to_converge)
+        )?;
+        write!(
+            f,
+            "device floor       {} ({} shots, {} link entries walked)",
+            self.error_floor.map_or_else(|| "not converged".to_owned(), |e| format!("{e:.2e}")),
+            self.shots,
+            self.links_walked
+        )
+    }
+}

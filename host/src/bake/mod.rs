@@ -93,7 +93,9 @@ use thiserror::Error;
 pub use capacities::{patches_within, table_bytes_bound, Capacities, DeviceFit};
 pub use codec::{codec_for_bits, decoded_row_sum_tolerance};
 pub use decode::{decode_table, Decoded};
-pub use hier::{bake_hierarchy, BakedHierarchy};
+pub use hier::{
+    bake_hierarchy, BakedHierarchy, ChainCap, HierBakeSummary, HIER_BAKE_TOLERANCE, SUMMARY_FRAME_UNITS,
+};
 pub use ids::{group_id, group_ids, scene_fingerprint};
 pub use report::{BakeReport, GroupReport};
 pub(crate) use solve::solve_one;

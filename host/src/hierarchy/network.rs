@@ -22,8 +22,8 @@ pub struct NetworkNode {
 }
 
 /// A link of [`LinkNetwork`]: `a` gathers `f_ab * B_b` per unit area and `b` gathers `f_ba * B_a`, with
-/// `A_a f_ab = A_b f_ba` (reciprocity). In shooting terms (see [`LinkNetwork::sender_runs`]), `f_ab` is also the
-/// share of `a`'s power that reaches `b`, and `f_ba` the share of `b`'s that reaches `a`.
+/// `A_a f_ab = A_b f_ba` (reciprocity). In shooting terms (see [`LinkNetwork::sender_runs`]), `A_a f_ab / A_b` is
+/// the share of `b`'s power that reaches `a`, and `A_b f_ba / A_a` the share of `a`'s that reaches `b`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NetworkLink {
     /// One end (a node index).
@@ -106,14 +106,15 @@ impl LinkNetwork {
     }
 
     /// The links grouped by sender, in shooting form: `runs[s]` lists `(r, F_sr)` for every link at `s`, with
-    /// `F_sr = A_r f_rs / A_s` the share of `s`'s power that reaches `r` (so `r`'s incident power grows by
-    /// `F_sr` times the power `s` shoots), receivers in increasing order. By reciprocity `F_sr` is the link's
-    /// form factor averaged over `s`, so a link gives each end the other's entry.
+    /// `F_sr = A_r f_rs / A_s` the share of `s`'s power that reaches `r` (so `r`'s incident power grows by `F_sr`
+    /// times the power `s` shoots), receivers in increasing order. Taken from the receiver's own factor, so that
+    /// shooting reproduces the gathering system exactly whether or not a link's two estimates are reciprocal.
     pub fn sender_runs(&self) -> Vec<Vec<(u32, f64)>> {
         let mut runs = vec![Vec::new(); self.nodes.len()];
         for l in &self.links {
-            runs[l.b as usize].push((l.a, l.f_ba));
-            runs[l.a as usize].push((l.b, l.f_ab));
+            let (area_a, area_b) = (self.nodes[l.a as usize].area, self.nodes[l.b as usize].area);
+            runs[l.b as usize].push((l.a, l.f_ab * area_a / area_b));
+            runs[l.a as usize].push((l.b, l.f_ba * area_b / area_a));
         }
         for run in &mut runs {
             run.sort_by_key(|&(r, _)| r);

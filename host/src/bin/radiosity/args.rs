@@ -268,10 +268,22 @@ pub enum Command {
         /// Bits per form-factor code: 16 (small float, relative error < 2^-12) or 8 (< 2^-5).
         #[arg(long, default_value_t = 16)]
         bits: u32,
-        /// Sparsification threshold: the largest fraction of a row's (and a receiver's) energy that may be
-        /// dropped. The dropped energy goes back to the row's kept entries, so every row keeps its sum.
-        #[arg(long, default_value_t = radiosity_host::bake::DEFAULT_THRESHOLD)]
-        threshold: f64,
+        /// Sparsification threshold (flat tables): the largest fraction of a row's (and a receiver's) energy
+        /// that may be dropped. The dropped energy goes back to the row's kept entries, so every row keeps its
+        /// sum [default: 0.001].
+        #[arg(long)]
+        threshold: Option<f64>,
+        /// `flat` (the default): a table of patch-to-patch form factors over the adaptive mesh (format version
+        /// 3); `hierarchical`: the hierarchical solve's tree and links (format version 4), relit by core's
+        /// hierarchical solver; the summary then measures a cold relight of it on the host.
+        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
+        method: SolveMethod,
+        /// Hierarchical only: the hierarchy's error budget per element (see `solve --epsilon`) [default: 0.03].
+        #[arg(long, value_name = "E")]
+        epsilon: Option<f64>,
+        /// Hierarchical only: most links refinement may hold (see `solve --max-links`) [default: 10000000].
+        #[arg(long, value_name = "N")]
+        max_links: Option<usize>,
         /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
         /// device can relight as B = B_static + sum_g I_g T_g in one pass; the summary reports its bytes and
         /// relight error.

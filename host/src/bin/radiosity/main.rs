@@ -5,11 +5,15 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::Parser;
-use radiosity_host::bake::{bake, codec_for_bits, BakeInput, BakeOptions, DeviceFit};
+use radiosity_host::bake::{
+    bake, bake_hierarchy, codec_for_bits, BakeInput, BakeOptions, DeviceFit, HierBakeSummary,
+};
 use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
-use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions, DEFAULT_EPSILON, DEFAULT_MAX_LINKS};
+use radiosity_host::hierarchy::{
+    solve_hierarchical, HierarchicalSolution, HierarchyOptions, DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
+};
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{patch_json, write_patch_csv};
 
@@ -118,16 +122,14 @@ fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
     Ok(bytes)
 }
 
-/// `radiosity solve --method hierarchical`: the leaves' patch table (CSV), or the statistics and mean radiosity
-/// (text; JSON adds the radiosity per leaf).
-fn solve_hierarchical_command(
+/// The scene of `scene` solved hierarchically with the given options (the rest at their defaults), with the
+/// scene's warnings, repair notes and the solve's statistics on stderr unless `--quiet`.
+fn hierarchical_solution(
     scene: &args::SceneArgs,
-    format: Format,
     epsilon: Option<f64>,
     solver: Option<args::HierarchySolverArg>,
     max_links: Option<usize>,
-    out: &mut impl Write,
-) -> Result<(), BoxError> {
+) -> Result<(Scene, HierarchicalSolution, HierarchyOptions), BoxError> {
     if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
         return Err("--no-subdivide, --max-patches and --max-patch-edge apply to --method flat only (the \
                     hierarchy subdivides where --epsilon asks)"
@@ -162,6 +164,20 @@ fn solve_hierarchical_command(
     if !scene.quiet {
         eprintln!("{}: {} in {:.2} s", scene.scene.display(), solution.stats, start.elapsed().as_secs_f64());
     }
+    Ok((loaded, solution, options))
+}
+
+/// `radiosity solve --method hierarchical`: the leaves' patch table (CSV), or the statistics and mean radiosity
+/// (text; JSON adds the radiosity per leaf).
+fn solve_hierarchical_command(
+    scene: &args::SceneArgs,
+    format: Format,
+    epsilon: Option<f64>,
+    solver: Option<args::HierarchySolverArg>,
+    max_links: Option<usize>,
+    out: &mut impl Write,
+) -> Result<(), BoxError> {
+    let (loaded, solution, options) = hierarchical_solution(scene, epsilon, solver, max_links)?;
     let area: f64 = solution.leaves.iter().map(|q| q.area).sum();
     let mean_of =
         |v: &[Rgb]| solution.leaves.iter().zip(v).fold(Rgb::ZERO, |m, (q, &b)| m + q.area * b / area);
@@ -312,7 +328,59 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
         }
-        Command::Bake { scene, output, bits, threshold, transfer, format } => {
+        Command::Bake {
+            scene,
+            output,
+            bits,
+            threshold,
+            method: SolveMethod::Hierarchical,
+            transfer,
+            format,
+            epsilon,
+            max_links,
+        } => {
+            check_scene_args(&scene)?;
+            codec_for_bits(bits)?;
+            if threshold.is_some() || transfer {
+                return Err(
+                    "--threshold and --transfer apply to --method flat only (a hierarchical table keeps \
+                            every link and has no transfer section yet)"
+                        .into(),
+                );
+            }
+            check_outputs([output.clone()])?;
+            let (loaded, solution, _) = hierarchical_solution(&scene, epsilon, None, max_links)?;
+            let baked = bake_hierarchy(&loaded, &solution, bits)?;
+            let summary = HierBakeSummary::measure(&baked, &solution)?;
+            files::write_atomic(&output, &baked.table)?;
+            match format {
+                ReportFormat::Json => {
+                    let mut doc = serde_json::to_value(&summary)?;
+                    doc["files"] = serde_json::json!({ "table": output });
+                    serde_json::to_writer_pretty(&mut out, &doc)?;
+                    writeln!(out)?;
+                }
+                ReportFormat::Text => {
+                    writeln!(out, "{summary}")?;
+                    writeln!(out, "wrote {}", output.display())?;
+                }
+            }
+        }
+        Command::Bake {
+            scene,
+            output,
+            bits,
+            threshold,
+            method: SolveMethod::Flat,
+            transfer,
+            format,
+            epsilon,
+            max_links,
+        } => {
+            if epsilon.is_some() || max_links.is_some() {
+                return Err("--epsilon and --max-links apply to --method hierarchical only".into());
+            }
+            let threshold = threshold.unwrap_or(radiosity_host::bake::DEFAULT_THRESHOLD);
             check_scene_args(&scene)?;
             codec_for_bits(bits)?;
             if !(0.0..1.0).contains(&threshold) {
@@ -323,6 +391,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
         }
         Command::Reference(args) => reference_command(&args)?,
+        Command::Inspect { table, scene: _, format } if is_hierarchical_table(&table) => {
+            inspect_hierarchical(&table, format, &mut out)?;
+        }
         Command::Inspect { table, scene, format } => {
             let mut report = inspect_file(&table)?;
             if let Some(obj) = scene {
@@ -705,6 +776,57 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         }
     }
     out.flush()?;
+    Ok(())
+}
+
+/// Whether the file at `path` starts like a hierarchical table (format version 4); `false` if it cannot be read
+/// (the flat inspection then reports why).
+fn is_hierarchical_table(path: &std::path::Path) -> bool {
+    std::fs::read(path).is_ok_and(|bytes| {
+        matches!(radiosity_core::Table::parse(&bytes), Err(radiosity_core::TableError::HierarchicalTable))
+    })
+}
+
+/// `radiosity inspect` of a hierarchical table: validated by core's parser, with its counts and sizes.
+fn inspect_hierarchical(
+    path: &std::path::Path,
+    format: ReportFormat,
+    out: &mut impl Write,
+) -> Result<(), BoxError> {
+    let bytes = std::fs::read(path).map_err(|e| format!("reading {}: {e}", path.display()))?;
+    let table = radiosity_core::HierTable::parse(&bytes)
+        .map_err(|e| format!("{}: invalid hierarchical table: {e}", path.display()))?;
+    let ram = radiosity_core::HierBufferSizes::of(&table).bytes::<f32>();
+    let fields: Vec<(&str, serde_json::Value)> = vec![
+        ("format_version", 4.into()),
+        ("bytes", bytes.len().into()),
+        ("nodes", table.node_count().into()),
+        ("leaves", table.leaf_count().into()),
+        ("link_entries", table.link_count().into()),
+        ("materials", table.material_count().into()),
+        ("light_groups", table.group_count().into()),
+        ("ff_bits", table.codec().bits.into()),
+        ("base_solved", table.base_solved().into()),
+        ("max_depth", table.max_depth().into()),
+        ("longest_run", table.longest_run().into()),
+        ("solver_ram_f32", ram.into()),
+        ("fingerprint", format!("{:016x}", table.fingerprint()).into()),
+        ("crc", format!("{:08x}", table.crc()).into()),
+    ];
+    let doc: serde_json::Map<String, serde_json::Value> =
+        fields.iter().map(|(k, v)| ((*k).to_owned(), v.clone())).collect();
+    match format {
+        ReportFormat::Json => {
+            serde_json::to_writer_pretty(&mut *out, &doc)?;
+            writeln!(out)?;
+        }
+        ReportFormat::Text => {
+            writeln!(out, "{}: hierarchical table (format version 4), valid", path.display())?;
+            for (key, value) in &fields {
+                writeln!(out, "{key:<16} {value}")?;
+            }
+        }
+    }
     Ok(())
 }
 
