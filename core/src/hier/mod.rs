@@ -114,7 +114,7 @@ pub fn hier_convergence_floor<S: Scalar>(table: &HierTable<'_>) -> S {
         let mut reach = 0u64;
         for k in table.run(s).unwrap_or(0..0) {
             let r = table.link(s, k).map_or(0, |(r, _)| r);
-            reach += table.leaf_range(r).map_or(0, |x| u64::from(x.end - x.start));
+            reach = reach.saturating_add(table.leaf_range(r).map_or(0, |x| u64::from(x.end - x.start)));
         }
         most = most.max(reach);
     }
@@ -123,7 +123,9 @@ pub fn hier_convergence_floor<S: Scalar>(table: &HierTable<'_>) -> S {
         .flat_map(|r| r.into_iter())
         .max()
         .map_or(0, u64::from);
-    let units = (6 * most.saturating_mul(u64::from(table.max_depth())).saturating_mul(65536))
+    let units = most
+        .saturating_mul(6 * u64::from(table.max_depth()))
+        .saturating_mul(65536)
         .div_ceil(65536 - code_max.min(65535));
     S::convergence_floor(units)
 }
