@@ -50,7 +50,8 @@
 //! };
 //!
 //! // Two unit squares facing each other, each a node over two leaves of area 1/2 (preorder: 0, 1, 2 and
-//! // 3, 4, 5). One link each way between the squares: F = 0.2 of a square's power reaches the other.
+//! // 3, 4, 5). One link each way between the squares: F = 1/4 of a square's power reaches the other (a power of
+//! // two, so its code is exact).
 //! let nodes = [None, Some(0), Some(0), None, Some(3), Some(3)].map(|parent| NodeSpec { parent });
 //! let leaf = PatchSpec { area: 0.5, material: 0, base_emission: [0.0; 3], base_irradiance: [0.0; 3] };
 //! let lamp = [MemberSpec { patch: 0, emission: [1.0; 3] }];
@@ -60,7 +61,7 @@
 //!     materials: &[[0.5; 3]],
 //!     groups: &[GroupSpec { id: 1, default_intensity: [1.0; 3], members: &lamp }],
 //!     // Runs by sender node: node 0 -> node 3, node 3 -> node 0.
-//!     links: RowsSpec { row_start: &[0, 1, 1, 1, 2, 2, 2], receiver: &[3, 0], form_factor: &[0.2, 0.2] },
+//!     links: RowsSpec { row_start: &[0, 1, 1, 1, 2, 2, 2], receiver: &[3, 0], form_factor: &[0.25, 0.25] },
 //!     codec: FfCodec::FLOAT16,
 //!     base_solved: false,
 //!     fingerprint: 0,
@@ -71,11 +72,11 @@
 //! let mut store = HierOwnedBuffers::<f32>::for_table(&table);
 //! let mut solver = HierSolver::new(&table, store.buffers(), Config { tolerance: 1e-7, overshoot: 0 })?;
 //! while let Outcome::BudgetSpent { .. } = solver.step(16) {}
-//! // The lamp's square shoots 0.2 of its power (0.5 W) to the other square: 0.1 W over area 1, reflected at
-//! // 0.5: B = 0.05 on each of its leaves (leaf 2 is node 4); bounces between the squares multiply that by
-//! // 1 / (1 - (0.5 * 0.2)^2).
+//! // The lamp's square shoots 1/4 of its power (0.5 W) to the other square: 0.125 W over area 1, reflected at
+//! // 0.5: B = 0.0625 on each of its leaves (leaf 2 is node 4); bounces between the squares multiply that by
+//! // 1 / (1 - (0.5 * 0.25)^2).
 //! let b = solver.radiosity(2).unwrap()[0];
-//! assert!((b - 0.05 / 0.99).abs() < 1e-6, "{b}");
+//! assert!((b - 0.0625 / (1.0 - 0.015625)).abs() < 1e-6, "{b}");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
