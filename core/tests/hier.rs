@@ -791,6 +791,15 @@ fn the_writer_refuses_bad_hierarchies() {
     h.links[0] = vec![(0, 0.3), (2, 0.2)];
     h.links[1] = vec![(0, 0.1), (2, 0.4)];
     assert!(HierTable::parse(&h.write()).is_ok());
+    // A chain just above 1 within the writer's slack: a root over 101 leaves whose run has 100 small entries
+    // summing to 0.5000024, and leaf 0's run 0.5. The entries' code step (2^-20 in their binade) is below the
+    // excess, so rounding the root's run against its own sum could decode above 0.5; the writer caps its
+    // target at 1 - 0.5 and the table parses.
+    let mut h = Hier::new(std::iter::once(None).chain(std::iter::repeat_n(Some(0), 101)).collect(), |_| 1.0);
+    h.links[0] = (1..=100).map(|r| (r, 0.005_000_024)).collect();
+    h.links[1] = vec![(2, 0.5)];
+    let bytes = h.write();
+    assert!(HierTable::parse(&bytes).is_ok());
     let mut h = tiny();
     h.links[1] = vec![(3, 0.1)];
     assert!(matches!(h.try_write().err(), Some(WriteError::IndexOutOfRange { what: "link receiver", .. })));
