@@ -22,7 +22,8 @@
 //!   `< 1`, so the total unshot magnitude shrinks geometrically and shooting converges.
 //! - Light changes ([`HierSolver::set_light`]) and reflectance edits ([`HierSolver::set_reflectance`]) are
 //!   injected as unshot power at the leaves, as the flat [`Solver`](crate::Solver) does; the static base as in
-//!   the crate docs. Overshooting ([`Config::overshoot`]) is not used by this solver.
+//!   the crate docs. Overshooting ([`Config::overshoot`]) works as in the flat solver: a shot sends
+//!   `(1 + overshoot / 256) U_s` and leaves the excess as negative unshot power.
 //!
 //! # Work units
 //! One unit each: a link decoded (its share of the shot computed); a leaf receiving pushed power (incident,
@@ -87,7 +88,7 @@ pub use buffers::HierOwnedBuffers;
 pub use buffers::{HierBufferSizes, HierBuffers, HierStaticBuffers};
 
 use crate::base::emission;
-use crate::codec::{decode_reflectance, encode_reflectance};
+use crate::codec::{decode_reflectance, encode_reflectance, Frac};
 use crate::format::HierTable;
 use crate::scalar::Scalar;
 use crate::solver::{
@@ -407,10 +408,14 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                             self.phase = Phase::Converged;
                             return Outcome::Converged { used };
                         }
-                        // Starting a shot costs nothing beyond the selection: the zeroing and the block mark.
+                        // Starting a shot costs nothing beyond the selection: the shot power, what is left as
+                        // unshot power and the block mark. With overshooting the shot sends
+                        // `(1 + overshoot / 256) U_s` and leaves `-overshoot / 256 U_s`, as the flat solver does.
                         let range = self.table.run(s).unwrap_or(0..0);
+                        let extra = Frac { mantissa: u32::from(self.config.overshoot), shift: 8 };
+                        let u = u.map(|x| x.add(x.mul_frac(extra)));
                         if let Some(v) = self.buf.unshot.get_mut(s as usize) {
-                            *v = [S::ZERO; 3];
+                            *v = [0, 1, 2].map(|c| v[c].sub(u[c]));
                         }
                         let b = (s >> self.block_shift) as usize;
                         if let Some(w) = self.buf.selection.get_mut(b) {
