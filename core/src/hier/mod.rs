@@ -362,7 +362,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         start.min(n)..start.saturating_add(1 << self.block_shift).min(n)
     }
 
-    /// Rescans block `b` (nodes with links only) and stores its winner.
+    /// Rescans block `b` and stores its winner (nodes without links hold zero); returns the nodes scanned.
     fn rescan(&mut self, b: u32) -> u32 {
         let range = self.block_range(b);
         let mut best = range.start;
