@@ -16,6 +16,7 @@
 //! | 3. arithmetic | [`scalar`] | [`Scalar`] (sealed): `f32` and [`Fixed`] | a new number type |
 //! | 4. static base | [`base`] | [`static_radiosity`]: `E_s + rho G_s`, for the solver and the transfer relight | |
 //! | 5. solver | [`solver`] (`buffers`, `config`, state in `mod`, `selection`, `shoot`, `sweep`, `relight`) | [`Solver`] holding its [`Table`], buffers sized by [`BufferSizes::of`] (`OwnedBuffers` on a host, `std` feature, [`StaticBuffers`] on a device), bounded steps ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]) reporting an [`Outcome`], relighting ([`Solver::set_light`], [`Solver::set_reflectance`]) | a new step, selection rule or state |
+//! | 5b. hierarchical solver | [`hier`] (`buffers`, state and steps in `mod`) | [`HierSolver`] over a [`HierTable`] (format version 4): unshot power per node, push to leaves by area, pull along the chain, bounded resumable steps; buffers by [`HierBufferSizes::of`]. Uses the solver's [`Config`], [`Outcome`] and [`SolverError`] | hierarchical stepping |
 //! | 6. transfer relight | [`transfer`] | [`relight_transfer`]: `B = B_static + sum_g I_g T_g` in one bounded pass, the peer of shooting | |
 //!
 //! The solver holds a copy of the parsed [`Table`] (a handful of slices into the blob, which stays in
@@ -85,7 +86,21 @@
 //! [`Solver::set_reflectance`], or with many groups (the section grows as `patches x groups`), shoot.
 //!
 //! # Table layout
-//! The byte layout (format version 3) is specified in `docs/format.md`, rendered in [`format`](mod@format)'s docs.
+//! The byte layout is specified in `docs/format.md`, rendered in [`format`](mod@format)'s docs: flat tables
+//! (patch rows, [`Table`]) are format version 3, hierarchical tables (a node tree in preorder and links grouped
+//! by sender, [`HierTable`], written by [`write_hier_table`]) are version 4. Each reader refuses the other's
+//! version naming the right one.
+//!
+//! # Hierarchical tables and solver
+//! A hierarchical table stores a node tree (Hanrahan, Salzman, Aupperle 1991): leaves are the elements whose
+//! radiosity is the answer, inner nodes group them, and a link `(s, r, F_sr)` carries the fraction of the power
+//! leaving `s`'s subtree that reaches node `r` (shooter factors, as flat rows). [`HierSolver`] shoots per node:
+//! see [`hier`] for the scheme, its convergence bound (the chain bound of `docs/format.md`) and its work units.
+//! A host with two-way links `(a, b, f_ab, f_ba)` whose factors are receiver-averaged (`f_ab`: the irradiance
+//! gathered at `a` per unit radiosity of `b`, averaged over `a`) writes sender `b`, receiver `a`,
+//! `F = f_ab A_a / A_b`, and sender `a`, receiver `b`, `F = f_ba A_b / A_a` (reciprocity `A_r F_rs = A_s F_sr`):
+//! the table's system is then the host's gathering system exactly, whether or not the two estimates are
+//! reciprocal. Hierarchical tables have no state map and no transfer section yet: every leaf has state.
 //!
 //! # Cost model: work units
 //! A work unit is one of: one form-factor entry applied (decode, three multiply-adds into power, unshot and

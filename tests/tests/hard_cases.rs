@@ -4,7 +4,7 @@
 
 use radiosity_core::{
     required_len, write_table, Config, FfCodec, Fixed, GroupSpec, MemberSpec, Outcome, OwnedBuffers,
-    PatchSpec, RowsSpec, Scalar, Solver, Table, TableError, TableSpec, FORMAT_VERSION,
+    PatchSpec, RowsSpec, Scalar, Solver, Table, TableError, TableSpec, FORMAT_VERSION, HIER_FORMAT_VERSION,
 };
 
 /// An analytic closed enclosure: `n` patches of equal area on a sphere, where `F_ij = A_j / A_total = 1/n` for
@@ -169,13 +169,16 @@ fn corrupted_truncated_wrong_version_tables_are_clear_errors() {
     }
     assert!(matches!(Table::parse(&blob[..blob.len() - 1]), Err(TableError::Truncated { .. })));
     // Wrong version: the version is the varint after the 4-byte magic (1 byte while < 128).
-    const { assert!(FORMAT_VERSION < 127) };
+    // The flat layout is FORMAT_VERSION, the hierarchical one HIER_FORMAT_VERSION (read by HierTable::parse).
+    const { assert!(FORMAT_VERSION < 127 && HIER_FORMAT_VERSION < 126) };
     let mut old = blob.clone();
-    old[4] = (FORMAT_VERSION + 1) as u8;
+    old[4] = (FORMAT_VERSION.max(HIER_FORMAT_VERSION) + 1) as u8;
     match Table::parse(&old) {
         Err(TableError::UnsupportedVersion { .. }) => {}
         other => panic!("expected UnsupportedVersion, got {other:?}"),
     }
+    old[4] = HIER_FORMAT_VERSION as u8;
+    assert_eq!(Table::parse(&old).err(), Some(TableError::HierarchicalTable));
     // Wrong magic.
     let mut magic = blob.clone();
     magic[0] = b'X';

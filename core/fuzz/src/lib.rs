@@ -2,7 +2,10 @@
 //! the CRC rewrite that lets mutated tables past the CRC check, and the key the `tally` tool counts errors by.
 
 use radiosity_core::crc::crc32;
-use radiosity_core::{relight_transfer, Config, Fixed, OwnedBuffers, Scalar, Solver, Table, TableError};
+use radiosity_core::{
+    relight_transfer, Config, Fixed, HierOwnedBuffers, HierSolver, HierTable, OwnedBuffers, Scalar, Solver,
+    Table, TableError,
+};
 
 /// `data` with its last four bytes replaced by the CRC-32 of the rest (unchanged if shorter than four bytes):
 /// a mutation then reaches the checks behind the CRC instead of stopping at it.
@@ -22,6 +25,7 @@ pub fn with_crc(data: &[u8]) -> Vec<u8> {
 pub fn exercise(data: &[u8]) -> Option<TableError> {
     let t = match Table::parse(data) {
         Ok(t) => t,
+        Err(TableError::HierarchicalTable) => return exercise_hier(data),
         Err(e) => return Some(e),
     };
     let n = t.patch_count();
@@ -49,6 +53,44 @@ pub fn exercise(data: &[u8]) -> Option<TableError> {
     solve::<f32>(&t);
     solve::<Fixed>(&t);
     None
+}
+
+/// [`exercise`] for a hierarchical table (format version 4): `HierTable::parse`, every accessor, bounded
+/// hierarchical shooting steps and relighting.
+pub fn exercise_hier(data: &[u8]) -> Option<TableError> {
+    let t = match HierTable::parse(data) {
+        Ok(t) => t,
+        Err(e) => return Some(e),
+    };
+    if t.node_count() > 4096 || t.link_count() > 1 << 20 {
+        return None;
+    }
+    for k in 0..=t.node_count() {
+        let _ = (t.parent(k), t.subtree_end(k), t.leaf_range(k), t.node_area(k), t.run_sum(k), t.run_view(k));
+    }
+    for l in 0..=t.leaf_count() {
+        let _ = (t.leaf_node(l), t.leaf_area(l), t.material(l), t.base_emission(l), t.base_irradiance(l));
+    }
+    solve_hier::<f32>(&t);
+    solve_hier::<Fixed>(&t);
+    None
+}
+
+fn solve_hier<S: Scalar>(t: &HierTable<'_>) {
+    let tolerance = S::from_f32(1e-3);
+    let mut store = HierOwnedBuffers::<S>::for_table(t);
+    let Ok(mut s) = HierSolver::new(t, store.buffers(), Config { tolerance, overshoot: 0 }) else { return };
+    for _ in 0..4 {
+        let o = s.step(1000);
+        assert!(o.used() <= 1000, "hierarchical shooting exceeded its budget: {o:?}");
+    }
+    let _ = s.set_light(0, [0.0; 3]);
+    let _ = s.set_reflectance(0, [0.5; 3]);
+    let o = s.step(1000);
+    assert!(o.used() <= 1000, "hierarchical shooting exceeded its budget: {o:?}");
+    for l in 0..=t.leaf_count() {
+        let _ = (s.radiosity(l), s.power(l), s.unshot(l));
+    }
 }
 
 /// Bounded shooting and Gauss-Seidel steps on `t` in arithmetic `S` (tolerance `1e-3`), relighting between.

@@ -242,8 +242,8 @@ impl<'a> HierTable<'a> {
     /// The first problem found, as a [`TableError`]: [`TableError::FlatTable`] for a flat (version 3) table,
     /// then, in order, the header, quantization parameters, length and CRC checks of [`Table::parse`](super::Table::parse), then
     /// content: leaf materials, member offsets and leaves, intensities, the tree ([`TableError::BadTree`]:
-    /// subtree ends, parents, leaf numbering), node areas, run offsets, receivers, sorted runs, run exponents,
-    /// and the chain bound ([`TableError::ChainSumExceedsOne`]).
+    /// subtree ends, parents, leaf numbering), node areas, run offsets, then node by node in preorder: the run's
+    /// exponent, receivers and order, and at each leaf the chain bound ([`TableError::ChainSumExceedsOne`]).
     pub fn parse(bytes: &'a [u8]) -> Result<HierTable<'a>, TableError> {
         let mut found = [0u8; 4];
         for (d, s) in found.iter_mut().zip(bytes) {

@@ -4,7 +4,8 @@
 //!
 //! Files: `layout` (header, [`SectionSizes`], little-endian readers), `error` ([`TableError`]), `parse`
 //! ([`Table::parse`] and its validation), `view` (accessors and [`Row`]), [`write`](mod@write) (the writer the
-//! host calls). Each uses only the codecs ([`crate::codec`]) and the CRC ([`crate::crc`]) below it.
+//! host calls), `hier` (hierarchical tables: [`HierTable::parse`] and its views) and
+//! [`hier_write`](mod@hier_write) (their writer, [`write_hier_table`]). Each uses only the codecs ([`crate::codec`]) and the CRC ([`crate::crc`]) below it.
 //!
 #![doc = include_str!("../../../docs/format.md")]
 

@@ -22,7 +22,8 @@
 //!   `< 1`, so the total unshot magnitude shrinks geometrically and shooting converges.
 //! - Light changes ([`HierSolver::set_light`]) and reflectance edits ([`HierSolver::set_reflectance`]) are
 //!   injected as unshot power at the leaves, as the flat [`Solver`](crate::Solver) does; the static base as in
-//!   the crate docs. Overshooting ([`Config::overshoot`]) is not used by this solver.
+//!   the crate docs. Overshooting ([`Config::overshoot`]) works as in the flat solver: a shot sends
+//!   `(1 + overshoot / 256) U_s` and leaves the excess as negative unshot power.
 //!
 //! # Work units
 //! One unit each: a link decoded (its share of the shot computed); a leaf receiving pushed power (incident,
@@ -41,6 +42,44 @@
 //! Outside any budget, returned as work counts: [`HierSolver::set_light`] (members times their chain walks),
 //! [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); [`HierSolver::new`] and
 //! [`HierSolver::reset`] are `O(leaves x depth + links)`.
+//!
+//! # Example
+//! ```
+//! use radiosity_core::{
+//!     hier_required_len, write_hier_table, Config, FfCodec, GroupSpec, HierOwnedBuffers, HierSolver, HierSpec,
+//!     HierTable, MemberSpec, NodeSpec, Outcome, PatchSpec, RowsSpec,
+//! };
+//!
+//! // Two unit squares facing each other, each a node over two leaves of area 1/2 (preorder: 0, 1, 2 and
+//! // 3, 4, 5). One link each way between the squares: F = 1/4 of a square's power reaches the other (a power of
+//! // two, so its code is exact).
+//! let nodes = [None, Some(0), Some(0), None, Some(3), Some(3)].map(|parent| NodeSpec { parent });
+//! let leaf = PatchSpec { area: 0.5, material: 0, base_emission: [0.0; 3], base_irradiance: [0.0; 3] };
+//! let lamp = [MemberSpec { patch: 0, emission: [1.0; 3] }];
+//! let spec = HierSpec {
+//!     nodes: &nodes,
+//!     leaves: &[leaf; 4],
+//!     materials: &[[0.5; 3]],
+//!     groups: &[GroupSpec { id: 1, default_intensity: [1.0; 3], members: &lamp }],
+//!     // Runs by sender node: node 0 -> node 3, node 3 -> node 0.
+//!     links: RowsSpec { row_start: &[0, 1, 1, 1, 2, 2, 2], receiver: &[3, 0], form_factor: &[0.25, 0.25] },
+//!     codec: FfCodec::FLOAT16,
+//!     base_solved: false,
+//!     fingerprint: 0,
+//! };
+//! let mut blob = vec![0u8; hier_required_len(&spec)?];
+//! write_hier_table(&spec, &mut blob)?;
+//! let table = HierTable::parse(&blob)?;
+//! let mut store = HierOwnedBuffers::<f32>::for_table(&table);
+//! let mut solver = HierSolver::new(&table, store.buffers(), Config { tolerance: 1e-7, overshoot: 0 })?;
+//! while let Outcome::BudgetSpent { .. } = solver.step(16) {}
+//! // The lamp's square shoots 1/4 of its power (0.5 W) to the other square: 0.125 W over area 1, reflected at
+//! // 0.5: B = 0.0625 on each of its leaves (leaf 2 is node 4); bounces between the squares multiply that by
+//! // 1 / (1 - (0.5 * 0.25)^2).
+//! let b = solver.radiosity(2).unwrap()[0];
+//! assert!((b - 0.0625 / (1.0 - 0.015625)).abs() < 1e-6, "{b}");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 
 mod buffers;
 
@@ -49,7 +88,7 @@ pub use buffers::HierOwnedBuffers;
 pub use buffers::{HierBufferSizes, HierBuffers, HierStaticBuffers};
 
 use crate::base::emission;
-use crate::codec::{decode_reflectance, encode_reflectance};
+use crate::codec::{decode_reflectance, encode_reflectance, Frac};
 use crate::format::HierTable;
 use crate::scalar::Scalar;
 use crate::solver::{
@@ -114,7 +153,7 @@ pub fn hier_convergence_floor<S: Scalar>(table: &HierTable<'_>) -> S {
         let mut reach = 0u64;
         for k in table.run(s).unwrap_or(0..0) {
             let r = table.link(s, k).map_or(0, |(r, _)| r);
-            reach += table.leaf_range(r).map_or(0, |x| u64::from(x.end - x.start));
+            reach = reach.saturating_add(table.leaf_range(r).map_or(0, |x| u64::from(x.end - x.start)));
         }
         most = most.max(reach);
     }
@@ -123,7 +162,9 @@ pub fn hier_convergence_floor<S: Scalar>(table: &HierTable<'_>) -> S {
         .flat_map(|r| r.into_iter())
         .max()
         .map_or(0, u64::from);
-    let units = (6 * most.saturating_mul(u64::from(table.max_depth())).saturating_mul(65536))
+    let units = most
+        .saturating_mul(6 * u64::from(table.max_depth()))
+        .saturating_mul(65536)
         .div_ceil(65536 - code_max.min(65535));
     S::convergence_floor(units)
 }
@@ -321,7 +362,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         start.min(n)..start.saturating_add(1 << self.block_shift).min(n)
     }
 
-    /// Rescans block `b` (nodes with links only) and stores its winner.
+    /// Rescans block `b` and stores its winner (nodes without links hold zero); returns the nodes scanned.
     fn rescan(&mut self, b: u32) -> u32 {
         let range = self.block_range(b);
         let mut best = range.start;
@@ -367,10 +408,14 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                             self.phase = Phase::Converged;
                             return Outcome::Converged { used };
                         }
-                        // Starting a shot costs nothing beyond the selection: the zeroing and the block mark.
+                        // Starting a shot costs nothing beyond the selection: the shot power, what is left as
+                        // unshot power and the block mark. With overshooting the shot sends
+                        // `(1 + overshoot / 256) U_s` and leaves `-overshoot / 256 U_s`, as the flat solver does.
                         let range = self.table.run(s).unwrap_or(0..0);
+                        let extra = Frac { mantissa: u32::from(self.config.overshoot), shift: 8 };
+                        let u = u.map(|x| x.add(x.mul_frac(extra)));
                         if let Some(v) = self.buf.unshot.get_mut(s as usize) {
-                            *v = [S::ZERO; 3];
+                            *v = [0, 1, 2].map(|c| v[c].sub(u[c]));
                         }
                         let b = (s >> self.block_shift) as usize;
                         if let Some(w) = self.buf.selection.get_mut(b) {
