@@ -754,3 +754,48 @@ fn view_web_explains_itself_and_needs_the_wasm_build() {
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("not a WebAssembly module"), "{stderr}");
 }
+
+#[test]
+fn hierarchical_bake_writes_a_table_that_inspect_reads() {
+    let dir = folder("hierbake");
+    let table = dir.join("h.rft");
+    let table = table.to_str().unwrap();
+    let out = radiosity(&[
+        "bake",
+        &scene("two-rooms.obj"),
+        "-q",
+        "--method",
+        "hierarchical",
+        "--epsilon",
+        "0.1",
+        "-o",
+        table,
+        "--format",
+        "json",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let bytes = std::fs::metadata(table).unwrap().len();
+    assert_eq!(summary["bytes"].as_u64(), Some(bytes));
+    assert!(summary["units_to_one_percent"].as_u64().is_some(), "the cold relight reaches 1%: {summary}");
+    assert!(summary["error_floor"].as_f64().is_some(), "and converges: {summary}");
+    let out = radiosity(&["inspect", table, "--format", "json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let inspected: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(inspected["format_version"], 4);
+    assert_eq!(inspected["leaves"], summary["leaves"]);
+    assert_eq!(inspected["nodes"], summary["nodes"]);
+    assert_eq!(inspected["link_entries"].as_u64(), summary["links"].as_u64().map(|l| 2 * l));
+    assert_eq!(inspected["solver_ram_f32"], summary["ram_f32"]);
+    // A damaged table is refused by name, and the options of the other method are refused before any work.
+    let mut damaged = std::fs::read(table).unwrap();
+    damaged.truncate(damaged.len() / 2);
+    std::fs::write(table, &damaged).unwrap();
+    assert_fails(&["inspect", table], &["invalid hierarchical table", "truncated"]);
+    assert_fails(
+        &["bake", MISSING, "--method", "hierarchical", "--threshold", "0.01", "-o", table],
+        &["--threshold"],
+    );
+    assert_fails(&["bake", MISSING, "--epsilon", "0.1", "-o", table], &["--epsilon and --max-links apply"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
