@@ -7,8 +7,8 @@
 use super::hier::{check_tree, read_index, HierHeader, HierSectionSizes, PathSum, MAX_HIER_HEADER_LEN};
 use super::layout::{le_f32, le_u32};
 use super::write::{
-    check_value, count, emission_codes, quantize_row_into, GroupSpec, Out, PatchSpec, RowsSpec, WriteError,
-    ROW_SUM_SLACK,
+    check_groups, check_patches, check_row_offsets, check_value, count, emission_codes, quantize_row_into,
+    GroupSpec, Out, PatchSpec, RowsSpec, WriteError, ROW_SUM_SLACK,
 };
 use super::{TableError, HIER_FORMAT_VERSION, MAGIC};
 use crate::codec::{self, f32_to_exact, FfCodec, EXACT_SHIFT};
@@ -132,51 +132,9 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
         }
     }
     let links = spec.links;
-    if links.row_start.len() != nn + 1 || links.receiver.len() != links.form_factor.len() {
-        return Err(WriteError::BadRows);
-    }
-    let mut prev = 0u32;
-    for (k, &s) in links.row_start.iter().enumerate() {
-        if (k == 0 && s != 0) || s < prev || s as usize > links.receiver.len() {
-            return Err(WriteError::BadRows);
-        }
-        prev = s;
-    }
-    if prev as usize != links.receiver.len() {
-        return Err(WriteError::BadRows);
-    }
-    for (l, leaf) in spec.leaves.iter().enumerate() {
-        check_value("leaf area", l, leaf.area, leaf.area.is_finite() && leaf.area > 0.0)?;
-        if leaf.material as usize >= spec.materials.len() {
-            return Err(WriteError::IndexOutOfRange {
-                what: "leaf material",
-                position: l,
-                index: leaf.material,
-            });
-        }
-        emission_codes("leaf base emission", l, leaf.base_emission)?;
-        emission_codes("leaf base irradiance", l, leaf.base_irradiance)?;
-    }
-    for (m, rho) in spec.materials.iter().enumerate() {
-        for &r in rho {
-            check_value("material reflectance", m, r, (0.0..1.0).contains(&r))?;
-        }
-    }
-    for (g, group) in spec.groups.iter().enumerate() {
-        for &v in &group.default_intensity {
-            check_value("light group default intensity", g, v, v.is_finite())?;
-        }
-        for (k, member) in group.members.iter().enumerate() {
-            if member.patch as usize >= n {
-                return Err(WriteError::IndexOutOfRange {
-                    what: "light group member",
-                    position: k,
-                    index: member.patch,
-                });
-            }
-            emission_codes("light group member emission", k, member.emission)?;
-        }
-    }
+    check_row_offsets(&links, nn)?;
+    check_patches(spec.leaves, spec.materials, true)?;
+    check_groups(spec.groups, n, |_, _| Ok(()))?;
     for j in 0..nn {
         let (s, e) = (links.row_start[j] as usize, links.row_start[j + 1] as usize);
         for k in s..e {

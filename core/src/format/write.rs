@@ -335,6 +335,80 @@ impl Out<'_> {
     }
 }
 
+/// Checks the compressed-row shape of `rows` over `senders` rows: `senders + 1` offsets starting at 0, never
+/// decreasing, ending at the entry count, and one form factor per receiver.
+pub(super) fn check_row_offsets(rows: &RowsSpec<'_>, senders: usize) -> Result<(), WriteError> {
+    if rows.row_start.len() != senders + 1 || rows.receiver.len() != rows.form_factor.len() {
+        return Err(WriteError::BadRows);
+    }
+    let mut prev = 0u32;
+    for (k, &s) in rows.row_start.iter().enumerate() {
+        if (k == 0 && s != 0) || s < prev || s as usize > rows.receiver.len() {
+            return Err(WriteError::BadRows);
+        }
+        prev = s;
+    }
+    if prev as usize != rows.receiver.len() {
+        return Err(WriteError::BadRows);
+    }
+    Ok(())
+}
+
+/// Checks every patch (every leaf of a hierarchical table, named so in errors when `leaves`): area finite and
+/// positive, material in range, static base within the emission code's range; and every material's reflectance
+/// in `[0, 1)`.
+pub(super) fn check_patches(
+    patches: &[PatchSpec],
+    materials: &[[f32; 3]],
+    leaves: bool,
+) -> Result<(), WriteError> {
+    let [area, material, emission, irradiance] = if leaves {
+        ["leaf area", "leaf material", "leaf base emission", "leaf base irradiance"]
+    } else {
+        ["patch area", "patch material", "patch base emission", "patch base irradiance"]
+    };
+    for (p, patch) in patches.iter().enumerate() {
+        check_value(area, p, patch.area, patch.area.is_finite() && patch.area > 0.0)?;
+        if patch.material as usize >= materials.len() {
+            return Err(WriteError::IndexOutOfRange { what: material, position: p, index: patch.material });
+        }
+        emission_codes(emission, p, patch.base_emission)?;
+        emission_codes(irradiance, p, patch.base_irradiance)?;
+    }
+    for (m, rho) in materials.iter().enumerate() {
+        for &r in rho {
+            check_value("material reflectance", m, r, (0.0..1.0).contains(&r))?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks every light group: default intensities finite, members below `n` and accepted by `member_ok`
+/// (position within the group, member), member emissions within the emission code's range.
+pub(super) fn check_groups(
+    groups: &[GroupSpec<'_>],
+    n: usize,
+    member_ok: impl Fn(usize, &MemberSpec) -> Result<(), WriteError>,
+) -> Result<(), WriteError> {
+    for (g, group) in groups.iter().enumerate() {
+        for &v in &group.default_intensity {
+            check_value("light group default intensity", g, v, v.is_finite())?;
+        }
+        for (k, member) in group.members.iter().enumerate() {
+            if member.patch as usize >= n {
+                return Err(WriteError::IndexOutOfRange {
+                    what: "light group member",
+                    position: k,
+                    index: member.patch,
+                });
+            }
+            member_ok(k, member)?;
+            emission_codes("light group member emission", k, member.emission)?;
+        }
+    }
+    Ok(())
+}
+
 /// Validates `spec`, quantizes it and writes the table into `out`; returns the number of bytes written.
 ///
 /// Form factors are quantized with `spec.codec` by the row rounding of [`crate::codec`] (decoded row sum
@@ -367,55 +441,15 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
         }
     }
     let rows = spec.rows;
-    if rows.row_start.len() != slots + 1 || rows.receiver.len() != rows.form_factor.len() {
-        return Err(WriteError::BadRows);
-    }
-    let mut prev = 0u32;
-    for (k, &s) in rows.row_start.iter().enumerate() {
-        if (k == 0 && s != 0) || s < prev || s as usize > rows.receiver.len() {
-            return Err(WriteError::BadRows);
-        }
-        prev = s;
-    }
-    if prev as usize != rows.receiver.len() {
-        return Err(WriteError::BadRows);
-    }
+    check_row_offsets(&rows, slots)?;
     // Validate everything before writing anything.
-    for (p, patch) in spec.patches.iter().enumerate() {
-        check_value("patch area", p, patch.area, patch.area.is_finite() && patch.area > 0.0)?;
-        if patch.material as usize >= spec.materials.len() {
-            return Err(WriteError::IndexOutOfRange {
-                what: "patch material",
-                position: p,
-                index: patch.material,
-            });
+    check_patches(spec.patches, spec.materials, false)?;
+    check_groups(spec.groups, n, |k, member| {
+        if spec.state.is_some_and(|s| s.binary_search(&member.patch).is_err()) {
+            return Err(WriteError::MemberWithoutState { position: k, patch: member.patch });
         }
-        emission_codes("patch base emission", p, patch.base_emission)?;
-        emission_codes("patch base irradiance", p, patch.base_irradiance)?;
-    }
-    for (m, rho) in spec.materials.iter().enumerate() {
-        for &r in rho {
-            check_value("material reflectance", m, r, (0.0..1.0).contains(&r))?;
-        }
-    }
-    for (g, group) in spec.groups.iter().enumerate() {
-        for &v in &group.default_intensity {
-            check_value("light group default intensity", g, v, v.is_finite())?;
-        }
-        for (k, member) in group.members.iter().enumerate() {
-            if member.patch as usize >= n {
-                return Err(WriteError::IndexOutOfRange {
-                    what: "light group member",
-                    position: k,
-                    index: member.patch,
-                });
-            }
-            if spec.state.is_some_and(|s| s.binary_search(&member.patch).is_err()) {
-                return Err(WriteError::MemberWithoutState { position: k, patch: member.patch });
-            }
-            emission_codes("light group member emission", k, member.emission)?;
-        }
-    }
+        Ok(())
+    })?;
     if let Some(t) = spec.transfer {
         if !spec.base_solved {
             return Err(WriteError::TransferNeedsSolvedBase);
