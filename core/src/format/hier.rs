@@ -8,11 +8,11 @@
 use serde::{Deserialize, Serialize};
 
 use super::error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
-use super::layout::{le_f32, le_u16, le_u32, rgb16, Prefix};
-use super::parse::{check_offsets, header_error, in_range};
+use super::layout::{le_f32, le_u16, le_u32, rgb16};
+use super::parse::{check_codec, check_offsets, check_prefix, header_error, in_range};
 use super::view::{Member, Row};
-use super::{FORMAT_VERSION, HIER_FORMAT_VERSION, MAGIC};
-use crate::codec::{CodecParamError, FfCodec, Frac, EXACT_SHIFT, MAX_ROW_EXPONENT};
+use super::HIER_FORMAT_VERSION;
+use crate::codec::{FfCodec, Frac, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
 
 /// The postcard-encoded header of a hierarchical table.
@@ -245,48 +245,10 @@ impl<'a> HierTable<'a> {
     /// subtree ends, parents, leaf numbering), node areas, run offsets, then node by node in preorder: the run's
     /// exponent, receivers and order, and at each leaf the chain bound ([`TableError::ChainSumExceedsOne`]).
     pub fn parse(bytes: &'a [u8]) -> Result<HierTable<'a>, TableError> {
-        let mut found = [0u8; 4];
-        for (d, s) in found.iter_mut().zip(bytes) {
-            *d = *s;
-        }
-        let n = bytes.len().min(4);
-        if found.get(..n) != MAGIC.get(..n) {
-            return Err(TableError::BadMagic { found });
-        }
-        let (prefix, _) = postcard::take_from_bytes::<Prefix>(bytes).map_err(header_error)?;
-        if prefix.magic != MAGIC {
-            return Err(TableError::BadMagic { found: prefix.magic });
-        }
-        if prefix.version == FORMAT_VERSION {
-            return Err(TableError::FlatTable);
-        }
-        if prefix.version != HIER_FORMAT_VERSION {
-            return Err(TableError::UnsupportedVersion {
-                found: prefix.version,
-                expected: HIER_FORMAT_VERSION,
-            });
-        }
+        check_prefix(bytes, HIER_FORMAT_VERSION)?;
         let (header, rest) = postcard::take_from_bytes::<HierHeader>(bytes).map_err(header_error)?;
         let header_len = bytes.len() - rest.len();
-        let codec = FfCodec { bits: header.ff_bits, exponent_bits: header.ff_exponent_bits };
-        match codec.check() {
-            Err(CodecParamError::Bits(b)) => {
-                return Err(TableError::BadQuantParams { param: QuantParam::FfBits, value: u32::from(b) })
-            }
-            Err(CodecParamError::ExponentBits(b)) => {
-                return Err(TableError::BadQuantParams {
-                    param: QuantParam::FfExponentBits,
-                    value: u32::from(b),
-                })
-            }
-            Ok(()) => {}
-        }
-        if header.index_bytes != 2 && header.index_bytes != 4 {
-            return Err(TableError::BadQuantParams {
-                param: QuantParam::IndexBytes,
-                value: u32::from(header.index_bytes),
-            });
-        }
+        let codec = check_codec(header.ff_bits, header.ff_exponent_bits, header.index_bytes)?;
         // Node indices and subtree ends go up to the node count; u32::MAX is never a valid node.
         if (header.index_bytes == 2 && header.node_count > 0x1_0000)
             || header.material_count > 0x1_0000

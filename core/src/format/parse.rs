@@ -38,6 +38,50 @@ pub struct Table<'a> {
     pub(super) transfer_code: &'a [u8],
 }
 
+/// Checks the magic and that the version is `expected`; a table of the other layout (flat or hierarchical) is
+/// named as such ([`TableError::HierarchicalTable`], [`TableError::FlatTable`]).
+pub(super) fn check_prefix(bytes: &[u8], expected: u16) -> Result<(), TableError> {
+    let mut found = [0u8; 4];
+    for (d, s) in found.iter_mut().zip(bytes) {
+        *d = *s;
+    }
+    let n = bytes.len().min(4);
+    if found.get(..n) != MAGIC.get(..n) {
+        return Err(TableError::BadMagic { found });
+    }
+    let (prefix, _) = postcard::take_from_bytes::<Prefix>(bytes).map_err(header_error)?;
+    if prefix.magic != MAGIC {
+        return Err(TableError::BadMagic { found: prefix.magic });
+    }
+    match prefix.version {
+        v if v == expected => Ok(()),
+        HIER_FORMAT_VERSION => Err(TableError::HierarchicalTable),
+        FORMAT_VERSION => Err(TableError::FlatTable),
+        found => Err(TableError::UnsupportedVersion { found, expected }),
+    }
+}
+
+/// The form-factor codec of a header's parameters, and its index width checked (2 or 4 bytes).
+pub(super) fn check_codec(ff_bits: u8, ff_exponent_bits: u8, index_bytes: u8) -> Result<FfCodec, TableError> {
+    let codec = FfCodec { bits: ff_bits, exponent_bits: ff_exponent_bits };
+    match codec.check() {
+        Err(CodecParamError::Bits(b)) => {
+            return Err(TableError::BadQuantParams { param: QuantParam::FfBits, value: u32::from(b) })
+        }
+        Err(CodecParamError::ExponentBits(b)) => {
+            return Err(TableError::BadQuantParams { param: QuantParam::FfExponentBits, value: u32::from(b) })
+        }
+        Ok(()) => {}
+    }
+    if index_bytes != 2 && index_bytes != 4 {
+        return Err(TableError::BadQuantParams {
+            param: QuantParam::IndexBytes,
+            value: u32::from(index_bytes),
+        });
+    }
+    Ok(codec)
+}
+
 impl<'a> Table<'a> {
     /// Parses and validates a table blob.
     ///
@@ -47,45 +91,10 @@ impl<'a> Table<'a> {
     /// member offsets, member patches with state, intensities, row offsets, receivers, sorted rows, row
     /// exponents, row sums, the transfer section).
     pub fn parse(bytes: &'a [u8]) -> Result<Table<'a>, TableError> {
-        let mut found = [0u8; 4];
-        for (d, s) in found.iter_mut().zip(bytes) {
-            *d = *s;
-        }
-        let n = bytes.len().min(4);
-        if found.get(..n) != MAGIC.get(..n) {
-            return Err(TableError::BadMagic { found });
-        }
-        let (prefix, _) = postcard::take_from_bytes::<Prefix>(bytes).map_err(header_error)?;
-        if prefix.magic != MAGIC {
-            return Err(TableError::BadMagic { found: prefix.magic });
-        }
-        if prefix.version == HIER_FORMAT_VERSION {
-            return Err(TableError::HierarchicalTable);
-        }
-        if prefix.version != FORMAT_VERSION {
-            return Err(TableError::UnsupportedVersion { found: prefix.version, expected: FORMAT_VERSION });
-        }
+        check_prefix(bytes, FORMAT_VERSION)?;
         let (header, rest) = postcard::take_from_bytes::<Header>(bytes).map_err(header_error)?;
         let header_len = bytes.len() - rest.len();
-        let codec = FfCodec { bits: header.ff_bits, exponent_bits: header.ff_exponent_bits };
-        match codec.check() {
-            Err(CodecParamError::Bits(b)) => {
-                return Err(TableError::BadQuantParams { param: QuantParam::FfBits, value: u32::from(b) })
-            }
-            Err(CodecParamError::ExponentBits(b)) => {
-                return Err(TableError::BadQuantParams {
-                    param: QuantParam::FfExponentBits,
-                    value: u32::from(b),
-                })
-            }
-            Ok(()) => {}
-        }
-        if header.index_bytes != 2 && header.index_bytes != 4 {
-            return Err(TableError::BadQuantParams {
-                param: QuantParam::IndexBytes,
-                value: u32::from(header.index_bytes),
-            });
-        }
+        let codec = check_codec(header.ff_bits, header.ff_exponent_bits, header.index_bytes)?;
         if header.index_bytes == 2 && header.patch_count > 0x1_0000 {
             return Err(TableError::CountsTooLarge);
         }
