@@ -207,7 +207,6 @@ struct Model {
     /// irradiance times reflectance (a solved base's part).
     e: Vec<[f64; 3]>,
     rho_max: f64,
-    max_leaves: u32,
 }
 
 fn leaves_of(t: &HierTable<'_>, node: u32) -> std::ops::Range<u32> {
@@ -259,8 +258,7 @@ impl Model {
             }
         }
         let rho_max = rho.iter().flatten().copied().fold(0.0, f64::max);
-        let max_leaves = (0..t.node_count()).map(|x| leaves_of(t, x).len() as u32).max().unwrap_or(0);
-        Model { area, rho, k, e, rho_max, max_leaves }
+        Model { area, rho, k, e, rho_max }
     }
 
     /// `B` with the given emission, by Gaussian elimination with partial pivoting (per channel).
@@ -300,12 +298,20 @@ impl Model {
     }
 }
 
+/// What a converged run did, for the arithmetic bounds.
+#[derive(Clone, Copy, Debug)]
+struct Work {
+    shots: u32,
+    sweeps: u32,
+    links: u64,
+}
+
 trait Arith: Scalar {
     fn exact(self) -> f64;
     /// A tolerance of `2^-24` of `scale`, at least the convergence floor.
     fn tolerance(t: &HierTable<'_>, scale: f64) -> Self;
     /// Bound on the arithmetic error of a leaf's radiosity (see `check_converges`).
-    fn arithmetic(model: &Model, t: &HierTable<'_>, shots: u32, links: u64, total_power: f64) -> f64;
+    fn arithmetic(model: &Model, t: &HierTable<'_>, work: Work, total_power: f64) -> f64;
 }
 
 impl Arith for f32 {
@@ -316,16 +322,18 @@ impl Arith for f32 {
         (scale * U) as f32
     }
     // Every value the solver holds is a sum of transfers, each transfer a product chain of at most 6 roundings
-    // (F U, / A_r, * A_l, * rho, and the adds into H and Phi) plus one per node of the chain it is added to,
-    // after at most `shots` earlier shots each of which rounded the power it carried the same way. So, like
-    // the flat solver's drift bound, every unit of power carries a relative error of at most
-    // `(shots + 1) (6 + D) u` (first order, `D` the longest chain); an error in power spreads like power, so
-    // the total error is at most that times the total power over `1 - rho_max`, and a leaf's radiosity error
-    // at most that over its area.
-    fn arithmetic(model: &Model, t: &HierTable<'_>, shots: u32, _links: u64, total_power: f64) -> f64 {
+    // (F U, / A_r, * A_l, * rho, and the adds into H and Phi) plus the sums it passes through: the add into
+    // the receiver's pending irradiance and one per node on the way down to the leaf (at most `D` in all, `D`
+    // the longest chain), and one per node on the way up, into the pending reflected power and the unshot
+    // power of the node it is added to (at most `D`). That is after at most `shots` earlier shots each of
+    // which rounded the power it carried the same way. So, like the flat solver's drift bound, every unit of
+    // power carries a relative error of at most `(shots + 1) (6 + 2 D) u` (first order); an error in power
+    // spreads like power, so the total error is at most that times the total power over `1 - rho_max`, and a
+    // leaf's radiosity error at most that over its area.
+    fn arithmetic(model: &Model, t: &HierTable<'_>, work: Work, total_power: f64) -> f64 {
         let d = f64::from(t.max_depth());
         let a_min = model.area.iter().copied().fold(f64::INFINITY, f64::min);
-        (f64::from(shots) + 1.0) * (6.0 + d) * U * total_power / ((1.0 - model.rho_max) * a_min)
+        (f64::from(work.shots) + 1.0) * (6.0 + 2.0 * d) * U * total_power / ((1.0 - model.rho_max) * a_min)
     }
 }
 
@@ -337,14 +345,17 @@ impl Arith for Fixed {
         let floor = radiosity_core::hier_convergence_floor::<Fixed>(t);
         Fixed::from_f32((scale * U) as f32).max(floor)
     }
-    // Each rounding of a Q32.32 product or quotient is at most `Q` (absolute); a link's push rounds the
-    // irradiance twice, and each leaf it reaches rounds four more times plus once per chain node; an error
-    // spreads like power (at most `1 / (1 - rho_max)` in total) and shows in a leaf's radiosity over its area.
-    fn arithmetic(model: &Model, t: &HierTable<'_>, _shots: u32, links: u64, _total_power: f64) -> f64 {
-        let d = f64::from(t.max_depth());
+    // Each rounding of a Q32.32 product or quotient is at most `Q` (absolute) and sums are exact. A link
+    // rounds `F U` (`Q` of power) and the irradiance `/ A_r` (`Q` of irradiance, `Q A_r` of power once spread
+    // over `r`'s leaves, at most `Q A_max` with `A_max` the largest node area); a sweep rounds `* A_l` and
+    // `* rho` once per leaf (`2 Q` of power), and the cold start about `8 Q` per leaf. An error spreads like
+    // power (at most `1 / (1 - rho_max)` in total) and shows in a leaf's radiosity over its area.
+    fn arithmetic(model: &Model, t: &HierTable<'_>, work: Work, _total_power: f64) -> f64 {
         let a_min = model.area.iter().copied().fold(f64::INFINITY, f64::min);
-        let per_link = 2.0 + f64::from(model.max_leaves) * (4.0 + d);
-        Q * (links as f64 * per_link + 8.0 * model.area.len() as f64) / ((1.0 - model.rho_max) * a_min)
+        let a_max = (0..t.node_count()).map(|x| f64::from(t.node_area(x).unwrap())).fold(0.0, f64::max);
+        let n = model.area.len() as f64;
+        let roundings = work.links as f64 * (1.0 + a_max) + f64::from(work.sweeps) * 2.0 * n + 8.0 * n;
+        Q * roundings / ((1.0 - model.rho_max) * a_min)
     }
 }
 
@@ -385,7 +396,8 @@ fn check_converges_with<S: Arith>(bytes: &[u8], budget: u32, overshoot: u8) -> V
     converge(&mut solver, budget);
     let a_min = model.area.iter().copied().fold(f64::INFINITY, f64::min);
     let remainder = f64::from(t.node_count()) * tol.exact() / ((1.0 - model.rho_max) * a_min);
-    let arith = S::arithmetic(&model, &t, solver.shots(), solver.links(), total_power);
+    let work = Work { shots: solver.shots(), sweeps: solver.sweeps(), links: solver.links() };
+    let arith = S::arithmetic(&model, &t, work, total_power);
     let bound = remainder + arith;
     let mut out = Vec::new();
     for l in 0..t.leaf_count() {
@@ -507,8 +519,7 @@ fn quantization_error_is_within_the_perturbation_bound() {
 }
 
 /// Resumed runs with different budgets take the same actions in the same order, so their states are
-/// bit-identical at convergence; a budget below the largest action makes no progress and says how much is
-/// needed.
+/// bit-identical at convergence; a budget of zero makes no progress and says that one unit is needed.
 #[test]
 fn budgets_split_the_same_actions() {
     for bytes in [facing_squares().write(), cluster_box().write()] {
@@ -522,16 +533,19 @@ fn budgets_split_the_same_actions() {
         };
         let mut store = HierOwnedBuffers::<f32>::for_table(&t);
         let mut s = HierSolver::new(&t, store.buffers(), Config { tolerance: 1e-6, overshoot: 0 }).unwrap();
-        let Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed } } = s.step(1)
+        // Every action costs one unit: a budget of 0 is refused, one of 1 makes progress.
+        let Outcome::NoProgress { used: 0, reason: NoProgressReason::BudgetTooSmall { needed: 1 } } =
+            s.step(0)
         else {
-            panic!("a budget of 1 is below every action of these tables")
+            panic!("a budget of 0 makes no progress and one unit is enough")
         };
+        assert_eq!(s.step(1), Outcome::BudgetSpent { used: 1 });
         let (reference, one_step) = bits(u32::MAX);
         assert_eq!(one_step, 1);
-        for budget in [needed, needed + 6, 1000] {
+        for budget in [1, 7, 1000] {
             let (got, steps) = bits(budget);
             assert_eq!(got, reference, "budget {budget}");
-            if budget == needed {
+            if budget == 1 {
                 assert!(steps > 10, "small budgets must split the run");
             }
         }
@@ -569,6 +583,53 @@ fn relighting_matches_a_cold_solve() {
     }
     assert_eq!(s.set_light(5, [1.0; 3]), Err(radiosity_core::SolverError::NoSuchGroup { group: 5 }));
     assert!(s.set_reflectance(0, [1.0, 0.0, 0.0]).is_err());
+}
+
+/// A light change or a reflectance edit at any action boundary (inside a round, a shot, a sweep's push or its
+/// pull) is seen: the run converges to the cold solve of the new settings, and runs that reach the same
+/// boundary through different budget splits stay bit-identical.
+#[test]
+fn changes_between_any_two_actions_are_seen() {
+    let mut h = cluster_box();
+    let bytes = h.write();
+    let t = HierTable::parse(&bytes).unwrap();
+    h.groups[0].1 = [0.5, 2.0, 0.0];
+    h.materials[0] = [0.5, 0.25, 0.75];
+    let cold = check_converges::<f32>(&h.write(), 64);
+    let scale = cold.iter().flatten().copied().fold(1.0, f64::max);
+    let total = {
+        let mut store = HierOwnedBuffers::<f32>::for_table(&t);
+        let mut s = HierSolver::new(&t, store.buffers(), Config { tolerance: 1e-7, overshoot: 0 }).unwrap();
+        s.step(u32::MAX).used()
+    };
+    // Every boundary, up to the last pull (where a missed change would be taken for convergence).
+    for at in 0..=total {
+        let run = |split: u32| -> Vec<[u32; 3]> {
+            let mut store = HierOwnedBuffers::<f32>::for_table(&t);
+            let mut s =
+                HierSolver::new(&t, store.buffers(), Config { tolerance: 1e-7, overshoot: 0 }).unwrap();
+            let mut done = 0;
+            while done < at {
+                match s.step(split.min(at - done)) {
+                    Outcome::BudgetSpent { used } => done += used,
+                    _ => break,
+                }
+            }
+            s.set_light(0, [0.5, 2.0, 0.0]).unwrap();
+            s.set_reflectance(0, [0.5, 0.25, 0.75]).unwrap();
+            converge(&mut s, 64);
+            for (l, want) in cold.iter().enumerate() {
+                let got = s.radiosity(l as u32).unwrap();
+                for c in 0..3 {
+                    // As in `relighting_matches_a_cold_solve`.
+                    let err = (f64::from(got[c]) - want[c]).abs();
+                    assert!(err <= 1e-4 * scale, "change after {at} units, leaf {l} channel {c}: {err:e}");
+                }
+            }
+            (0..t.leaf_count()).map(|l| s.power(l).unwrap().map(f32::to_bits)).collect()
+        };
+        assert_eq!(run(1), run(u32::MAX), "change after {at} units");
+    }
 }
 
 #[test]

@@ -60,8 +60,13 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
     // and each reflected share by `2^-17` absolutely, the emission by `2^-11`; so the fixed points differ by at
     // most `(2^-11 P_E + (u rho_max + 2^-17) c P + 2^-26 L P) / (1 - q)` (`P_E` emitted and `P` total power,
     // `L` the longest run). Converged with at most `tolerance` unshot at each
-    // of the `nodes` adds `nodes * tolerance / (1 - q)`, and f32 arithmetic `eps_32 / 2` of at most the largest
-    // leaf power per addition, one per link the shots walked (`solver.links()`) and leaf.
+    // of the `nodes` adds `nodes * tolerance / (1 - q)`. f32 arithmetic, first order in `u = eps_32 / 2`: a unit
+    // of power on its way from a sender to a leaf and back into unshot power is rounded at most
+    // `K + 2 D + 6 + 2 S` times (`K` the most links into one node: adds into a pending irradiance within a
+    // round; `D` the longest chain: the sums down and up a sweep; 6 for the products and the adds into incident
+    // power and power; `S` the sweeps, `solver.sweeps()`: the sums of a leaf's power and a node's unshot power
+    // over sweeps), so it carries a relative error of at most `u` times that; an error spreads like power, so
+    // the total is at most that times `P / (1 - q)`.
     let u = 2f64.powi(-12);
     let rho_max = solution.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
     let c = baked.chain_sum;
@@ -73,14 +78,21 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
         .map(|(t, b)| solution.leaves[baked.solution_leaf[t]].area * b.max_element())
         .collect();
     let p_total: f64 = leaf_power.iter().sum();
-    let p_leaf_max = leaf_power.iter().copied().fold(0.0, f64::max);
     let eps32 = f64::from(f32::EPSILON);
     let codes = (2f64.powi(-11) * emitted
         + (u * rho_max + 2f64.powi(-17)) * c * p_total
         + 2f64.powi(-26) * f64::from(table.longest_run()) * p_total)
         / (1.0 - q);
     let unshot = nodes as f64 * tolerance / (1.0 - q);
-    let arithmetic = 0.5 * eps32 * (solver.links() as f64 + leaves as f64) * p_leaf_max;
+    let mut into = vec![0u32; nodes];
+    for s in 0..table.node_count() {
+        for k in table.run(s).unwrap() {
+            into[table.link(s, k).unwrap().0 as usize] += 1;
+        }
+    }
+    let most_into = f64::from(into.iter().copied().max().unwrap_or(0));
+    let roundings = most_into + 2.0 * f64::from(table.max_depth()) + 6.0 + 2.0 * f64::from(solver.sweeps());
+    let arithmetic = 0.5 * eps32 * roundings * p_total / (1.0 - q);
     let allowed = codes + unshot + arithmetic;
     let mut worst = 0.0f64;
     let mut error = 0.0;

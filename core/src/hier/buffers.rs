@@ -17,9 +17,10 @@ pub struct HierBuffers<'b, S> {
     /// Unshot power `U_n` (RGB) per node: power reflected or emitted in the node's subtree and not yet shot
     /// through the node's own links: [`HierBufferSizes::nodes`].
     pub unshot: &'b mut [[S; 3]],
-    /// Selection: per block of consecutive nodes, the node with the largest unshot power, or a rescan mark
-    /// ([`HierBufferSizes::selection`]).
-    pub selection: &'b mut [u32],
+    /// Pending (RGB) per node: between sweeps, the irradiance (incident power per unit area) the node's links
+    /// delivered since the last sweep; during a sweep's pull, the power reflected in its subtree:
+    /// [`HierBufferSizes::nodes`].
+    pub pending: &'b mut [[S; 3]],
     /// Current intensity (RGB) per light group: [`HierBufferSizes::groups`].
     pub intensity: &'b mut [[S; 3]],
     /// Current reflectance codes (RGB) per material: [`HierBufferSizes::materials`].
@@ -31,10 +32,8 @@ pub struct HierBuffers<'b, S> {
 pub struct HierBufferSizes {
     /// Leaves: [`HierBuffers::power`], [`HierBuffers::incident`].
     pub leaves: usize,
-    /// Nodes: [`HierBuffers::unshot`].
+    /// Nodes: [`HierBuffers::unshot`], [`HierBuffers::pending`].
     pub nodes: usize,
-    /// Selection blocks: [`HierBuffers::selection`] (about the square root of the nodes).
-    pub selection: usize,
     /// Light groups: [`HierBuffers::intensity`].
     pub groups: usize,
     /// Materials: [`HierBuffers::reflectance`].
@@ -48,7 +47,6 @@ impl HierBufferSizes {
         HierBufferSizes {
             leaves: table.leaf_count() as usize,
             nodes: table.node_count() as usize,
-            selection: crate::solver::selection_len(table.node_count()) as usize,
             groups: table.group_count() as usize,
             materials: table.material_count() as usize,
         }
@@ -58,7 +56,7 @@ impl HierBufferSizes {
     #[must_use]
     pub fn bytes<S>(&self) -> usize {
         let rgb = core::mem::size_of::<[S; 3]>();
-        self.leaves * 2 * rgb + self.nodes * rgb + self.selection * 4 + self.groups * rgb + self.materials * 6
+        self.leaves * 2 * rgb + self.nodes * 2 * rgb + self.groups * rgb + self.materials * 6
     }
 
     /// The first buffer of `buffers` shorter than these sizes: `(name, needed, given)`.
@@ -67,7 +65,7 @@ impl HierBufferSizes {
             ("power", b.power.len(), self.leaves),
             ("incident", b.incident.len(), self.leaves),
             ("unshot", b.unshot.len(), self.nodes),
-            ("selection", b.selection.len(), self.selection),
+            ("pending", b.pending.len(), self.nodes),
             ("intensity", b.intensity.len(), self.groups),
             ("reflectance", b.reflectance.len(), self.materials),
         ];
@@ -85,26 +83,19 @@ pub struct HierStaticBuffers<
     S,
     const LEAVES: usize,
     const NODES: usize,
-    const SELECTION: usize,
     const GROUPS: usize,
     const MATERIALS: usize,
 > {
     power: [[S; 3]; LEAVES],
     incident: [[S; 3]; LEAVES],
     unshot: [[S; 3]; NODES],
-    selection: [u32; SELECTION],
+    pending: [[S; 3]; NODES],
     intensity: [[S; 3]; GROUPS],
     reflectance: [[u16; 3]; MATERIALS],
 }
 
-impl<
-        S: Scalar,
-        const LEAVES: usize,
-        const NODES: usize,
-        const SELECTION: usize,
-        const GROUPS: usize,
-        const MATERIALS: usize,
-    > HierStaticBuffers<S, LEAVES, NODES, SELECTION, GROUPS, MATERIALS>
+impl<S: Scalar, const LEAVES: usize, const NODES: usize, const GROUPS: usize, const MATERIALS: usize>
+    HierStaticBuffers<S, LEAVES, NODES, GROUPS, MATERIALS>
 {
     /// Zeroed buffers.
     #[must_use]
@@ -113,7 +104,7 @@ impl<
             power: [[S::ZERO; 3]; LEAVES],
             incident: [[S::ZERO; 3]; LEAVES],
             unshot: [[S::ZERO; 3]; NODES],
-            selection: [0; SELECTION],
+            pending: [[S::ZERO; 3]; NODES],
             intensity: [[S::ZERO; 3]; GROUPS],
             reflectance: [[0; 3]; MATERIALS],
         }
@@ -122,30 +113,18 @@ impl<
     /// The capacities, as [`HierBufferSizes`].
     #[must_use]
     pub const fn sizes(&self) -> HierBufferSizes {
-        HierBufferSizes {
-            leaves: LEAVES,
-            nodes: NODES,
-            selection: SELECTION,
-            groups: GROUPS,
-            materials: MATERIALS,
-        }
+        HierBufferSizes { leaves: LEAVES, nodes: NODES, groups: GROUPS, materials: MATERIALS }
     }
 
     /// The buffers, borrowed for one solver.
     pub fn buffers(&mut self) -> HierBuffers<'_, S> {
-        let HierStaticBuffers { power, incident, unshot, selection, intensity, reflectance } = self;
-        HierBuffers { power, incident, unshot, selection, intensity, reflectance }
+        let HierStaticBuffers { power, incident, unshot, pending, intensity, reflectance } = self;
+        HierBuffers { power, incident, unshot, pending, intensity, reflectance }
     }
 }
 
-impl<
-        S: Scalar,
-        const LEAVES: usize,
-        const NODES: usize,
-        const SELECTION: usize,
-        const GROUPS: usize,
-        const MATERIALS: usize,
-    > Default for HierStaticBuffers<S, LEAVES, NODES, SELECTION, GROUPS, MATERIALS>
+impl<S: Scalar, const LEAVES: usize, const NODES: usize, const GROUPS: usize, const MATERIALS: usize> Default
+    for HierStaticBuffers<S, LEAVES, NODES, GROUPS, MATERIALS>
 {
     fn default() -> Self {
         Self::new()
@@ -159,7 +138,7 @@ pub struct HierOwnedBuffers<S> {
     power: std::vec::Vec<[S; 3]>,
     incident: std::vec::Vec<[S; 3]>,
     unshot: std::vec::Vec<[S; 3]>,
-    selection: std::vec::Vec<u32>,
+    pending: std::vec::Vec<[S; 3]>,
     intensity: std::vec::Vec<[S; 3]>,
     reflectance: std::vec::Vec<[u16; 3]>,
 }
@@ -173,7 +152,7 @@ impl<S: Scalar> HierOwnedBuffers<S> {
             power: std::vec![[S::ZERO; 3]; sizes.leaves],
             incident: std::vec![[S::ZERO; 3]; sizes.leaves],
             unshot: std::vec![[S::ZERO; 3]; sizes.nodes],
-            selection: std::vec![0; sizes.selection],
+            pending: std::vec![[S::ZERO; 3]; sizes.nodes],
             intensity: std::vec![[S::ZERO; 3]; sizes.groups],
             reflectance: std::vec![[0; 3]; sizes.materials],
         }
@@ -187,7 +166,7 @@ impl<S: Scalar> HierOwnedBuffers<S> {
 
     /// The buffers, borrowed for one solver.
     pub fn buffers(&mut self) -> HierBuffers<'_, S> {
-        let HierOwnedBuffers { power, incident, unshot, selection, intensity, reflectance } = self;
-        HierBuffers { power, incident, unshot, selection, intensity, reflectance }
+        let HierOwnedBuffers { power, incident, unshot, pending, intensity, reflectance } = self;
+        HierBuffers { power, incident, unshot, pending, intensity, reflectance }
     }
 }

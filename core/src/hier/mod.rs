@@ -2,46 +2,70 @@
 //!
 //! Hierarchical radiosity (Hanrahan, Salzman, Aupperle, "A rapid hierarchical radiosity algorithm", SIGGRAPH
 //! 1991) solved by progressive refinement shooting (Cohen, Chen, Wallace, Greenberg, SIGGRAPH 1988) over its
-//! links, with push-pull done as power moves.
+//! links, in rounds, with the paper's push-pull done lazily in one sweep over the tree per round.
 //!
 //! # The scheme
 //! - Every node `n` keeps `U_n`, the power emitted or reflected in `n`'s subtree that has not yet been shot
-//!   through `n`'s own links. A leaf's new power is added to `U` of the leaf and of every ancestor that has
-//!   links: the links of a leaf's chain (the leaf and its ancestors) each carry their part of the leaf's
-//!   interactions ("pull" is these additions).
-//! - A shot takes the node `s` with the largest unshot magnitude `|r| + |g| + |b|` (ties to the lower node),
-//!   sets `U_s = 0` and walks its run: link `(r, F_sr)` delivers incident power `F_sr U_s` to node `r`, spread
-//!   over the leaves below `r` by area ("push": leaf `l` receives `F_sr U_s A_l / A_r`, the irradiance of `r`
-//!   taken as uniform over it). A leaf adds what it receives to its incident power `H_l`, reflects
-//!   `rho_l` of it into its power `Phi_l` and into `U` along its chain up to `r`; the sum reflected below `r` is
-//!   then added to `U` of `r`'s linked ancestors once.
+//!   through `n`'s own links (nodes without links keep none: they never shoot). A leaf's new power is added to
+//!   `U` of the leaf and of every ancestor that has links: the links of a leaf's chain (the leaf and its
+//!   ancestors) each carry their part of the leaf's interactions.
+//! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` adds the irradiance
+//!   `F_sr U_s / A_r` to `r`'s **pending** irradiance (one buffer entry per node, [`HierBuffers::pending`]),
+//!   the irradiance of `r` taken as uniform over it. Nothing below or above `r` is touched: a link costs the
+//!   same whatever the size of its receiver.
+//! - A **sweep** then makes the pending light count. Its push visits the nodes in preorder: each adds its
+//!   parent's pending irradiance to its own, so a leaf ends with the sum over its chain; the leaf adds
+//!   `dH = A_l e` to its incident power `H_l` and reflects `rho_l dH` into its power `Phi_l`. Its pull visits
+//!   the nodes in reverse preorder and sums the reflected power up the tree: each node adds its subtree's sum
+//!   to its unshot power (if it has links) and passes it to its parent. A sweep leaves nothing pending; each
+//!   pass is resumable node by node.
 //! - So the solver converges to the solution of `B_l = E_l + rho_l sum_{r in chain(l)} (1 / A_r) sum_s F_sr
 //!   Phi_s`, `Phi_s` the power of the leaves below sender `s`: the linear system of the table's hierarchy.
 //!   The table's chain bound (every leaf's chain of decoded run sums `<= 1`, checked by
 //!   [`HierTable::parse`]) makes the power a leaf shoots at most the power it holds, and reflectances are
 //!   `< 1`, so the total unshot magnitude shrinks geometrically and shooting converges.
 //! - Light changes ([`HierSolver::set_light`]) and reflectance edits ([`HierSolver::set_reflectance`]) are
-//!   injected as unshot power at the leaves, as the flat [`Solver`](crate::Solver) does; the static base as in
-//!   the crate docs. Overshooting ([`Config::overshoot`]) works as in the flat solver: a shot sends
-//!   `(1 + overshoot / 256) U_s` and leaves the excess as negative unshot power.
+//!   injected as unshot power at the leaves and their chains, as the flat [`Solver`](crate::Solver) does; the
+//!   static base as in the crate docs. Overshooting ([`Config::overshoot`]) works as in the flat solver: a shot
+//!   sends `(1 + overshoot / 256) U_s` and leaves the excess as negative unshot power.
+//! - Leaves show the light of every shot up to the last sweep's push: what a round shot shows after its sweep.
+//!
+//! # Rounds: which nodes shoot
+//! The pull is where the unshot powers become current, so it also finds the largest unshot magnitude
+//! `|r| + |g| + |b|`, `M`. If `M` is within the tolerance, the solver has converged: every node's unshot
+//! magnitude is `<= tolerance` and nothing is pending, the flat solver's convergence, so its remainder bound
+//! holds. Otherwise a round judges the nodes in index order and shoots every node whose unshot magnitude is at
+//! least `M / 4` (and above the tolerance), then sweeps. During a round a shot changes only the shooter's
+//! unshot power (what it delivers stays pending), so every node is judged on its unshot power as of the
+//! sweep before the round, plus what light changes and edits injected since: the rule judges the light reflected
+//! before the round, and light reflected from this round's shots waits for the next round, as it must (it is
+//! not yet computed).
+//!
+//! Why rounds: a sweep and a round's judging cost a fixed `3 N` units (`N` nodes) whatever is shot, so
+//! sweeping after every shot of the largest node would cost `3 N` per shot; shooting every
+//! node within a factor of the largest keeps the largest residuals first, as Southwell's rule does, and
+//! spreads the fixed cost over many shots. The factor trades the two: a node shot at `M / 4` moves at least a
+//! quarter of what the largest would, and a smaller share would shoot nodes whose power mostly arrives later
+//! (the host's shooting solve uses the same share, `ROUND_SHARE`). The alternative, a sweep whenever the pending
+//! power exceeds a share of the unshot power, judges the same stale unshot powers between sweeps and needs a
+//! selection structure kept current per shot; rounds need neither (no selection buffer).
 //!
 //! # Work units
-//! One unit each: a link decoded (its share of the shot computed); a leaf receiving pushed power (incident,
-//! reflected and radiosity updated); a node visited on an upward walk (its unshot power updated and compared
-//! with its selection block's winner); a selection block winner compared; a node scanned when a selection
-//! block is rescanned (a block is marked for a rescan when its winner's unshot magnitude falls). An action
-//! starts only if its worst case fits in what is left of the budget: a link 1, a leaf `1 + max_depth`, the pull
-//! above a receiver `max_depth`, a selection block `B + 1` (`B` the block length); a step never spends more
-//! than its budget and the next step resumes where it stopped. The sequence of actions does not depend on how
-//! the budget is split, so runs with different budgets are bit-identical at every action boundary, and at
-//! convergence.
+//! One unit each: a node judged in a round (a shot starts at no extra cost); a link applied (its irradiance
+//! computed and added to the receiver's pending); a node visited by a sweep's push (parent's pending added;
+//! for a leaf, incident power, power and reflected power updated); a node visited by a sweep's pull (pending
+//! summed into its parent and its unshot power, the largest magnitude kept). Every action is one unit, so a
+//! step never spends more than its budget, any budget of one unit or more makes progress, and the next step
+//! resumes where it stopped. The sequence of actions does not depend on how the budget is split, so runs with
+//! different budgets are bit-identical at every action boundary, and at convergence.
 //!
-//! A link to a receiver with `k` leaves costs about `k (1 + d)` units, `d` the depth of those leaves below it:
-//! the push is eager. Links to large clusters therefore cost in proportion to the leaves they light.
+//! A round costs `3 N` units plus one per link of the nodes it shoots: a link costs one unit whatever the
+//! receiver, and the push and pull are paid once per round for all the links shot in it.
 //!
 //! Outside any budget, returned as work counts: [`HierSolver::set_light`] (members times their chain walks),
-//! [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); [`HierSolver::new`] and
-//! [`HierSolver::reset`] are `O(leaves x depth + links)`.
+//! [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); a change during a sweep's pull makes
+//! the pull run again before convergence is judged. [`HierSolver::new`] and [`HierSolver::reset`] are
+//! `O(leaves x depth + links)`.
 //!
 //! # Example
 //! ```
@@ -91,32 +115,26 @@ use crate::base::emission;
 use crate::codec::{decode_reflectance, encode_reflectance, Frac};
 use crate::format::HierTable;
 use crate::scalar::Scalar;
-use crate::solver::{
-    block_shift, selection_len, Config, NoProgressReason, Outcome, SolverError, MAX_PATCHES,
-};
+use crate::solver::{Config, NoProgressReason, Outcome, SolverError, MAX_PATCHES};
 
-/// Marks a selection block whose stored winner may no longer hold the block's largest unshot magnitude.
-const RESCAN: u32 = 1 << 31;
-
-/// A push in progress: the irradiance (incident power per unit area) being spread over `receiver`'s leaves.
-#[derive(Clone, Copy, Debug)]
-struct Push<S> {
-    receiver: u32,
-    irradiance: [S; 3],
-    next_leaf: u32,
-    end_leaf: u32,
-    /// Power reflected below the receiver so far: added to its linked ancestors when the leaves are done.
-    reflected: [S; 3],
-}
+/// A round shoots every node whose unshot magnitude is at least `1 / 2^ROUND_SHARE_SHIFT` of the largest
+/// (module docs, "Rounds").
+const ROUND_SHARE_SHIFT: u32 = 2;
 
 /// Where the solver is in its sequence of actions.
 #[derive(Clone, Copy, Debug)]
 enum Phase<S> {
-    /// Choosing the next shooter: blocks `< next_block` compared, the best so far.
-    Selecting { next_block: u32, best: Option<u32> },
-    /// Shooting `sender`'s `power` over its run: next link position, run end, the push of the current link.
-    Shooting { sender: u32, power: [S; 3], next: u32, end: u32, push: Option<Push<S>> },
-    /// Every node's unshot magnitude is within the tolerance (until a change).
+    /// Judging nodes `next..` of a round: those at or above `threshold` (and above the tolerance) shoot.
+    Round { threshold: S, next: u32 },
+    /// Shooting `sender`'s `power` over its run (next link position, run end), then back to the round.
+    Shooting { sender: u32, power: [S; 3], next: u32, end: u32, threshold: S },
+    /// The push of a sweep: nodes `next..` in preorder take their parent's pending irradiance.
+    Push { next: u32 },
+    /// The pull of a sweep: nodes `..left` in reverse preorder still to pull; the largest unshot magnitude of
+    /// the nodes pulled so far, whether all of them were usable, and whether a change since the pull began
+    /// may have raised a node already passed (then the pull is run again before it is trusted).
+    Pull { left: u32, largest: S, usable: bool, stale: bool },
+    /// Every node's unshot magnitude is within the tolerance and nothing is pending (until a change).
     Converged,
 }
 
@@ -126,10 +144,9 @@ pub struct HierSolver<'a, S: Scalar> {
     table: HierTable<'a>,
     buf: HierBuffers<'a, S>,
     config: Config<S>,
-    block_shift: u32,
-    blocks: u32,
     phase: Phase<S>,
     shots: u32,
+    sweeps: u32,
     links: u64,
 }
 
@@ -145,7 +162,8 @@ fn magnitude<S: Scalar>(v: [S; 3]) -> S {
 /// solver's argument ([`crate::convergence_floor`], the `scalar` module docs) with the rounded receipts of a
 /// shot counted as the leaves its links reach times the chain walks that repeat each leaf's rounding:
 /// `ceil(6 R D / (1 - rho_max))`, `R` the most leaves any run reaches (with multiplicity), `D` the longest
-/// chain. `O(links + materials)`.
+/// chain. The lazy push rounds less than that count (two roundings per link, two per leaf and sweep, exact
+/// fixed-point sums down and up the tree), so the floor stays sufficient. `O(links + materials)`.
 #[must_use]
 pub fn hier_convergence_floor<S: Scalar>(table: &HierTable<'_>) -> S {
     let mut most = 0u64;
@@ -199,10 +217,9 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             table: *table,
             buf: buffers,
             config,
-            block_shift: block_shift(nodes),
-            blocks: selection_len(nodes),
-            phase: Phase::Selecting { next_block: 0, best: None },
+            phase: Phase::Converged,
             shots: 0,
+            sweeps: 0,
             links: 0,
         };
         s.reset();
@@ -230,10 +247,8 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         for u in self.buf.unshot.iter_mut() {
             *u = [S::ZERO; 3];
         }
-        for b in 0..self.blocks {
-            if let Some(w) = self.buf.selection.get_mut(b as usize) {
-                *w = RESCAN;
-            }
+        for p in self.buf.pending.iter_mut() {
+            *p = [S::ZERO; 3];
         }
         let solved = self.table.base_solved();
         for l in 0..self.table.leaf_count() {
@@ -258,9 +273,26 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             let rgb = self.buf.intensity.get(g as usize).copied().unwrap_or([S::ZERO; 3]);
             self.add_group_emission(g, rgb);
         }
-        self.phase = Phase::Selecting { next_block: 0, best: None };
+        // Nothing is pending, so a pull alone finds the largest unshot magnitude for the first round.
+        self.phase = self.first_pull();
         self.shots = 0;
+        self.sweeps = 0;
         self.links = 0;
+    }
+
+    /// A pull over every node with nothing changed yet.
+    fn first_pull(&self) -> Phase<S> {
+        Phase::Pull { left: self.table.node_count(), largest: S::ZERO, usable: true, stale: false }
+    }
+
+    /// Unshot power was injected outside a step: a converged solver judges again, and a pull that already
+    /// passed some nodes is run again before its largest magnitude is trusted.
+    fn changed(&mut self) {
+        match &mut self.phase {
+            Phase::Converged => self.phase = self.first_pull(),
+            Phase::Pull { stale, .. } => *stale = true,
+            _ => {}
+        }
     }
 
     fn leaf_area(&self, leaf: u32) -> S {
@@ -305,214 +337,145 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         walked
     }
 
-    /// Selection rank of `node`'s unshot magnitude (see the flat solver's selection).
-    fn rank(&self, node: u32) -> S::Rank {
-        magnitude(self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])).rank(node)
-    }
-
-    /// Adds `d` to `node`'s unshot power (if it has links: a node without links never shoots) and keeps its
-    /// block's winner: a larger rank takes over; the winner falling marks the block for a rescan.
+    /// Adds `d` to `node`'s unshot power if it has links (a node without links never shoots).
     fn add_unshot(&mut self, node: u32, d: [S; 3]) {
         if !self.table.has_links(node) {
             return;
         }
-        let before = self.rank(node);
         if let Some(u) = self.buf.unshot.get_mut(node as usize) {
             *u = add3(*u, d);
         }
-        self.touched(node, before);
     }
 
-    /// Keeps `node`'s block winner current after its unshot power changed from rank `before`.
-    fn touched(&mut self, node: u32, before: S::Rank) {
-        let b = (node >> self.block_shift) as usize;
-        let Some(&w) = self.buf.selection.get(b) else { return };
-        if w & RESCAN != 0 {
-            return;
-        }
-        let now = self.rank(node);
-        let winner = if w == node {
-            if now < before {
-                RESCAN
-            } else {
-                node
-            }
-        } else if now > self.rank(w) {
-            node
-        } else {
-            w
-        };
-        if let Some(s) = self.buf.selection.get_mut(b) {
-            *s = winner;
-        }
-        // A change after the selection passed this block may make another node the best.
-        if let Phase::Selecting { next_block, .. } = self.phase {
-            if next_block > 0 {
-                self.phase = Phase::Selecting { next_block: 0, best: None };
-            }
-        } else if let Phase::Converged = self.phase {
-            self.phase = Phase::Selecting { next_block: 0, best: None };
+    fn pending(&self, node: u32) -> [S; 3] {
+        self.buf.pending.get(node as usize).copied().unwrap_or([S::ZERO; 3])
+    }
+
+    fn set_pending(&mut self, node: u32, v: [S; 3]) {
+        if let Some(p) = self.buf.pending.get_mut(node as usize) {
+            *p = v;
         }
     }
 
-    /// Nodes of selection block `b`.
-    fn block_range(&self, b: u32) -> core::ops::Range<u32> {
-        let n = self.table.node_count();
-        let start = b << self.block_shift;
-        start.min(n)..start.saturating_add(1 << self.block_shift).min(n)
-    }
-
-    /// Rescans block `b` and stores its winner (nodes without links hold zero); returns the nodes scanned.
-    fn rescan(&mut self, b: u32) -> u32 {
-        let range = self.block_range(b);
-        let mut best = range.start;
-        let mut best_rank = self.rank(best);
-        for i in range.clone() {
-            let r = self.rank(i);
-            if r > best_rank {
-                best = i;
-                best_rank = r;
-            }
-        }
-        if let Some(s) = self.buf.selection.get_mut(b as usize) {
-            *s = best;
-        }
-        range.end - range.start
-    }
-
-    /// The largest action's cost: what a budget must at least hold for a step to make progress.
-    fn largest_action(&self) -> u32 {
-        (1u32 << self.block_shift).saturating_add(1).max(self.table.max_depth().saturating_add(1))
-    }
-
-    /// Runs shooting actions (module docs) until convergence or until the next action would not fit in
-    /// `budget` work units.
+    /// Runs actions (module docs) until convergence or until `budget` work units are spent. Every action
+    /// costs one unit, so any budget of at least one unit makes progress.
     pub fn step(&mut self, budget: u32) -> Outcome {
         let mut used = 0u32;
         loop {
-            let left = budget.saturating_sub(used);
+            if let Phase::Converged = self.phase {
+                return Outcome::Converged { used };
+            }
+            if used >= budget {
+                return if used == 0 {
+                    Outcome::NoProgress { used, reason: NoProgressReason::BudgetTooSmall { needed: 1 } }
+                } else {
+                    Outcome::BudgetSpent { used }
+                };
+            }
             match self.phase {
-                Phase::Converged => return Outcome::Converged { used },
-                Phase::Selecting { next_block, best } => {
-                    if next_block >= self.blocks {
-                        let Some(s) = best else {
-                            self.phase = Phase::Converged;
-                            return Outcome::Converged { used };
-                        };
-                        let u = self.buf.unshot.get(s as usize).copied().unwrap_or([S::ZERO; 3]);
-                        let m = magnitude(u);
-                        if !m.is_usable() {
-                            return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
-                        }
-                        if m <= self.config.tolerance {
-                            self.phase = Phase::Converged;
-                            return Outcome::Converged { used };
-                        }
-                        // Starting a shot costs nothing beyond the selection: the shot power, what is left as
-                        // unshot power and the block mark. With overshooting the shot sends
-                        // `(1 + overshoot / 256) U_s` and leaves `-overshoot / 256 U_s`, as the flat solver does.
-                        let range = self.table.run(s).unwrap_or(0..0);
-                        let extra = Frac { mantissa: u32::from(self.config.overshoot), shift: 8 };
-                        let u = u.map(|x| x.add(x.mul_frac(extra)));
-                        if let Some(v) = self.buf.unshot.get_mut(s as usize) {
-                            *v = [0, 1, 2].map(|c| v[c].sub(u[c]));
-                        }
-                        let b = (s >> self.block_shift) as usize;
-                        if let Some(w) = self.buf.selection.get_mut(b) {
-                            *w = RESCAN;
-                        }
-                        self.shots = self.shots.saturating_add(1);
-                        self.phase = Phase::Shooting {
-                            sender: s,
-                            power: u,
-                            next: range.start,
-                            end: range.end,
-                            push: None,
-                        };
+                Phase::Converged => {}
+                Phase::Round { threshold, next } => {
+                    if next >= self.table.node_count() {
+                        self.sweeps = self.sweeps.saturating_add(1);
+                        self.phase = Phase::Push { next: 0 };
                         continue;
                     }
-                    let b = next_block;
-                    let needed = (1u32 << self.block_shift) + 1;
-                    if left < needed {
-                        return self.stop(used, needed);
+                    used += 1;
+                    self.phase = Phase::Round { threshold, next: next + 1 };
+                    let u = self.buf.unshot.get(next as usize).copied().unwrap_or([S::ZERO; 3]);
+                    let m = magnitude(u);
+                    if m < threshold || m <= self.config.tolerance || !self.table.has_links(next) {
+                        continue;
                     }
-                    let mut cost = 1;
-                    let w = self.buf.selection.get(b as usize).copied().unwrap_or(RESCAN);
-                    let w = if w & RESCAN != 0 {
-                        cost += self.rescan(b);
-                        self.buf.selection.get(b as usize).copied().unwrap_or(0)
-                    } else {
-                        w
-                    };
-                    // Nodes without links hold no unshot power: a block of them offers a zero magnitude.
-                    let best = match best {
-                        Some(x) if self.rank(x) >= self.rank(w) => Some(x),
-                        _ => Some(w),
-                    };
-                    used += cost;
-                    self.phase = Phase::Selecting { next_block: b + 1, best };
+                    // With overshooting the shot sends `(1 + overshoot / 256) U_s` and leaves
+                    // `-overshoot / 256 U_s`, as the flat solver does.
+                    let extra = Frac { mantissa: u32::from(self.config.overshoot), shift: 8 };
+                    let power = u.map(|x| x.add(x.mul_frac(extra)));
+                    if let Some(v) = self.buf.unshot.get_mut(next as usize) {
+                        *v = [0, 1, 2].map(|c| v[c].sub(power[c]));
+                    }
+                    let run = self.table.run(next).unwrap_or(0..0);
+                    self.shots = self.shots.saturating_add(1);
+                    self.phase =
+                        Phase::Shooting { sender: next, power, next: run.start, end: run.end, threshold };
                 }
-                Phase::Shooting { sender, power, next, end, push: None } => {
+                Phase::Shooting { sender, power, next, end, threshold } => {
                     if next >= end {
-                        self.phase = Phase::Selecting { next_block: 0, best: None };
+                        self.phase = Phase::Round { threshold, next: sender + 1 };
                         continue;
-                    }
-                    if left < 1 {
-                        return self.stop(used, 1);
                     }
                     used += 1;
                     self.links = self.links.saturating_add(1);
-                    let push = self.table.link(sender, next).and_then(|(r, f)| {
-                        let area = S::from_f32(self.table.node_area(r)?);
-                        let leaves = self.table.leaf_range(r)?;
-                        Some(Push {
-                            receiver: r,
-                            irradiance: power.map(|p| p.mul_frac(f).div(area)),
-                            next_leaf: leaves.start,
-                            end_leaf: leaves.end,
-                            reflected: [S::ZERO; 3],
-                        })
-                    });
-                    self.phase = Phase::Shooting { sender, power, next: next + 1, end, push };
+                    // Link `(r, F)` leaves the irradiance `F U_s / A_r` pending at `r`.
+                    if let Some((r, f)) = self.table.link(sender, next) {
+                        if let Some(area) = self.table.node_area(r) {
+                            let area = S::from_f32(area);
+                            let e = power.map(|p| p.mul_frac(f).div(area));
+                            self.set_pending(r, add3(self.pending(r), e));
+                        }
+                    }
+                    self.phase = Phase::Shooting { sender, power, next: next + 1, end, threshold };
                 }
-                Phase::Shooting { sender, power, next, end, push: Some(mut p) } => {
-                    let depth = self.table.max_depth();
-                    if p.next_leaf < p.end_leaf {
-                        let needed = depth.saturating_add(1);
-                        if left < needed {
-                            return self.stop(used, needed);
-                        }
-                        used += 1 + self.push_leaf(&mut p);
-                        p.next_leaf += 1;
-                    } else {
-                        if left < depth {
-                            return self.stop(used, depth);
-                        }
-                        let mut node = p.receiver;
-                        for _ in 0..depth {
-                            let Some(a) = self.table.parent(node) else { break };
-                            self.add_unshot(a, p.reflected);
-                            used += 1;
-                            node = a;
-                        }
-                        self.phase = Phase::Shooting { sender, power, next, end, push: None };
+                Phase::Push { next } => {
+                    if next >= self.table.node_count() {
+                        self.phase = self.first_pull();
                         continue;
                     }
-                    if let Phase::Shooting { push, .. } = &mut self.phase {
-                        *push = Some(p);
+                    used += 1;
+                    self.push_node(next);
+                    self.phase = Phase::Push { next: next + 1 };
+                }
+                Phase::Pull { left, largest, usable, stale } => {
+                    if left == 0 {
+                        if stale {
+                            self.phase = self.first_pull();
+                            continue;
+                        }
+                        if !usable {
+                            return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
+                        }
+                        if largest <= self.config.tolerance {
+                            self.phase = Phase::Converged;
+                            return Outcome::Converged { used };
+                        }
+                        let share = Frac { mantissa: 1, shift: ROUND_SHARE_SHIFT };
+                        self.phase = Phase::Round { threshold: largest.mul_frac(share), next: 0 };
+                        continue;
                     }
+                    used += 1;
+                    let node = left - 1;
+                    let m = self.pull_node(node);
+                    let (largest, usable) = match m {
+                        Some(m) if !m.is_usable() => (largest, false),
+                        Some(m) if m > largest => (m, usable),
+                        _ => (largest, usable),
+                    };
+                    self.phase = Phase::Pull { left: node, largest, usable, stale };
                 }
             }
         }
     }
 
-    /// Pushes the next leaf of `p`: incident and reflected power, and the reflected power up the leaf's chain
-    /// to the receiver; returns the nodes walked.
-    fn push_leaf(&mut self, p: &mut Push<S>) -> u32 {
-        let l = p.next_leaf;
+    /// The push of one node (preorder): it adds its parent's pending irradiance to its own, and the last child
+    /// clears the parent's (every descendant reads its own parent only). A leaf then takes the sum, the
+    /// irradiance of every link on its chain since the last sweep: incident power `dH = A_l e`, reflected
+    /// `rho_l dH` into its power, and the reflected power is left pending for the pull.
+    fn push_node(&mut self, node: u32) {
+        let mut e = self.pending(node);
+        if let Some(p) = self.table.parent(node) {
+            e = add3(e, self.pending(p));
+            if self.table.subtree_end(node) == self.table.subtree_end(p) {
+                self.set_pending(p, [S::ZERO; 3]);
+            }
+        }
+        if !self.table.is_leaf(node) {
+            self.set_pending(node, e);
+            return;
+        }
+        let Some(l) = self.table.leaf_range(node).map(|r| r.start) else { return };
         let a = self.leaf_area(l);
         let rho = self.rho(l);
-        let dh = p.irradiance.map(|q| q.mul(a));
+        let dh = e.map(|q| q.mul(a));
         let dphi = [0, 1, 2].map(|c| dh[c].mul_frac(decode_reflectance(rho[c])));
         if let Some(v) = self.buf.incident.get_mut(l as usize) {
             *v = add3(*v, dh);
@@ -520,32 +483,23 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         if let Some(v) = self.buf.power.get_mut(l as usize) {
             *v = add3(*v, dphi);
         }
-        p.reflected = add3(p.reflected, dphi);
-        let Some(mut node) = self.table.leaf_node(l) else { return 0 };
-        let mut walked = 0;
-        // The receiver is an ancestor-or-self of every leaf in its range (checked by parse).
-        for _ in 0..self.table.max_depth() {
-            self.add_unshot(node, dphi);
-            walked += 1;
-            if node == p.receiver {
-                break;
-            }
-            match self.table.parent(node) {
-                Some(q) => node = q,
-                None => break,
-            }
-        }
-        walked
+        self.set_pending(node, dphi);
     }
 
-    /// The outcome of a step stopped before an action of `needed` units.
-    fn stop(&self, used: u32, needed: u32) -> Outcome {
-        if used == 0 {
-            let needed = needed.max(self.largest_action());
-            Outcome::NoProgress { used, reason: NoProgressReason::BudgetTooSmall { needed } }
-        } else {
-            Outcome::BudgetSpent { used }
+    /// The pull of one node (reverse preorder): its pending value is the power reflected in its subtree since
+    /// the last sweep (its children added theirs); it goes into the node's unshot power (if it has links) and
+    /// to its parent, and the node's pending is cleared. Returns the node's unshot magnitude if it has links.
+    fn pull_node(&mut self, node: u32) -> Option<S> {
+        let r = self.pending(node);
+        self.set_pending(node, [S::ZERO; 3]);
+        if let Some(p) = self.table.parent(node) {
+            self.set_pending(p, add3(self.pending(p), r));
         }
+        if !self.table.has_links(node) {
+            return None;
+        }
+        self.add_unshot(node, r);
+        Some(magnitude(self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])))
     }
 
     /// Sets light `group` to intensity `rgb`: every member's emission change is injected as unshot power
@@ -567,7 +521,9 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         if let Some(v) = self.buf.intensity.get_mut(group as usize) {
             *v = new;
         }
-        Ok(self.add_group_emission(group, [0, 1, 2].map(|c| new[c].sub(old[c]))))
+        let units = self.add_group_emission(group, [0, 1, 2].map(|c| new[c].sub(old[c])));
+        self.changed();
+        Ok(units)
     }
 
     /// Sets the reflectance of `material` to `rgb` (each in `[0, 1)`, quantized by the reflectance codec): for
@@ -606,6 +562,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             }
             units = units.saturating_add(self.add_to_chain(l, d));
         }
+        self.changed();
         Ok(units)
     }
 
@@ -635,7 +592,8 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         Some(p.map(|x| x.div(a)))
     }
 
-    /// Unshot power `U_n` (RGB) of `node` (excluding a shot in flight).
+    /// Unshot power `U_n` (RGB) of `node`: excluding a shot in flight, and the power reflected from what is
+    /// still pending (shot since the last sweep's push).
     #[must_use]
     pub fn unshot(&self, node: u32) -> Option<[S; 3]> {
         self.buf.unshot.get(node as usize).copied().filter(|_| node < self.table.node_count())
@@ -645,6 +603,13 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     #[must_use]
     pub fn shots(&self) -> u32 {
         self.shots
+    }
+
+    /// Sweeps (push and pull over the tree after a round of shots) started since the last cold start
+    /// (saturating).
+    #[must_use]
+    pub fn sweeps(&self) -> u32 {
+        self.sweeps
     }
 
     /// Links applied since the last cold start.
