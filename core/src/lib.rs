@@ -226,8 +226,8 @@ pub use format::write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,
 };
 pub use format::{
-    group_id, hier_required_len, write_hier_table, HierSpec, HierTable, NodeSpec, Row, SectionSizes, Table,
-    TableError, TreeFault, FORMAT_VERSION, HIER_FORMAT_VERSION, MAGIC,
+    group_id, hier_required_len, write_hier_table, HierMember, HierSpec, HierTable, NodeSpec, Row,
+    SectionSizes, Table, TableError, TreeFault, FORMAT_VERSION, HIER_FORMAT_VERSION, MAGIC,
 };
 #[cfg(any(test, feature = "std"))]
 pub use hier::HierOwnedBuffers;

@@ -253,7 +253,7 @@ impl Model {
             for pos in t.group_members(g).unwrap() {
                 let m = t.member(pos).unwrap();
                 for c in 0..3 {
-                    e[m.patch as usize][c] += f64::from(i[c]) * emission(m.emission[c]);
+                    e[m.leaf as usize][c] += f64::from(i[c]) * f64::from(m.emission[c]);
                 }
             }
         }
@@ -663,7 +663,7 @@ fn tiny() -> Hier {
 }
 
 const HEADER: usize = 16;
-const TOTAL: usize = HEADER + 143 + 4;
+const TOTAL: usize = HEADER + 149 + 4;
 
 #[rustfmt::skip]
 const GOLDEN: [u8; TOTAL] = [
@@ -686,8 +686,8 @@ const GOLDEN: [u8; TOTAL] = [
     0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00,
     // member leaf: 0
     0x00, 0x00,
-    // member emission codes: (1, 0, 0); 1.0 = 0x7c00
-    0x00, 0x7c, 0x00, 0x00, 0x00, 0x00,
+    // member emission (f32 x 3): (1, 0, 0)
+    0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
     // node parents (2-byte indices): 0 (a root is its own parent), 0, 0
     0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
     // node subtree ends (u32): 3, 2, 3
@@ -787,7 +787,9 @@ fn corrupt(f: impl FnOnce(&mut Vec<u8>)) -> Result<(), TableError> {
 }
 
 /// Byte offsets of the golden table's sections.
-const PARENT: usize = HEADER + 66;
+/// The member emission section.
+const MEMBER_EMISSION: usize = HEADER + 60;
+const PARENT: usize = MEMBER_EMISSION + 12;
 const END: usize = PARENT + 6;
 const LEAF_START: usize = END + 12;
 const AREA: usize = LEAF_START + 16;
@@ -808,6 +810,12 @@ fn named_corruptions_map_to_their_errors() {
     fix_crc(&mut b);
     b[TOTAL - 1] ^= 1;
     assert!(matches!(HierTable::parse(&b), Err(E::CrcMismatch { .. })));
+    // A member emission that is negative (the sign bit of red's f32), or not finite (green's exponent all ones).
+    assert_eq!(corrupt(|b| b[MEMBER_EMISSION + 3] = 0xbf), Err(E::BadMemberEmission { member: 0 }));
+    assert_eq!(
+        corrupt(|b| b[MEMBER_EMISSION + 4..MEMBER_EMISSION + 8].copy_from_slice(&f32::NAN.to_le_bytes())),
+        Err(E::BadMemberEmission { member: 0 })
+    );
     // Leaf 2 (node 2) claims node 1 as parent: node 0's child list names 0.
     assert_eq!(corrupt(|b| b[PARENT + 4] = 1), Err(E::BadTree { node: 2, fault: TreeFault::Parent }));
     // A root that is not its own parent.

@@ -3,7 +3,8 @@
 //! quantization and arithmetic allow.
 //!
 //! Bounds from core's crate docs ("Error bounds"): FLOAT16 form factors relative `< 2^-12` (`u`); reflectance
-//! absolute `<= 2^-17`; emission and irradiance codes relative `<= 2^-11`; f32 additions relative `eps_32 / 2`
+//! absolute `<= 2^-17`; emission and irradiance codes relative `<= 2^-11` (light-group members' emission is
+//! stored as f32 in a hierarchical table: relative `2^-24`); f32 additions relative `eps_32 / 2`
 //! each.
 
 use radiosity_core::{Config, HierOwnedBuffers, HierSolver, HierTable, Outcome};
@@ -57,8 +58,9 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
     // shooting system contracts by `q = rho_max * c` (`c` the largest chain sum, at most 1 after the cap): the
     // codes change each shot share by at most `u` relatively (entries in the codec's float range, down to
     // `2^-14` of their run's largest; below it by at most that range's step, `2^-26` of the run's largest, each)
-    // and each reflected share by `2^-17` absolutely, the emission by `2^-11`; so the fixed points differ by at
-    // most `(2^-11 P_E + (u rho_max + 2^-17) c P + 2^-26 L P) / (1 - q)` (`P_E` emitted and `P` total power,
+    // and each reflected share by `2^-17` absolutely, the members' f32 emission by `2^-24` (the Cornell box has no
+    // static light, whose codes would add `2^-11`); so the fixed points differ by at
+    // most `(2^-24 P_E + (u rho_max + 2^-17) c P + 2^-26 L P) / (1 - q)` (`P_E` emitted and `P` total power,
     // `L` the longest run). Converged with at most `tolerance` unshot at each
     // of the `nodes` adds `nodes * tolerance / (1 - q)`. f32 arithmetic, first order in `u = eps_32 / 2`: a unit
     // of power on its way from a sender to a leaf and back into unshot power is rounded at most
@@ -79,7 +81,7 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
         .collect();
     let p_total: f64 = leaf_power.iter().sum();
     let eps32 = f64::from(f32::EPSILON);
-    let codes = (2f64.powi(-11) * emitted
+    let codes = (2f64.powi(-24) * emitted
         + (u * rho_max + 2f64.powi(-17)) * c * p_total
         + 2f64.powi(-26) * f64::from(table.longest_run()) * p_total)
         / (1.0 - q);

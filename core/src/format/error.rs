@@ -147,6 +147,12 @@ pub enum TableError {
         /// The leaf (its index among the leaves).
         leaf: u32,
     },
+    /// A hierarchical table's light-group member emission (f32) is negative, not finite or above
+    /// [`EMISSION_MAX`](crate::codec::EMISSION_MAX).
+    BadMemberEmission {
+        /// Position in the member array.
+        member: u32,
+    },
 }
 
 /// What is wrong with a hierarchical table's node tree ([`TableError::BadTree`]).
@@ -203,7 +209,7 @@ pub enum IndexArray {
 
 impl TableError {
     /// Every variant's name, in declaration order: what [`TableError::kind`] returns.
-    pub const KINDS: [&'static str; 26] = [
+    pub const KINDS: [&'static str; 27] = [
         "BadMagic",
         "UnsupportedVersion",
         "BadHeader",
@@ -230,6 +236,7 @@ impl TableError {
         "BadTree",
         "NodeAreaMismatch",
         "ChainSumExceedsOne",
+        "BadMemberEmission",
     ];
 
     /// The variant's name without its fields (`"CrcMismatch"`), e.g. for counting which checks a corpus reaches.
@@ -262,6 +269,7 @@ impl TableError {
             TableError::BadTree { .. } => "BadTree",
             TableError::NodeAreaMismatch { .. } => "NodeAreaMismatch",
             TableError::ChainSumExceedsOne { .. } => "ChainSumExceedsOne",
+            TableError::BadMemberEmission { .. } => "BadMemberEmission",
         }
     }
 }
@@ -338,6 +346,9 @@ impl fmt::Display for TableError {
             TableError::ChainSumExceedsOne { leaf } => {
                 write!(f, "leaf {leaf}: decoded run sums over the leaf and its ancestors exceed 1")
             }
+            TableError::BadMemberEmission { member } => {
+                write!(f, "light-group member {member}: emission negative, not finite or too large")
+            }
         }
     }
 }
@@ -377,6 +388,7 @@ mod tests {
             TableError::BadTree { node: 0, fault: TreeFault::Parent },
             TableError::NodeAreaMismatch { node: 0 },
             TableError::ChainSumExceedsOne { leaf: 0 },
+            TableError::BadMemberEmission { member: 0 },
         ];
         assert_eq!(one_of_each.map(|e| e.kind()), TableError::KINDS);
         for (i, a) in TableError::KINDS.iter().enumerate() {

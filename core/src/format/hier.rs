@@ -10,9 +10,9 @@ use serde::{Deserialize, Serialize};
 use super::error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
 use super::layout::{le_f32, le_u16, le_u32, rgb16};
 use super::parse::{check_codec, check_offsets, check_prefix, header_error, in_range};
-use super::view::{Member, Row};
+use super::view::Row;
 use super::HIER_FORMAT_VERSION;
-use crate::codec::{FfCodec, Frac, EXACT_SHIFT, MAX_ROW_EXPONENT};
+use crate::codec::{FfCodec, Frac, EMISSION_MAX, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
 
 /// The postcard-encoded header of a hierarchical table.
@@ -57,7 +57,7 @@ pub struct HierSectionSizes {
     pub group_start: usize,
     /// Member leaves (an index per member).
     pub member_leaf: usize,
-    /// Member unit emission codes (3 x `u16` per member).
+    /// Member unit emission (3 x `f32` per member).
     pub member_emission: usize,
     /// Parent of each node (an index per node; a root is its own parent).
     pub node_parent: usize,
@@ -98,7 +98,7 @@ impl HierSectionSizes {
             group_intensity: g.checked_mul(12)?,
             group_start: g.checked_add(1)?.checked_mul(4)?,
             member_leaf: (h.member_count as usize).checked_mul(ib)?,
-            member_emission: (h.member_count as usize).checked_mul(6)?,
+            member_emission: (h.member_count as usize).checked_mul(12)?,
             node_parent: nn.checked_mul(ib)?,
             node_end: nn.checked_mul(4)?,
             node_leaf_start: nn.checked_add(1)?.checked_mul(4)?,
@@ -235,6 +235,16 @@ impl PathSum {
     }
 }
 
+/// A light-group member of a hierarchical table.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HierMember {
+    /// The leaf (its index among the leaves).
+    pub leaf: u32,
+    /// Emission at unit intensity (W/m^2, RGB), stored as `f32`: a group's few members cost little, and an
+    /// emission code's rounding (relative `2^-11`) would bias the whole answer by as much.
+    pub emission: [f32; 3],
+}
+
 impl<'a> HierTable<'a> {
     /// Parses and validates a hierarchical table blob.
     ///
@@ -322,6 +332,12 @@ impl<'a> HierTable<'a> {
         )?;
         for k in 0..self.header.member_count {
             in_range(IndexArray::MemberPatch, k, self.index(self.member_leaf, k), n)?;
+            for c in 0..3 {
+                let v = le_f32(self.member_emission, k as usize * 3 + c);
+                if !(0.0..=EMISSION_MAX).contains(&v) {
+                    return Err(TableError::BadMemberEmission { member: k });
+                }
+            }
         }
         for g in 0..self.header.group_count {
             for c in 0..3 {
@@ -677,12 +693,12 @@ impl<'a> HierTable<'a> {
             .then(|| le_u32(self.group_start, group as usize)..le_u32(self.group_start, group as usize + 1))
     }
 
-    /// Member at `position`: its [`Member::patch`] is a leaf index.
+    /// Member at `position`: its leaf and its emission at unit intensity.
     #[must_use]
-    pub fn member(&self, position: u32) -> Option<Member> {
-        (position < self.header.member_count).then(|| Member {
-            patch: self.index(self.member_leaf, position),
-            emission: rgb16(self.member_emission, position as usize),
+    pub fn member(&self, position: u32) -> Option<HierMember> {
+        (position < self.header.member_count).then(|| HierMember {
+            leaf: self.index(self.member_leaf, position),
+            emission: [0, 1, 2].map(|c| le_f32(self.member_emission, position as usize * 3 + c)),
         })
     }
 

@@ -192,9 +192,9 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
         }
     }
     for g in spec.groups {
-        for (k, m) in g.members.iter().enumerate() {
-            for c in emission_codes("light group member emission", k, m.emission)? {
-                o.u16(c);
+        for m in g.members {
+            for c in m.emission {
+                o.bytes(&c.to_le_bytes());
             }
         }
     }

@@ -18,7 +18,7 @@ mod view;
 pub mod write;
 
 pub use error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
-pub use hier::{HierSectionSizes, HierTable};
+pub use hier::{HierMember, HierSectionSizes, HierTable};
 pub use hier_write::{hier_required_len, write_hier_table, HierSpec, NodeSpec};
 pub use layout::SectionSizes;
 pub use parse::Table;

@@ -311,12 +311,12 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         let mut units = 0u32;
         for k in self.table.group_members(g).unwrap_or(0..0) {
             let Some(m) = self.table.member(k) else { continue };
-            let a = self.leaf_area(m.patch);
-            let d = [0, 1, 2].map(|c| scale[c].mul(emission::<S>(m.emission[c])).mul(a));
-            if let Some(v) = self.buf.power.get_mut(m.patch as usize) {
+            let a = self.leaf_area(m.leaf);
+            let d = [0, 1, 2].map(|c| scale[c].mul(S::from_f32(m.emission[c])).mul(a));
+            if let Some(v) = self.buf.power.get_mut(m.leaf as usize) {
                 *v = add3(*v, d);
             }
-            units = units.saturating_add(1 + self.add_to_chain(m.patch, d));
+            units = units.saturating_add(1 + self.add_to_chain(m.leaf, d));
         }
         units
     }
