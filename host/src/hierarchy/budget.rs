@@ -25,7 +25,7 @@
 
 use rayon::prelude::*;
 
-use super::link::{can_split, refine, split_end, Estimator, Limits, Link, RefineCounts};
+use super::link::{can_split, refine, split_either, Estimator, Limits, Link, RefineCounts};
 use super::span::Span;
 use super::tree::{Tree, NONE};
 use super::HierarchyError;
@@ -316,10 +316,8 @@ pub(super) fn refine_budgets<C: RayCaster + ?Sized>(
             let link = links[k];
             let s = if link.a == r { link.b } else { link.a };
             // The receiver end moves the link down where the local part dominates; the sender end otherwise.
-            let (first, second) = if local { (r, s) } else { (s, r) };
-            if split_end(tree, estimator.rules, spans, limits, link.a, link.b, first, &mut candidates)?
-                || split_end(tree, estimator.rules, spans, limits, link.a, link.b, second, &mut candidates)?
-            {
+            let first = if local { r } else { s };
+            if split_either(tree, estimator.rules, spans, limits, link.a, link.b, first, &mut candidates)? {
                 ledger.dead[k] = true;
                 dirty.resize(tree.nodes.len(), true);
                 for end in [link.a, link.b] {

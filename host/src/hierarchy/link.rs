@@ -434,7 +434,7 @@ pub(super) fn split_link(
 /// # Errors
 /// [`HierarchyError::Mesh`] if a surface cannot be split.
 #[allow(clippy::too_many_arguments)]
-fn split_either(
+pub(super) fn split_either(
     tree: &mut Tree,
     rules: &ElementRules,
     spans: &mut Vec<Span>,
