@@ -19,6 +19,11 @@
 //!   the ones nearer the light, and they see the rest of the scene better, so links at coarse senders
 //!   under-deliver everywhere (without this term the Cornell box's ceiling comes out dark).
 //!
+//! The receiver-side deviations `rho_l * B_s * (v K(l, s) - f_rs)` of one chain are added with their signs (their
+//! sum's magnitude is charged): a leaf near a corner sees the near wall better and the far ones worse than its
+//! ancestors on average, and its total stays near theirs. The shadow-edge and cluster bounds, which have no known
+//! sign, add up as they are.
+//!
 //! A leaf's budget is `epsilon` times its reflected radiosity `B - E`, plus a floor of `epsilon` times
 //! [`FLOOR_FRACTION`] of the scene's area-mean reflected radiosity (so that leaves in shadow do not refine without
 //! end).
@@ -56,13 +61,13 @@ pub(super) fn systematic(tree: &Tree, spans: &[Span], link: &Link) -> (f64, f64)
 }
 
 /// The receiver-side deviation estimate of `link` (held at a strict ancestor of `leaf`, which receives at
-/// `receiver`) at the leaf, in reflected radiosity, as (a deterministic part, a random part): with the point kernel
+/// `receiver`) at the leaf, in reflected radiosity, as a signed part, a bound and a random part ([`Local`]): with the point kernel
 /// `K` from the leaf's centroid to the sender's polygon, `rho * B_s * |v K - f_rs|` (what pushing the link's
 /// average down to the leaf misses) plus, where the link's visibility is partial, `rho * B_s * max(v, 1 - v) K`
 /// (the leaf may lie anywhere across the shadow edge); where the rays saw all or nothing, `rho * B_s * K / n` as
 /// the random part (the fraction's resolution with `n` rays). With a cluster at either end, the bound
 /// `rho * B_s * spread_rs`.
-fn local(tree: &Tree, spans: &[Span], link: &Link, receiver: u32, leaf: u32, rays: f64) -> (f64, f64) {
+fn local(tree: &Tree, spans: &[Span], link: &Link, receiver: u32, leaf: u32, rays: f64) -> Local {
     let (s, f_rs, spread_rs) = if link.a == receiver {
         (link.b, link.f_ab, link.spread_ab)
     } else {
@@ -75,17 +80,28 @@ fn local(tree: &Tree, spans: &[Span], link: &Link, receiver: u32, leaf: u32, ray
             let (pl, ps) = (el.patch(), es.patch());
             let k = point_to_polygon(pl.centroid, pl.normal, &ps.vertices, ps.normal);
             let v = link.visible;
-            let mut deterministic = (v * k - f_rs).abs();
-            let mut random = 0.0;
+            let (mut bound, mut random) = (0.0, 0.0);
             if v > 0.0 && v < 1.0 {
-                deterministic += v.max(1.0 - v) * k;
+                bound = v.max(1.0 - v) * k;
             } else {
                 random = k / rays;
             }
-            (scale * deterministic, scale * random)
+            Local { signed: scale * (v * k - f_rs), bound: scale * bound, random: scale * random }
         }
-        _ => (scale * spread_rs, 0.0),
+        _ => Local { signed: 0.0, bound: scale * spread_rs, random: 0.0 },
     }
+}
+
+/// A receiver-side charge ([`local`]) in its three parts, in reflected radiosity.
+struct Local {
+    /// What pushing the link's average down misses at the leaf, `rho * B_s * (v K - f_rs)`, with its sign: the
+    /// deviations of the links on one chain partly cancel (a leaf near a corner sees the near wall better and
+    /// the far ones worse than its ancestors do, and its total stays near theirs), so a chain adds them signed.
+    signed: f64,
+    /// What has no known sign and adds up: the leaf's unknown place across a shadow edge, or a cluster's bound.
+    bound: f64,
+    /// The random part (the visible fraction's resolution), added in quadrature.
+    random: f64,
 }
 
 /// The random part of a link held at the leaf itself: `rho * B_s * u * sigma_v`, with `u` the unoccluded form
@@ -133,6 +149,9 @@ fn charge_leaf(
 ) -> LeafCharge {
     let mut out = LeafCharge { total: 0.0, persistent: 0.0, refinable: 0.0, links: Vec::new() };
     let (mut variance, mut own) = (0.0, 0.0);
+    // The chain's signed deviations summed: the total takes their sum's magnitude instead of the sum of theirs.
+    let mut signed = 0.0f64;
+    let mut unsigned = 0.0f64;
     let mut n = leaf;
     let rho = tree.nodes[leaf as usize].rho_max;
     while n != NONE {
@@ -150,7 +169,10 @@ fn charge_leaf(
                 if bound <= NEGLIGIBLE * allowed {
                     (bound, 0.0)
                 } else {
-                    local(tree, spans, link, n, leaf, rays)
+                    let part = local(tree, spans, link, n, leaf, rays);
+                    signed += part.signed;
+                    unsigned += part.signed.abs();
+                    (part.signed.abs() + part.bound, part.random)
                 }
             };
             out.total += s + l;
@@ -169,6 +191,7 @@ fn charge_leaf(
         }
         n = tree.nodes[n as usize].parent;
     }
+    out.total += signed.abs() - unsigned;
     out.refinable = out.total + variance.sqrt();
     out.total += (variance + own).sqrt();
     out.persistent += (variance + own).sqrt();
