@@ -691,7 +691,7 @@ fn hierarchical_solve_by_shooting() {
     );
     assert_fails(
         &["solve", MISSING, "--max-links", "10"],
-        &["--max-links applies to --method hierarchical only"],
+        &["--max-links apply to --method hierarchical only"],
     );
     // A limit below what the scene needs: the error says so (and no patch table is printed).
     let out = radiosity(&[
@@ -796,6 +796,9 @@ fn hierarchical_bake_writes_a_table_that_inspect_reads() {
         &["bake", MISSING, "--method", "hierarchical", "--threshold", "0.01", "-o", table],
         &["--threshold"],
     );
-    assert_fails(&["bake", MISSING, "--epsilon", "0.1", "-o", table], &["--epsilon and --max-links apply"]);
+    assert_fails(
+        &["bake", MISSING, "--epsilon", "0.1", "-o", table],
+        &["--refinement and --max-links apply"],
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

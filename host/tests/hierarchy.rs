@@ -1,13 +1,13 @@
 //! The hierarchical solver on closed forms, against the dense solve of its own leaves, and on its own invariants:
 //! the first bounce between two squares, the white furnace, the Cornell box leaf by leaf within the oracle's
-//! claimed bound, determinism across thread counts, the exported tree and links (what a device table is written
+//! claimed bound (with either refinement), determinism across thread counts, the exported tree and links (what a device table is written
 //! from) solving to the same answer by shooting, and clear errors for bad options and scenes without light.
 
 use std::path::PathBuf;
 
 use radiosity_host::formfactor::{compute_form_factors, FormFactorOptions};
 use radiosity_host::hierarchy::{
-    solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions, HierarchySolver,
+    solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions, HierarchySolver, Refinement,
 };
 use radiosity_host::reference::{solve_many, Method, RadiositySystem};
 use radiosity_host::rgb::Rgb;
@@ -113,6 +113,30 @@ fn cornell_box_leaves_match_the_dense_solve_of_the_same_leaves_within_the_claime
     // contact where a cluster link's point-pair estimate is heavy-tailed (such links are split, not trusted).
     let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
     let sol = solve_hierarchical(&s, &HierarchyOptions::default()).unwrap();
+    matches_the_dense_solve_within_the_claim(&sol);
+}
+
+#[test]
+fn brightness_refinement_needs_far_fewer_links_and_stays_within_its_claim() {
+    // The device tables' refinement: links judged one by one against an absolute power bound (and split where a
+    // leaf's chain gathers more than 1). The same claim (the budgets' charges of whatever links there are) holds
+    // against the dense solve of its own leaves, and it is what it is for: fewer links per leaf than the budgets
+    // at the same epsilon.
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let options = HierarchyOptions { epsilon: 0.1, ..HierarchyOptions::default() };
+    let budgets = solve_hierarchical(&s, &options).unwrap();
+    let sol =
+        solve_hierarchical(&s, &HierarchyOptions { refinement: Refinement::Brightness, ..options }).unwrap();
+    let per_leaf = |s: &HierarchicalSolution| {
+        (s.stats.surface_links + s.stats.cluster_links) as f64 / s.leaves.len() as f64
+    };
+    assert!(2.0 * per_leaf(&sol) < per_leaf(&budgets), "brightness {}\nbudgets {}", sol.stats, budgets.stats);
+    matches_the_dense_solve_within_the_claim(&sol);
+}
+
+/// Every leaf of `sol` within twice its claimed bound of the dense solve of the same leaves (every leaf-to-leaf
+/// form factor by the same estimator, solved exactly).
+fn matches_the_dense_solve_within_the_claim(sol: &HierarchicalSolution) {
     // The dense reference: every leaf-to-leaf form factor by the same estimator, solved exactly.
     let (ff, _) = compute_form_factors(
         &sol.leaves,

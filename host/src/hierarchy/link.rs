@@ -386,6 +386,47 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
     Ok(())
 }
 
+/// One pass of brightness-weighted refinement against the solved radiosity (Hanrahan, Salzman, Aupperle 1991,
+/// iterated as in their paper): every link whose power error `link_error` under the current `spans` exceeds the
+/// bound is replaced by the pairs of its larger splittable end, which are estimated and refined like the first
+/// pass's; the others stay as they are (not estimated again). The links of `overstated` (`(index, end)`, sorted
+/// by index: `excess::overstated`) are split at that end whatever their error. Returns the links split.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+pub(super) fn refine_brightness<C: RayCaster + ?Sized>(
+    tree: &mut Tree,
+    estimator: &Estimator<'_, C>,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    overstated: &[(usize, u32)],
+    links: &mut Vec<Link>,
+    counts: &mut RefineCounts,
+) -> Result<u64, HierarchyError> {
+    let mut candidates = Vec::new();
+    let mut kept = Vec::with_capacity(links.len());
+    let mut split = 0;
+    let mut next_overstated = overstated.iter().peekable();
+    for (k, link) in links.drain(..).enumerate() {
+        let at = next_overstated.next_if(|o| o.0 == k).map(|o| o.1);
+        let done = if let Some(end) = at {
+            split_either(tree, estimator.rules, spans, limits, link.a, link.b, end, &mut candidates)?
+        } else {
+            link_error(tree, spans, &link) > limits.threshold
+                && split_link(tree, estimator.rules, spans, limits, link.a, link.b, &mut candidates)?
+        };
+        if done {
+            split += 1;
+            counts.split += 1;
+        } else {
+            kept.push(link);
+        }
+    }
+    *links = kept;
+    refine(tree, estimator, spans, limits, candidates, links, counts)?;
+    Ok(split)
+}
+
 /// The error for refinement that would exceed `limits.max_links` (the pass is filled in by the driver).
 pub(super) fn too_many_links(
     tree: &Tree,

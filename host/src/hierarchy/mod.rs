@@ -25,6 +25,9 @@
 //!      own and its ancestors') may get wrong there, receiver-side (an average pushed down) and sender-side (an
 //!      average `B` sent where the sender's bright parts see more); chains above `epsilon` times the leaf's
 //!      reflected radiosity are refined at their largest charges (`budget` has the terms and why both matter).
+//!      Or, with [`Refinement::Brightness`] (device tables), pass 1's rule again with the solved radiosity
+//!      (`link::refine_brightness`), plus the links on the chain of every leaf that gathers more than 1 in all,
+//!      where an ancestor's average overstates the leaf's own point form factor most (`excess`).
 //!
 //!   A link whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) or the node
 //!   limit is kept and counted.
@@ -47,12 +50,13 @@
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
-//! node) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve` (push-pull iteration, error
+//! node) -> `excess` (chains that gather more than 1) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
 //! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
 //! results).
 
 mod budget;
+mod excess;
 mod link;
 mod network;
 mod shoot;
@@ -73,7 +77,7 @@ use crate::scene::Scene;
 
 pub use network::{LinkNetwork, NetworkLink, NetworkNode};
 
-use link::{expand_self, refine, Estimator, Limits, RefineCounts};
+use link::{expand_self, refine, refine_brightness, Estimator, Limits, RefineCounts};
 use tree::{Kind, Tree};
 
 /// Default error budget per element, relative to its reflected radiosity.
@@ -109,6 +113,21 @@ pub enum HierarchySolver {
     Shooting,
 }
 
+/// What the passes after the first (the direct-light pass) refine for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Refinement {
+    /// Every element's gathering error within `epsilon` of its own reflected radiosity (`budget`): accurate
+    /// everywhere, dark corners included, at the cost of many links per element (chains refined down to the
+    /// leaves).
+    #[default]
+    Budgets,
+    /// The direct-light pass's rule again with the solved radiosity (brightness-weighted refinement iterated,
+    /// Hanrahan, Salzman, Aupperle 1991): every link's power error within `epsilon * LINK_SHARE` of the brightest
+    /// face polygon's emitted power. An absolute bound, so dim regions keep coarse links: an order of magnitude
+    /// fewer links per element (device tables), with larger relative errors where the light is dim.
+    Brightness,
+}
+
 /// Settings of the hierarchical solver.
 #[derive(Clone, Debug)]
 pub struct HierarchyOptions {
@@ -131,6 +150,8 @@ pub struct HierarchyOptions {
     pub solve_tolerance: f64,
     /// Gathering or shooting.
     pub solver: HierarchySolver,
+    /// What the passes after the direct-light pass refine for.
+    pub refinement: Refinement,
     /// The form-factor estimator's rules (samples per element, rays per pair, seed) for surface pairs.
     pub form_factors: FormFactorOptions,
     /// Print one line per pass on stderr.
@@ -148,6 +169,7 @@ impl Default for HierarchyOptions {
             passes: DEFAULT_PASSES,
             solve_tolerance: DEFAULT_SOLVE_TOLERANCE,
             solver: HierarchySolver::Gathering,
+            refinement: Refinement::Budgets,
             form_factors: FormFactorOptions { progress: false, ..FormFactorOptions::default() },
             progress: false,
         }
@@ -507,15 +529,31 @@ fn solve_checked<C: RayCaster + ?Sized>(
             )
             .map_err(in_pass)?;
         } else {
-            budget::refine_budgets(
-                &mut tree,
-                &estimator,
-                &mut spans,
-                &limits,
-                options.epsilon,
-                &mut links,
-                &mut counts,
-            )
+            match options.refinement {
+                Refinement::Budgets => budget::refine_budgets(
+                    &mut tree,
+                    &estimator,
+                    &mut spans,
+                    &limits,
+                    options.epsilon,
+                    &mut links,
+                    &mut counts,
+                ),
+                Refinement::Brightness => {
+                    // Every leaf whose chain gathers more than 1 in all (no tolerance: the device's table must
+                    // cap whatever excess is left).
+                    let overstated = excess::overstated(&tree, &links, 0.0);
+                    refine_brightness(
+                        &mut tree,
+                        &estimator,
+                        &mut spans,
+                        &limits,
+                        &overstated,
+                        &mut links,
+                        &mut counts,
+                    )
+                }
+            }
             .map_err(in_pass)?;
         }
         solution = solve_with(&tree, &links, &solve::emission(&tree), options)?;
@@ -532,7 +570,11 @@ fn solve_checked<C: RayCaster + ?Sized>(
             eprintln!(
                 "hierarchy pass {} ({}): {} pairs estimated, {} split, {} rays -> {} leaves, {} links",
                 passes.len(),
-                if passes.len() == 1 { "direct light" } else { "budgets" },
+                match (passes.len(), options.refinement) {
+                    (1, _) => "direct light",
+                    (_, Refinement::Budgets) => "budgets",
+                    (_, Refinement::Brightness) => "brightness",
+                },
                 p.estimated,
                 p.split,
                 p.rays,

@@ -42,6 +42,54 @@ impl From<HierarchySolverArg> for radiosity_host::hierarchy::HierarchySolver {
     }
 }
 
+/// What the hierarchy's passes after the direct-light pass refine for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RefinementArg {
+    /// Every element within `--epsilon` of its own reflected light, dark corners included: the most accurate,
+    /// and the most links per element.
+    Budgets,
+    /// Every link's power error within 1% of `--epsilon` times the brightest face's emitted power (brightness-
+    /// weighted refinement against the solved light): about ten times fewer links per element, larger relative
+    /// errors where the light is dim. For device tables.
+    Brightness,
+}
+
+impl From<RefinementArg> for radiosity_host::hierarchy::Refinement {
+    fn from(r: RefinementArg) -> Self {
+        match r {
+            RefinementArg::Budgets => radiosity_host::hierarchy::Refinement::Budgets,
+            RefinementArg::Brightness => radiosity_host::hierarchy::Refinement::Brightness,
+        }
+    }
+}
+
+/// The hierarchical method's settings, shared by `solve` and `bake` (each rejects them with `--method flat`).
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct HierarchyArgs {
+    /// Hierarchical only: error budget per element, relative to the light it reflects, in (0, 1) (smaller is
+    /// more accurate and costs more elements and links; the direct-light refinement, and `--refinement
+    /// brightness`, use 1% of it times the brightest face's emitted power per link) [default: 0.03].
+    #[arg(long, value_name = "E")]
+    pub epsilon: Option<f64>,
+    /// Hierarchical only: what the passes after the direct-light pass refine for: `budgets` (every element
+    /// within `--epsilon` of its own reflected light) or `brightness` (every link within an absolute power
+    /// bound: far fewer links, for device tables) [default: budgets for `solve`, brightness for `bake`].
+    #[arg(long, value_enum)]
+    pub refinement: Option<RefinementArg>,
+    /// Hierarchical only: most links refinement may hold (accepted and pending together); a scene that needs
+    /// more stops with an error naming why it needed them, before memory runs out (a link costs a few hundred
+    /// bytes at the peak) [default: 10000000].
+    #[arg(long, value_name = "N")]
+    pub max_links: Option<usize>,
+}
+
+impl HierarchyArgs {
+    /// Whether any hierarchical setting was given (an error with `--method flat`).
+    pub fn any(&self) -> bool {
+        self.epsilon.is_some() || self.refinement.is_some() || self.max_links.is_some()
+    }
+}
+
 /// Output format of a command whose output is a table (one CSV row per patch, face, pair or frame).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Format {
@@ -278,12 +326,9 @@ pub enum Command {
         /// hierarchical solver; the summary then measures a cold relight of it on the host.
         #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
         method: SolveMethod,
-        /// Hierarchical only: the hierarchy's error budget per element (see `solve --epsilon`) [default: 0.03].
-        #[arg(long, value_name = "E")]
-        epsilon: Option<f64>,
-        /// Hierarchical only: most links refinement may hold (see `solve --max-links`) [default: 10000000].
-        #[arg(long, value_name = "N")]
-        max_links: Option<usize>,
+        /// Settings of `--method hierarchical` (its default refinement here: `brightness`).
+        #[command(flatten)]
+        hierarchy: HierarchyArgs,
         /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
         /// device can relight as B = B_static + sum_g I_g T_g in one pass; the summary reports its bytes and
         /// relight error.
@@ -336,20 +381,13 @@ pub enum Command {
         /// and elements; `--max-patches`, `--max-patch-edge` and `--no-subdivide` do not apply to it).
         #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
         method: SolveMethod,
-        /// Hierarchical only: error budget per element, relative to the light it reflects, in (0, 1) (smaller
-        /// is more accurate and costs more elements and links; the direct-light refinement uses 1% of it
-        /// times the brightest face's emitted power per link) [default: 0.03].
-        #[arg(long, value_name = "E")]
-        epsilon: Option<f64>,
+        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        #[command(flatten)]
+        hierarchy: HierarchyArgs,
         /// Hierarchical only: `gathering` (Jacobi sweeps over all links, the default) or `shooting`
         /// (progressive refinement, the order a device relights in); both reach the same answer.
         #[arg(long, value_enum)]
         solver: Option<HierarchySolverArg>,
-        /// Hierarchical only: most links refinement may hold (accepted and pending together); a scene that
-        /// needs more stops with an error naming why it needed them, before memory runs out (a link costs a
-        /// few hundred bytes at the peak) [default: 10000000].
-        #[arg(long, value_name = "N")]
-        max_links: Option<usize>,
     },
     /// Path trace the continuous scene (no mesh) and print every face's (OBJ face, or glTF triangle or joined fan) area-averaged radiosity with its
     /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.

@@ -12,7 +12,8 @@ use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{
-    solve_hierarchical, HierarchicalSolution, HierarchyOptions, DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
+    solve_hierarchical, HierarchicalSolution, HierarchyOptions, Refinement, DEFAULT_EPSILON,
+    DEFAULT_MAX_LINKS,
 };
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{patch_json, write_patch_csv};
@@ -126,9 +127,9 @@ fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
 /// scene's warnings, repair notes and the solve's statistics on stderr unless `--quiet`.
 fn hierarchical_solution(
     scene: &args::SceneArgs,
-    epsilon: Option<f64>,
+    hierarchy: &args::HierarchyArgs,
+    default_refinement: Refinement,
     solver: Option<args::HierarchySolverArg>,
-    max_links: Option<usize>,
 ) -> Result<(Scene, HierarchicalSolution, HierarchyOptions), BoxError> {
     if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
         return Err("--no-subdivide, --max-patches and --max-patch-edge apply to --method flat only (the \
@@ -136,9 +137,10 @@ fn hierarchical_solution(
             .into());
     }
     let options = HierarchyOptions {
-        epsilon: epsilon.unwrap_or(DEFAULT_EPSILON),
+        epsilon: hierarchy.epsilon.unwrap_or(DEFAULT_EPSILON),
         solver: solver.map_or_else(Default::default, Into::into),
-        max_links: max_links.unwrap_or(DEFAULT_MAX_LINKS),
+        refinement: hierarchy.refinement.map_or(default_refinement, Into::into),
+        max_links: hierarchy.max_links.unwrap_or(DEFAULT_MAX_LINKS),
         form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
         progress: !scene.quiet,
         ..HierarchyOptions::default()
@@ -172,12 +174,11 @@ fn hierarchical_solution(
 fn solve_hierarchical_command(
     scene: &args::SceneArgs,
     format: Format,
-    epsilon: Option<f64>,
+    hierarchy: &args::HierarchyArgs,
     solver: Option<args::HierarchySolverArg>,
-    max_links: Option<usize>,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
-    let (loaded, solution, options) = hierarchical_solution(scene, epsilon, solver, max_links)?;
+    let (loaded, solution, options) = hierarchical_solution(scene, hierarchy, Refinement::Budgets, solver)?;
     let area: f64 = solution.leaves.iter().map(|q| q.area).sum();
     let mean_of =
         |v: &[Rgb]| solution.leaves.iter().zip(v).fold(Rgb::ZERO, |m, (q, &b)| m + q.area * b / area);
@@ -203,6 +204,7 @@ fn solve_hierarchical_command(
             let rgb = |v: Rgb| format!("{:.6e} {:.6e} {:.6e}", v.x, v.y, v.z);
             writeln!(out, "{}", solution.stats)?;
             writeln!(out, "solver                 {solver}")?;
+            writeln!(out, "refinement             {}", format!("{:?}", options.refinement).to_lowercase())?;
             writeln!(out, "mean radiosity         {} W/m^2 (area-weighted, default intensities)", rgb(mean))?;
             writeln!(out, "mean static radiosity  {} W/m^2", rgb(mean_of(&transfer.b_static)))?;
             for (name, response) in &groups {
@@ -223,6 +225,7 @@ fn solve_hierarchical_command(
                 "method": "hierarchical",
                 "solver": solver,
                 "epsilon": options.epsilon,
+                "refinement": format!("{:?}", options.refinement).to_lowercase(),
                 "patches": solution.leaves.len(),
                 "stats": solution.stats,
                 "mean_radiosity": mean,
@@ -336,8 +339,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             method: SolveMethod::Hierarchical,
             transfer,
             format,
-            epsilon,
-            max_links,
+            hierarchy,
         } => {
             check_scene_args(&scene)?;
             codec_for_bits(bits)?;
@@ -349,7 +351,8 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 );
             }
             check_outputs([output.clone()])?;
-            let (loaded, solution, _) = hierarchical_solution(&scene, epsilon, None, max_links)?;
+            let (loaded, solution, _) =
+                hierarchical_solution(&scene, &hierarchy, Refinement::Brightness, None)?;
             let baked = bake_hierarchy(&loaded, &solution, bits)?;
             let summary = HierBakeSummary::measure(&baked, &solution)?;
             files::write_atomic(&output, &baked.table)?;
@@ -374,11 +377,12 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             method: SolveMethod::Flat,
             transfer,
             format,
-            epsilon,
-            max_links,
+            hierarchy,
         } => {
-            if epsilon.is_some() || max_links.is_some() {
-                return Err("--epsilon and --max-links apply to --method hierarchical only".into());
+            if hierarchy.any() {
+                return Err(
+                    "--epsilon, --refinement and --max-links apply to --method hierarchical only".into()
+                );
             }
             let threshold = threshold.unwrap_or(radiosity_host::bake::DEFAULT_THRESHOLD);
             check_scene_args(&scene)?;
@@ -430,16 +434,15 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Hierarchical, epsilon, solver, max_links } => {
+        Command::Solve { scene, format, method: SolveMethod::Hierarchical, hierarchy, solver } => {
             check_scene_args(&scene)?;
-            solve_hierarchical_command(&scene, format, epsilon, solver, max_links, &mut out)?;
+            solve_hierarchical_command(&scene, format, &hierarchy, solver, &mut out)?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Flat, epsilon, solver, max_links } => {
-            if epsilon.is_some() {
-                return Err("--epsilon applies to --method hierarchical only".into());
-            }
-            if max_links.is_some() {
-                return Err("--max-links applies to --method hierarchical only".into());
+        Command::Solve { scene, format, method: SolveMethod::Flat, hierarchy, solver } => {
+            if hierarchy.any() {
+                return Err(
+                    "--epsilon, --refinement and --max-links apply to --method hierarchical only".into()
+                );
             }
             if solver.is_some() {
                 return Err(
