@@ -48,9 +48,9 @@ pub enum RefinementArg {
     /// Every element within `--epsilon` of its own reflected light, dark corners included: the most accurate,
     /// and the most links per element.
     Budgets,
-    /// Every link's power error within 1% of `--epsilon` times the brightest face's emitted power (brightness-
-    /// weighted refinement against the solved light): about ten times fewer links per element, larger relative
-    /// errors where the light is dim. For device tables.
+    /// Every link's power error within 1% of `--epsilon` times the brightest face's emitted power
+    /// (brightness-weighted refinement against the solved light): about ten times fewer links per element,
+    /// larger relative errors where the light is dim. For device tables.
     Brightness,
 }
 
