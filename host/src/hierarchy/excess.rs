@@ -17,23 +17,12 @@ use crate::formfactor::point_to_polygon;
 /// order of `f_ns - v K(l, s)` (the ancestor's average minus the visible point kernel from the leaf's centroid to
 /// the sender's polygon, when positive) until those cover the excess.
 pub(super) fn overstated(tree: &Tree, links: &[Link], tolerance: f64) -> Vec<(usize, u32)> {
-    let n = tree.nodes.len();
-    let mut at: Vec<Vec<usize>> = vec![Vec::new(); n];
-    let mut own = vec![0.0; n];
+    let mut at: Vec<Vec<usize>> = vec![Vec::new(); tree.nodes.len()];
     for (k, l) in links.iter().enumerate() {
         at[l.a as usize].push(k);
         at[l.b as usize].push(k);
-        own[l.a as usize] += l.f_ab;
-        own[l.b as usize] += l.f_ba;
     }
-    // Row sums pushed down (children have larger indices than their parents).
-    let mut sum = own;
-    for k in 0..n {
-        let parent = tree.nodes[k].parent;
-        if parent != NONE {
-            sum[k] += sum[parent as usize];
-        }
-    }
+    let (sum, _) = leaf_row_sums(tree, links);
     let mut chosen = Vec::new();
     for (node, total) in tree.nodes.iter().zip(&sum) {
         let excess = total - 1.0 - tolerance;
@@ -70,4 +59,26 @@ pub(super) fn overstated(tree: &Tree, links: &[Link], tolerance: f64) -> Vec<(us
     chosen.sort_unstable();
     chosen.dedup_by_key(|c| c.0);
     chosen
+}
+
+/// Every node's total form factor (its links' and its ancestors', pushed down like irradiance), and the smallest
+/// and largest over the leaves.
+pub(super) fn leaf_row_sums(tree: &Tree, links: &[Link]) -> (Vec<f64>, (f64, f64)) {
+    let mut sum = vec![0.0; tree.nodes.len()];
+    for l in links {
+        sum[l.a as usize] += l.f_ab;
+        sum[l.b as usize] += l.f_ba;
+    }
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for k in 0..tree.nodes.len() {
+        let node = &tree.nodes[k];
+        if node.parent != NONE {
+            sum[k] += sum[node.parent as usize];
+        }
+        if node.children.is_empty() {
+            lo = lo.min(sum[k]);
+            hi = hi.max(sum[k]);
+        }
+    }
+    (sum, (lo, hi))
 }

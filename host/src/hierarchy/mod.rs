@@ -227,13 +227,35 @@ pub enum HierarchyError {
         pass: usize,
     },
     /// The iteration did not reach its tolerance.
-    #[error("the push-pull iteration did not converge: relative change {change:.3e} after {sweeps} sweeps")]
+    #[error("{}", not_converged(*sweeps, *change, *gain))]
     NotConverged {
         /// Sweeps run.
         sweeps: usize,
         /// Relative change of the last sweep.
         change: f64,
+        /// The largest `max_c rho_c` times row sum over the leaves.
+        gain: f64,
     },
+}
+
+/// The message of [`HierarchyError::NotConverged`].
+fn not_converged(sweeps: usize, change: f64, gain: f64) -> String {
+    let how = if change.is_finite() {
+        format!("relative change {change:.3e} after {sweeps} sweeps")
+    } else {
+        format!("the radiosity grew without bound (it overflowed after {sweeps} sweeps)")
+    };
+    let why = if gain >= 1.0 {
+        " (at 1 or above, light can grow without bound: with reflectances this close to 1, the hierarchy's \
+         averaged form factors overstate what corner elements see by too much; --method flat closes the rows of a \
+         closed scene)"
+    } else {
+        ""
+    };
+    format!(
+        "the push-pull iteration did not converge: {how}; the largest gain of a leaf (its reflectance times its \
+         total form factor, its links' and its ancestors') is {gain:.5}{why}"
+    )
 }
 
 /// `part` as a percentage of `whole`, for messages.
@@ -631,7 +653,15 @@ fn solve_with(
         HierarchySolver::Shooting => shoot::shoot(tree, links, e, options.solve_tolerance, MAX_SWEEPS),
     };
     if solution.change.is_nan() || solution.change > options.solve_tolerance {
-        return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change });
+        let (sums, _) = excess::leaf_row_sums(tree, links);
+        let gain = tree
+            .nodes
+            .iter()
+            .zip(&sums)
+            .filter(|(n, _)| n.children.is_empty())
+            .map(|(n, s)| n.rho_max.max_element() * s)
+            .fold(0.0, f64::max);
+        return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change, gain });
     }
     Ok(solution)
 }
@@ -649,27 +679,6 @@ fn leaf_order(tree: &Tree) -> Vec<usize> {
         .collect();
     leaves.sort_unstable();
     leaves.into_iter().map(|(_, k)| k).collect()
-}
-
-/// The smallest and largest total form factor over the leaves (pushed down like irradiance).
-fn row_sums(tree: &Tree, links: &[link::Link]) -> (f64, f64) {
-    let mut sum = vec![0.0; tree.nodes.len()];
-    for l in links {
-        sum[l.a as usize] += l.f_ab;
-        sum[l.b as usize] += l.f_ba;
-    }
-    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for k in 0..tree.nodes.len() {
-        let node = &tree.nodes[k];
-        if node.parent != tree::NONE {
-            sum[k] += sum[node.parent as usize];
-        }
-        if node.children.is_empty() {
-            lo = lo.min(sum[k]);
-            hi = hi.max(sum[k]);
-        }
-    }
-    (lo, hi)
 }
 
 /// The leaves' answer and the statistics.
@@ -719,7 +728,7 @@ fn finish(
             brightest_power,
             claimed_error: None,
             sweeps: solution.sweeps,
-            row_sums: row_sums(tree, links),
+            row_sums: excess::leaf_row_sums(tree, links).1,
         },
     };
     let (mut radiosity, mut claimed) = (0.0, 0.0);

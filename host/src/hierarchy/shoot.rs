@@ -83,7 +83,14 @@ pub(super) fn shoot(
             .map(|k| tree.nodes[k].area * max_channel(b[k]))
             .sum();
         let left: f64 = (0..n).map(|k| power(&unshot, k)).sum();
-        let change = if total > 0.0 { left / total } else { 0.0 };
+        // Overflowed power is divergence, not a change of 0.
+        let change = if !total.is_finite() || !left.is_finite() {
+            f64::NAN
+        } else if total > 0.0 {
+            left / total
+        } else {
+            0.0
+        };
         if !change.is_finite() || change <= tolerance || rounds == max_rounds {
             break change;
         }

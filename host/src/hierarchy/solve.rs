@@ -114,7 +114,14 @@ pub(super) fn solve(
             }
         }
         pull(tree, &mut b, &e, &mut spans);
-        change = if total > 0.0 { moved / total } else { 0.0 };
+        // A radiosity that overflowed is divergence (NaN stops the loop and fails the solve), not a change of 0.
+        change = if !total.is_finite() || !moved.is_finite() {
+            f64::NAN
+        } else if total > 0.0 {
+            moved / total
+        } else {
+            0.0
+        };
         sweeps += 1;
     }
     NodeRadiosity { b, spans, sweeps, change }
