@@ -464,23 +464,51 @@ pub struct Checked {
     pub frames_bit_exact: usize,
 }
 
+/// Refuses a table whose solver buffers alone (`table.buffer_bytes`, what the firmware's statics hold) exceed
+/// the board's RAM, before a build would end in a linker error.
+///
+/// # Errors
+/// A message naming the buffers' size, the formula's source and the board's RAM.
+pub fn check_buffers_fit(target: Target, table: &crate::sim::AnyTable<'_>) -> Result<(), String> {
+    let board_ram = board_ram(target)?;
+    let buffers = table.buffer_bytes(target.arith) as u64;
+    if buffers > board_ram {
+        let (what, formula) = match table {
+            crate::sim::AnyTable::Flat(_) => ("flat (version 3)", "BufferSizes::bytes"),
+            crate::sim::AnyTable::Hier(_) => ("hierarchical (version 4)", "HierBufferSizes::bytes"),
+        };
+        return Err(format!(
+            "the {what} table's solver buffers need {buffers} bytes of RAM in {} ({formula}, {} elements), more \
+             than the {} bytes of RAM of {}'s board ({}): use a smaller table or another target",
+            target.arith,
+            table.element_count(),
+            board_ram,
+            target.triple,
+            memory_map(target.triple)
+        ));
+    }
+    Ok(())
+}
+
 /// Builds the firmware for `target` with `table` and `scripts` compiled in, runs it under QEMU (at most
 /// `timeout_s` seconds; `on_output` sees the raw serial output as soon as QEMU ends, whatever follows), and
 /// compares every frame with the host simulator's run of the same table and scripts: the one QEMU check behind
 /// `firmware-sim run --qemu` and `radiosity relight --qemu`.
 ///
 /// # Errors
-/// A build, QEMU or size-tool failure, a firmware that reports errors or does not finish or does not fit the
-/// board's RAM ([`check_ram`]), a host simulation failure, or the first frame where firmware and host
-/// disagree.
-pub fn check_firmware(
+/// A table whose buffers cannot fit the board ([`check_buffers_fit`]), a build, QEMU or size-tool failure, a
+/// firmware that reports errors or does not finish or does not fit the board's RAM ([`check_ram`]), a host
+/// simulation failure, or the first frame where firmware and host disagree.
+pub fn check_firmware<'t>(
     target: Target,
-    table: &radiosity_core::Table<'_>,
+    table: impl Into<crate::sim::AnyTable<'t>>,
     scripts: &crate::script::ScriptFile,
     (table_path, scripts_path): (&Path, &Path),
     timeout_s: u32,
     on_output: impl FnOnce(&str) -> Result<(), String>,
 ) -> Result<Checked, String> {
+    let table = table.into();
+    check_buffers_fit(target, &table)?;
     let elf = build_firmware(target, table_path, scripts_path)?;
     let sizes = Sizes::of(&elf)?;
     let (text, ok) = run_qemu(target, &elf, timeout_s)?;
