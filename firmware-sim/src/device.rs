@@ -460,6 +460,14 @@ pub fn hier_unit_light_power(table: &HierTable<'_>) -> f32 {
     total
 }
 
+/// The solver configuration of `script` on `table`: absolute tolerance `script.tolerance` times the table's
+/// [`DeviceTable::unit_light_power`], core's recommended overshoot.
+#[must_use]
+pub fn script_config<'a, T: DeviceTable<'a>, S: Scalar>(table: &T, script: &Script<'_>) -> Config<S> {
+    let tolerance = S::from_f32(script.tolerance * table.unit_light_power());
+    Config { tolerance, overshoot: Config::<S>::RECOMMENDED_OVERSHOOT }
+}
+
 /// Creates a solver on `buffers` for `script` (absolute tolerance `script.tolerance` times the table's
 /// [`DeviceTable::unit_light_power`]), boots it and runs every frame, timing each frame (light changes and
 /// step) with `meter` and handing its record to `on_frame` together with the solver (whose state the caller
@@ -474,11 +482,8 @@ pub fn run_script<'a, T: DeviceTable<'a>, S: Bits + 'a, M: Meter>(
     meter: &mut M,
     mut on_frame: impl FnMut(&FrameRecord<S>, &T::Solver<S>),
 ) -> Result<u32, RunError> {
-    let tolerance = S::from_f32(script.tolerance * table.unit_light_power());
-    let overshoot = Config::<S>::RECOMMENDED_OVERSHOOT;
-    let mut solver = table
-        .solver(buffers, Config { tolerance, overshoot })
-        .map_err(|error| RunError::Buffers { error })?;
+    let mut solver =
+        table.solver(buffers, script_config(table, script)).map_err(|error| RunError::Buffers { error })?;
     let solver = &mut solver;
     let boot_units = boot(solver, script)?;
     for (index, frame) in (0u32..).zip(script.frames) {

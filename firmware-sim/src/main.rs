@@ -5,6 +5,7 @@
 //! firmware-sim run   [--table T] [--scripts S] [--arith f32|fixed] [--script NAME] [--csv OUT]
 //! firmware-sim qemu  [--table T] [--scripts S] [--target m4-f32|m4-fixed|m0-fixed] [--timeout SECONDS] [--log OUT]
 //! firmware-sim cost  --log LOG [--log LOG ...] [--calibrate SCRIPT] [--clock-mhz MHZ] [--out COST.md]
+//!                    [--table T [--scripts S]]
 //! ```
 //! Defaults: the committed synthetic table `firmware-sim/tables/uniform-enclosure.rft` and the Cornell box's
 //! scripts `scenes/cornell-box.relight.toml`. All command-line parsing (clap) lives in this file; the library
@@ -83,6 +84,13 @@ enum Command {
         /// Write the report (markdown) to this file instead of stdout.
         #[arg(long, value_name = "COST.md")]
         out: Option<PathBuf>,
+        /// The table the logs ran (with --scripts): a hierarchical one adds the split of instructions into
+        /// per link and per node visit, from the host's count of each frame's work.
+        #[arg(long, value_name = "T")]
+        table: Option<PathBuf>,
+        /// The relight scripts the logs ran (default: scenes/cornell-box.relight.toml); used with --table.
+        #[arg(long, value_name = "S")]
+        scripts: Option<PathBuf>,
     },
 }
 
@@ -229,7 +237,7 @@ fn run(command: Command) -> Result<(), String> {
         Command::Qemu { input, target, timeout, log } => {
             qemu_run(target.target(), &input.load()?, timeout, log.as_deref())
         }
-        Command::Cost { logs, calibrate, clock_mhz, out } => {
+        Command::Cost { logs, calibrate, clock_mhz, out, table, scripts } => {
             let mut parsed = Vec::new();
             for l in &logs {
                 let text = std::fs::read_to_string(l).map_err(file_err(l))?;
@@ -239,9 +247,16 @@ fn run(command: Command) -> Result<(), String> {
                 parsed.push((name, QemuLog::parse(&text).map_err(|e| format!("{}: {e}", l.display()))?));
             }
             let report = cost::report(&parsed, &calibrate, clock_mhz)?;
+            let mut markdown = report.markdown.clone();
+            if table.is_some() {
+                let loaded = Input { table, scripts }.load()?;
+                if let AnyTable::Hier(t) = AnyTable::parse(&loaded.bytes).map_err(|e| e.to_string())? {
+                    markdown.push_str(&cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?);
+                }
+            }
             match &out {
-                Some(p) => std::fs::write(p, &report.markdown).map_err(file_err(p))?,
-                None => print!("{}", report.markdown),
+                Some(p) => std::fs::write(p, &markdown).map_err(file_err(p))?,
+                None => print!("{markdown}"),
             }
             if report.violations > 0 {
                 return Err(format!("{} frames exceed the cost model's bound", report.violations));

@@ -560,6 +560,39 @@ mod tests {
     }
 
     #[test]
+    fn buffers_that_cannot_fit_the_board_are_refused_by_size() {
+        use radiosity_core::{
+            hier_required_len, write_hier_table, FfCodec, GroupSpec, HierSpec, HierTable, NodeSpec,
+            PatchSpec, RowsSpec,
+        };
+        // A hierarchical table of one root over 300 leaves (no links): 300 * 48 + 301 * 48 + 6 bytes in fixed
+        // point, over the micro:bit's 16 KiB; 14430 bytes in f32, within the Cortex-M4's 64 KiB.
+        let n = 300u32;
+        let nodes: Vec<NodeSpec> = (0..=n).map(|k| NodeSpec { parent: (k > 0).then_some(0) }).collect();
+        let leaf = PatchSpec { area: 1.0, material: 0, base_emission: [0.0; 3], base_irradiance: [0.0; 3] };
+        let row_start = vec![0u32; n as usize + 2];
+        let spec = HierSpec {
+            nodes: &nodes,
+            leaves: &vec![leaf; n as usize],
+            materials: &[[0.5; 3]],
+            groups: &[] as &[GroupSpec<'_>],
+            links: RowsSpec { row_start: &row_start, receiver: &[], form_factor: &[] },
+            codec: FfCodec::FLOAT16,
+            base_solved: false,
+            fingerprint: 0,
+        };
+        let mut blob = vec![0u8; hier_required_len(&spec).unwrap()];
+        let len = write_hier_table(&spec, &mut blob).unwrap();
+        let table = crate::sim::AnyTable::from(HierTable::parse(&blob[..len]).unwrap());
+        assert_eq!(table.buffer_bytes(Arith::Fixed), 300 * 48 + 301 * 48 + 6);
+        let err = check_buffers_fit(M0_FIXED, &table).unwrap_err();
+        assert!(err.contains("28854 bytes") && err.contains("16384 bytes"), "{err}");
+        assert!(err.contains("HierBufferSizes::bytes"), "{err}");
+        assert_eq!(check_buffers_fit(M4_FIXED, &table), Ok(()));
+        assert_eq!(check_buffers_fit(M4_F32, &table), Ok(()));
+    }
+
+    #[test]
     fn stack_line_parses() {
         let log = QemuLog::parse("CAL,10,10\nSTACK,1234,60000\nDONE,0\n").unwrap();
         assert_eq!(log.stack, Some(StackUse { high_water: 1234, size: 60000 }));
