@@ -261,16 +261,18 @@ pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K
     let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     for col in 0..K {
         let pivot = (col..K).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        // Relative to the matrix: a pivot at rounding level means the columns are dependent.
-        if a[pivot][col].abs() <= 1e3 * f64::EPSILON * scale {
+        // A pivot no larger than the elimination's rounding (about K^2 operations on entries up to `scale`)
+        // means the columns are dependent.
+        if a[pivot][col].abs() <= (K * K) as f64 * f64::EPSILON * scale {
             return None;
         }
         a.swap(col, pivot);
         b.swap(col, pivot);
         for row in col + 1..K {
             let f = a[row][col] / a[col][col];
-            for j in col..K {
-                a[row][j] -= f * a[col][j];
+            let pivot_row = a[col];
+            for (x, p) in a[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *x -= f * p;
             }
             b[row] -= f * b[col];
         }

@@ -112,8 +112,8 @@ fn hierarchical_system(table: &HierTable<'_>, intensity: f64) -> Vec<[f64; 3]> {
     for g in 0..table.group_count() {
         for k in table.group_members(g).unwrap() {
             let m = table.member(k).unwrap();
-            for c in 0..3 {
-                emission[m.leaf as usize][c] += intensity * f64::from(m.emission[c]);
+            for (e, m) in emission[m.leaf as usize].iter_mut().zip(m.emission) {
+                *e += intensity * f64::from(m);
             }
         }
     }
@@ -373,7 +373,7 @@ fn comparison_catches_one_flipped_bit_and_a_missing_frame() {
     let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml"))
         .and_then(|f| f.resolve(&TableGroups::of(&table)))
         .unwrap();
-    let host = sim::simulate_file(Arith::Fixed, &table, &file, Some("flicker"), None).unwrap();
+    let host = sim::simulate_file(Arith::Fixed, table, &file, Some("flicker"), None).unwrap();
     let text: String = host[0].trace.iter().map(|l| format!("{l}\nB,fixed,flicker,0\n")).collect();
     let log = QemuLog::parse(&format!("{text}DONE,0\n")).unwrap();
     assert_eq!(qemu::compare(&host, &log).unwrap(), host[0].trace.len());
