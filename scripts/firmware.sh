@@ -6,7 +6,9 @@
 #   scripts/firmware.sh            check (logs and the cost report go to $CARGO_TARGET_DIR/firmware/)
 #   scripts/firmware.sh --update   also rewrite the committed firmware-sim/COST.md
 # Table and scripts: RADIOSITY_TABLE / RADIOSITY_SCRIPTS (default: the committed synthetic table and
-# scenes/cornell-box.relight.toml).
+# scenes/cornell-box.relight.toml). The committed hierarchical (format version 4) table,
+# firmware-sim/tables/hierarchical-enclosure.rft, is run on all builds as well, and its cost model and
+# instructions per link and per node visit are appended to the report.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -31,6 +33,25 @@ done
     printf '\n## Sizes (arm-none-eabi-size) and stack high-water mark (painted stack, scanned under QEMU)\n\n'
     for target in m4-f32 m4-fixed m0-fixed; do
         grep -h '^size:' "$out/$target.txt" | sed "s/^size: /- $target: /"
+    done
+} >>"$out/COST.md"
+hier=firmware-sim/tables/hierarchical-enclosure.rft
+hier_args=(--table "$hier")
+[[ -n "${RADIOSITY_SCRIPTS:-}" ]] && hier_args+=(--scripts "$RADIOSITY_SCRIPTS")
+for target in m4-f32 m4-fixed m0-fixed; do
+    echo "--- $target (hierarchical table)"
+    "$sim" qemu "${hier_args[@]}" --target "$target" --timeout 120 --log "$out/hier-$target.log" \
+        | tee "$out/hier-$target.txt"
+done
+"$sim" cost "${hier_args[@]}" --log "$out/hier-m4-f32.log" --log "$out/hier-m4-fixed.log" \
+    --log "$out/hier-m0-fixed.log" --out "$out/COST-hier.md"
+{
+    printf '\n# Hierarchical table (format version 4): %s\n' "$hier"
+    # The same report for the hierarchical table's logs, its title replaced by the one above.
+    tail -n +2 "$out/COST-hier.md" | sed 's/^## /### /'
+    printf '\n### Sizes and stack high-water mark\n\n'
+    for target in m4-f32 m4-fixed m0-fixed; do
+        grep -h '^size:' "$out/hier-$target.txt" | sed "s/^size: /- $target: /"
     done
 } >>"$out/COST.md"
 cat "$out/COST.md"

@@ -19,7 +19,12 @@
 
 use std::fmt::Write as _;
 
+use radiosity_core::{HierOwnedBuffers, HierTable};
+
+use crate::device::{self, Bits, DeviceTable};
 use crate::qemu::{QemuFrame, QemuLog};
+use crate::script::ScriptFile;
+use crate::sim::Arith;
 
 /// A fitted model for one build (arithmetic and target).
 #[derive(Clone, Debug, PartialEq)]
@@ -107,7 +112,10 @@ pub fn calibrate(build: &str, log: &QemuLog, calibrate: &str) -> Result<CostMode
         let margin = 1.0 - f.instructions as f64 / bound;
         m.checked += 1;
         m.max_instructions = m.max_instructions.max(f.instructions);
-        if f.instructions as f64 > bound {
+        // A calibration frame on the envelope gives `measured == bound` in exact arithmetic; evaluating the
+        // bound (a division, a multiplication, an addition) may round it below by a few ulps, which is not a
+        // violation.
+        if f.instructions as f64 > bound * (1.0 + 4.0 * f64::EPSILON) {
             m.violations += 1;
         }
         if margin < m.worst_margin {
@@ -191,6 +199,193 @@ pub fn report(logs: &[(String, QemuLog)], calibrate_on: &str, clock_mhz: f64) ->
     Ok(CostReport { models, violations, markdown: md })
 }
 
+/// The work of one frame on a hierarchical table, by kind, as the host simulator counts it (the firmware runs
+/// the same actions bit for bit, so these are the firmware's counts too).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HierFrameWork {
+    /// Script name.
+    pub script: String,
+    /// Links applied (one unit each): `HierSolver::links` after the frame minus before.
+    pub links: u64,
+    /// The step's other units: nodes judged in rounds and visited by sweeps' pushes and pulls.
+    pub nodes: u64,
+    /// Units of the frame's light changes (outside the budget).
+    pub light_units: u64,
+}
+
+/// Runs every script of `file` on the hierarchical `table` with arithmetic `S` on the host and splits every
+/// frame's units into links and node visits ([`HierFrameWork`]), in frame order (the QEMU log's order).
+///
+/// # Errors
+/// The device loop's error, as text.
+pub fn hier_work<S: Bits>(table: &HierTable<'_>, file: &ScriptFile) -> Result<Vec<HierFrameWork>, String> {
+    let mut memory = HierOwnedBuffers::<S>::for_table(table);
+    let mut out = Vec::new();
+    for s in &file.scripts {
+        s.with_view(|script| -> Result<(), String> {
+            let config = device::script_config::<_, S>(table, script);
+            let mut solver = table.solver(memory.buffers(), config).map_err(|e| e.to_string())?;
+            device::boot(&mut solver, script).map_err(|e| format!("{}: {e}", script.name))?;
+            for (index, frame) in (0u32..).zip(script.frames) {
+                let before = solver.links();
+                let (light, outcome) = device::run_frame(&mut solver, frame, index)
+                    .map_err(|e| format!("{}: {e}", script.name))?;
+                let links = solver.links() - before;
+                out.push(HierFrameWork {
+                    script: script.name.to_string(),
+                    links,
+                    nodes: u64::from(outcome.used()).saturating_sub(links),
+                    light_units: u64::from(light),
+                });
+            }
+            Ok(())
+        })?;
+    }
+    Ok(out)
+}
+
+/// Least squares `y = x . beta` (normal equations, Gaussian elimination with partial pivoting); `None` if they
+/// are singular.
+#[must_use]
+pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K]> {
+    let mut a = [[0.0f64; K]; K];
+    let mut b = [0.0f64; K];
+    for (x, y) in rows {
+        for i in 0..K {
+            b[i] += x[i] * y;
+            for j in 0..K {
+                a[i][j] += x[i] * x[j];
+            }
+        }
+    }
+    let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    for col in 0..K {
+        let pivot = (col..K).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        // A pivot no larger than the elimination's rounding (about K^2 operations on entries up to `scale`)
+        // means the columns are dependent.
+        if a[pivot][col].abs() <= (K * K) as f64 * f64::EPSILON * scale {
+            return None;
+        }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        for row in col + 1..K {
+            let f = a[row][col] / a[col][col];
+            let pivot_row = a[col];
+            for (x, p) in a[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *x -= f * p;
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut beta = [0.0f64; K];
+    for i in (0..K).rev() {
+        let tail: f64 = (i + 1..K).map(|j| a[i][j] * beta[j]).sum();
+        beta[i] = (b[i] - tail) / a[i][i];
+    }
+    Some(beta)
+}
+
+/// Instructions of a hierarchical table's frames split by kind of work: the least-squares fit
+/// `instructions = overhead + per_link * links + per_node * node visits` over the frames of one calibration
+/// script that change no light (frames with different shares of links and node visits separate the two
+/// costs).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HierSplit {
+    /// The build (log name).
+    pub build: String,
+    /// Calibration frames.
+    pub samples: usize,
+    /// Instructions per frame independent of the work.
+    pub overhead: f64,
+    /// Instructions per link applied.
+    pub per_link: f64,
+    /// Instructions per node visit (judged in a round, pushed or pulled in a sweep).
+    pub per_node: f64,
+    /// Root-mean-square residual of the fit relative to the root-mean-square instructions of its frames.
+    pub residual: f64,
+}
+
+/// Fits [`HierSplit`] on the frames of `calibrate` of `log`, with the work of each frame from `work` (from
+/// [`hier_work`] on the same table and scripts, frame for frame).
+///
+/// # Errors
+/// The log and the host's frames differ in number or order, or the fit is singular (too few distinct mixes).
+pub fn hier_split(
+    build: &str,
+    log: &QemuLog,
+    work: &[HierFrameWork],
+    calibrate: &str,
+) -> Result<HierSplit, String> {
+    if log.frames.len() != work.len() || log.frames.iter().zip(work).any(|(f, w)| f.script != w.script) {
+        return Err(format!(
+            "{build}: the log's frames are not the host's ({} and {})",
+            log.frames.len(),
+            work.len()
+        ));
+    }
+    // Frames that changed a light also carry the light change's cost, which a few such frames cannot
+    // separate; they are left out.
+    let cal: Vec<(&QemuFrame, &HierFrameWork)> =
+        log.frames.iter().zip(work).filter(|(f, w)| f.script == calibrate && w.light_units == 0).collect();
+    let rows: Vec<([f64; 3], f64)> =
+        cal.iter().map(|(f, w)| ([1.0, w.links as f64, w.nodes as f64], f.instructions as f64)).collect();
+    let [overhead, per_link, per_node] = least_squares(&rows).ok_or_else(|| {
+        format!("{build}: the frames of {calibrate:?} do not separate links from node visits")
+    })?;
+    let (mut sq, mut total) = (0.0f64, 0.0f64);
+    for (x, y) in &rows {
+        let r = y - (overhead + per_link * x[1] + per_node * x[2]);
+        sq += r * r;
+        total += y * y;
+    }
+    let residual = if total > 0.0 { (sq / total).sqrt() } else { 0.0 };
+    Ok(HierSplit { build: build.to_string(), samples: cal.len(), overhead, per_link, per_node, residual })
+}
+
+/// The markdown section of [`hier_split`] for every log (`(name, log)`) of a hierarchical table and its
+/// scripts; the arithmetic of each log is read from its frame lines.
+///
+/// # Errors
+/// As [`hier_work`] and [`hier_split`].
+pub fn hier_split_report(
+    logs: &[(String, QemuLog)],
+    table: &HierTable<'_>,
+    file: &ScriptFile,
+    calibrate: &str,
+) -> Result<String, String> {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "\n## Hierarchical table: instructions per link and per node visit\n\n\
+         Least squares `instructions = overhead + per link * links + per node * node visits` over the frames of \
+         `{calibrate}` that change no light; each frame's links and node visits (judged in a round, pushed or \
+         pulled in a sweep) are counted by the host simulator's bit-identical run (`firmware-sim/src/cost.rs`, \
+         `hier_split`). Residual: RMS of the fit's residuals over RMS instructions.\n"
+    );
+    let _ =
+        writeln!(md, "| build | frames | overhead | instr. per link | instr. per node visit | residual |");
+    let _ = writeln!(md, "|---|---|---|---|---|---|");
+    for (name, log) in logs {
+        let arith = log
+            .frames
+            .first()
+            .and_then(|f| f.key.split(',').nth(1))
+            .and_then(Arith::from_name)
+            .ok_or_else(|| format!("{name}: no frame lines"))?;
+        let work = match arith {
+            Arith::F32 => hier_work::<f32>(table, file)?,
+            Arith::Fixed => hier_work::<radiosity_core::Fixed>(table, file)?,
+        };
+        let m = hier_split(name, log, &work, calibrate)?;
+        let _ = writeln!(
+            md,
+            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1e} |",
+            m.build, m.samples, m.overhead, m.per_link, m.per_node, m.residual
+        );
+    }
+    Ok(md)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -202,5 +397,23 @@ mod tests {
         // Exact data: the only error is f64 rounding of sums of 10 terms of size <= 30.
         assert!((a - 3.0).abs() < 1e-12 && (b - 2.5).abs() < 1e-12, "a {a} b {b}");
         assert!(fit(&[(1.0, 1.0), (1.0, 2.0)]).is_none());
+    }
+
+    #[test]
+    fn least_squares_recovers_a_plane_and_refuses_a_singular_one() {
+        let rows: Vec<([f64; 3], f64)> = (0..6)
+            .map(|k| {
+                let (u, v) = (f64::from(k), f64::from(k * k % 5));
+                ([1.0, u, v], 10.0 + 3.0 * u + 7.0 * v)
+            })
+            .collect();
+        let b = least_squares(&rows).unwrap();
+        // Exact data; f64 rounding of sums of 6 terms of size <= 1000.
+        for (got, want) in b.iter().zip([10.0, 3.0, 7.0]) {
+            assert!((got - want).abs() < 1e-9, "{b:?}");
+        }
+        let collinear: Vec<([f64; 3], f64)> =
+            (0..6).map(|k| ([1.0, f64::from(k), 2.0 * f64::from(k)], f64::from(k))).collect();
+        assert!(least_squares(&collinear).is_none());
     }
 }

@@ -2,24 +2,36 @@
 //!
 //! A relight [`Script`] is a list of [`Frame`]s. Each frame holds the absolute intensity (RGB) of every light
 //! group and a budget in work units. [`run_frame`] applies the light groups whose intensity changed
-//! ([`Solver::set_light`], outside the budget, as core documents) and then shoots for at most the frame's
-//! budget ([`Solver::step`]). [`run_script`] starts from the script's initial intensities, solved to
-//! convergence (a device's boot), then runs every frame, timing each with a caller-supplied [`Meter`] and
-//! handing a [`FrameRecord`] to the caller.
+//! ([`DeviceSolver::set_light`], outside the budget, as core documents) and then steps for at most the
+//! frame's budget ([`DeviceSolver::step`]). [`run_script`] starts from the script's initial intensities,
+//! solved to convergence (a device's boot), then runs every frame, timing each with a caller-supplied
+//! [`Meter`] and handing a [`FrameRecord`] to the caller.
+//!
+//! # Two table formats, one loop
+//! The loop is written once over two small traits: [`DeviceTable`] (what a table gives the loop: its light
+//! groups, [`DeviceTable::unit_light_power`], and a solver on caller buffers) and [`DeviceSolver`] (what the
+//! loop asks of a solver). Both are implemented for the flat format (version 3: [`Table`], [`Solver`]) and the
+//! hierarchical one (version 4: [`HierTable`], [`HierSolver`]). The loop's **elements** are the flat table's
+//! patches and the hierarchical table's leaves: the elements whose radiosity the device shows.
 //!
 //! The trace line ([`write_trace`]) is the firmware's semihosting output and the host simulator's comparison
 //! key: it carries every number that must agree bit for bit (units, outcome, unshot power bits and a hash of
-//! every patch's radiosity bits). It is formatted here, once, so both sides print the same text.
+//! every element's radiosity bits). It is formatted here, once, so both sides print the same text. The unshot
+//! power it carries is [`DeviceSolver::unshot_power`]: for a flat table core's `Solver::total_unshot` (as
+//! before: the trace of a flat table is unchanged), for a hierarchical table the sum of every node's unshot
+//! power (see [`DeviceSolver::unshot_power`] for what that sum counts).
 
 use core::fmt;
 
 use radiosity_core::codec::decode_emission_f32;
-use radiosity_core::{Buffers, Config, Fixed, Outcome, Scalar, Solver, SolverError, Table};
+use radiosity_core::{
+    Buffers, Config, Fixed, HierBuffers, HierSolver, HierTable, Outcome, Scalar, Solver, SolverError, Table,
+};
 
 /// One frame of a relight script.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame<'a> {
-    /// Work units [`Solver::step`] may spend this frame.
+    /// Work units [`DeviceSolver::step`] may spend this frame.
     pub budget: u32,
     /// Intensity (RGB multiplier of the unit emission) of every light group, in table order.
     pub intensity: &'a [[f32; 3]],
@@ -30,8 +42,9 @@ pub struct Frame<'a> {
 pub struct Script<'a> {
     /// Name (letters, digits, `-`, `_`).
     pub name: &'a str,
-    /// Convergence tolerance, relative: a patch's unshot power magnitude (`|r| + |g| + |b|`) may be at most
-    /// this times [`unit_light_power`] of the table. Relative, so one script fits tables in any units.
+    /// Convergence tolerance, relative: an element's (flat: patch's; hierarchical: node's) unshot power
+    /// magnitude (`|r| + |g| + |b|`) may be at most this times [`DeviceTable::unit_light_power`] of the table.
+    /// Relative, so one script fits tables in any units and either format.
     pub tolerance: f32,
     /// Intensity of every light group before frame 0; the device starts with this state solved.
     pub initial: &'a [[f32; 3]],
@@ -84,16 +97,181 @@ impl Fnv1a {
     }
 }
 
-/// FNV-1a hash of every patch's radiosity bits (patch order, then R, G, B).
+/// FNV-1a hash of every element's radiosity bits (element order, then R, G, B).
 #[must_use]
-pub fn radiosity_hash<S: Bits>(solver: &Solver<'_, S>) -> u64 {
+pub fn radiosity_hash<D: DeviceSolver>(solver: &D) -> u64
+where
+    D::Scalar: Bits,
+{
     let mut h = Fnv1a::NEW;
-    for i in 0..solver.patch_count() {
-        for v in solver.radiosity(i).unwrap_or([S::ZERO; 3]) {
-            h.write(v.bits(), S::BYTES);
+    for i in 0..solver.element_count() {
+        for v in solver.element_radiosity(i).unwrap_or([D::Scalar::ZERO; 3]) {
+            h.write(v.bits(), <D::Scalar as Bits>::BYTES);
         }
     }
     h.0
+}
+
+/// What the device loop asks of a solver: implemented for core's flat [`Solver`] and hierarchical
+/// [`HierSolver`], each method the solver's own of the same name (documented there).
+pub trait DeviceSolver {
+    /// The solver's arithmetic.
+    type Scalar: Scalar;
+    /// Light groups of the solver's table.
+    fn group_count(&self) -> u32;
+    /// Current intensity of light `group`.
+    fn intensity(&self, group: u32) -> Option<[Self::Scalar; 3]>;
+    /// Sets light `group` to `rgb`; returns the work it took (outside any budget).
+    ///
+    /// # Errors
+    /// The solver's [`SolverError`].
+    fn set_light(&mut self, group: u32, rgb: [f32; 3]) -> Result<u32, SolverError>;
+    /// At most `budget` work units of solving.
+    fn step(&mut self, budget: u32) -> Outcome;
+    /// Back to the table's cold start (reflectances and default intensities).
+    fn reset(&mut self);
+    /// Elements whose radiosity the device shows: the flat table's patches, the hierarchical table's leaves.
+    fn element_count(&self) -> u32;
+    /// Radiosity (W/m^2, RGB) of `element`.
+    fn element_radiosity(&self, element: u32) -> Option<[Self::Scalar; 3]>;
+    /// The unshot power of the trace (RGB, power units, per channel a signed sum).
+    ///
+    /// - Flat: [`Solver::total_unshot`], the power not yet shot, including the rest of a shot in flight.
+    /// - Hierarchical: the sum over every node, in node order, of [`HierSolver::unshot`]. A node's unshot
+    ///   power is what its subtree reflected or emitted and has not yet shot through that node's own links,
+    ///   and every linked node on a leaf's chain keeps its own share, so the sum counts a leaf's power once
+    ///   per linked node above it (not a physical power: the flat sum's analogue as a progress measure, zero
+    ///   when nothing is left to shoot). Excluded, as core's accessor excludes them: the rest of a shot in
+    ///   flight and light still pending until the next sweep.
+    fn unshot_power(&self) -> [Self::Scalar; 3];
+}
+
+impl<S: Scalar> DeviceSolver for Solver<'_, S> {
+    type Scalar = S;
+    fn group_count(&self) -> u32 {
+        self.table().group_count()
+    }
+    fn intensity(&self, group: u32) -> Option<[S; 3]> {
+        Solver::intensity(self, group)
+    }
+    fn set_light(&mut self, group: u32, rgb: [f32; 3]) -> Result<u32, SolverError> {
+        Solver::set_light(self, group, rgb)
+    }
+    fn step(&mut self, budget: u32) -> Outcome {
+        Solver::step(self, budget)
+    }
+    fn reset(&mut self) {
+        Solver::reset(self);
+    }
+    fn element_count(&self) -> u32 {
+        self.patch_count()
+    }
+    fn element_radiosity(&self, element: u32) -> Option<[S; 3]> {
+        self.radiosity(element)
+    }
+    fn unshot_power(&self) -> [S; 3] {
+        self.total_unshot()
+    }
+}
+
+impl<S: Scalar> DeviceSolver for HierSolver<'_, S> {
+    type Scalar = S;
+    fn group_count(&self) -> u32 {
+        self.table().group_count()
+    }
+    fn intensity(&self, group: u32) -> Option<[S; 3]> {
+        HierSolver::intensity(self, group)
+    }
+    fn set_light(&mut self, group: u32, rgb: [f32; 3]) -> Result<u32, SolverError> {
+        HierSolver::set_light(self, group, rgb)
+    }
+    fn step(&mut self, budget: u32) -> Outcome {
+        HierSolver::step(self, budget)
+    }
+    fn reset(&mut self) {
+        HierSolver::reset(self);
+    }
+    fn element_count(&self) -> u32 {
+        self.table().leaf_count()
+    }
+    fn element_radiosity(&self, element: u32) -> Option<[S; 3]> {
+        self.radiosity(element)
+    }
+    fn unshot_power(&self) -> [S; 3] {
+        let mut t = [S::ZERO; 3];
+        for n in 0..self.table().node_count() {
+            let u = self.unshot(n).unwrap_or([S::ZERO; 3]);
+            t = [t[0].add(u[0]), t[1].add(u[1]), t[2].add(u[2])];
+        }
+        t
+    }
+}
+
+/// What the device loop asks of a table: implemented for the flat [`Table`] (version 3) and the hierarchical
+/// [`HierTable`] (version 4). `'a` is the lifetime of the table's bytes, which its solver's buffers share.
+pub trait DeviceTable<'a> {
+    /// The solver's buffers for arithmetic `S` (core's [`Buffers`] or [`HierBuffers`]).
+    type Buffers<S: Scalar + 'a>;
+    /// The solver (core's [`Solver`] or [`HierSolver`]).
+    type Solver<S: Scalar + 'a>: DeviceSolver<Scalar = S>;
+    /// Light groups.
+    fn group_count(&self) -> u32;
+    /// The id of light `group` (what relight scripts name it by).
+    fn group_id(&self, group: u32) -> Option<u32>;
+    /// Total power the lights emit at unit intensity: the scale of [`Script::tolerance`] ([`unit_light_power`],
+    /// [`hier_unit_light_power`]).
+    fn unit_light_power(&self) -> f32;
+    /// Creates the solver on `buffers`.
+    ///
+    /// # Errors
+    /// The solver's constructor's [`SolverError`].
+    fn solver<S: Scalar + 'a>(
+        &self,
+        buffers: Self::Buffers<S>,
+        config: Config<S>,
+    ) -> Result<Self::Solver<S>, SolverError>;
+}
+
+impl<'a> DeviceTable<'a> for Table<'a> {
+    type Buffers<S: Scalar + 'a> = Buffers<'a, S>;
+    type Solver<S: Scalar + 'a> = Solver<'a, S>;
+    fn group_count(&self) -> u32 {
+        Table::group_count(self)
+    }
+    fn group_id(&self, group: u32) -> Option<u32> {
+        Table::group_id(self, group)
+    }
+    fn unit_light_power(&self) -> f32 {
+        unit_light_power(self)
+    }
+    fn solver<S: Scalar + 'a>(
+        &self,
+        buffers: Buffers<'a, S>,
+        config: Config<S>,
+    ) -> Result<Solver<'a, S>, SolverError> {
+        Solver::new(self, buffers, config)
+    }
+}
+
+impl<'a> DeviceTable<'a> for HierTable<'a> {
+    type Buffers<S: Scalar + 'a> = HierBuffers<'a, S>;
+    type Solver<S: Scalar + 'a> = HierSolver<'a, S>;
+    fn group_count(&self) -> u32 {
+        HierTable::group_count(self)
+    }
+    fn group_id(&self, group: u32) -> Option<u32> {
+        HierTable::group_id(self, group)
+    }
+    fn unit_light_power(&self) -> f32 {
+        hier_unit_light_power(self)
+    }
+    fn solver<S: Scalar + 'a>(
+        &self,
+        buffers: HierBuffers<'a, S>,
+        config: Config<S>,
+    ) -> Result<HierSolver<'a, S>, SolverError> {
+        HierSolver::new(self, buffers, config)
+    }
 }
 
 /// What the device loop reports for one frame.
@@ -105,11 +283,11 @@ pub struct FrameRecord<S> {
     pub budget: u32,
     /// Units the step used (never more than the budget).
     pub used: u32,
-    /// Units [`Solver::set_light`] reported for the light changes of the frame (outside the budget).
+    /// Units [`DeviceSolver::set_light`] reported for the light changes of the frame (outside the budget).
     pub light_units: u32,
     /// What the step returned.
     pub outcome: Outcome,
-    /// Total unshot power after the frame (RGB, power units), including a shot in flight.
+    /// Unshot power after the frame (RGB, power units): [`DeviceSolver::unshot_power`].
     pub unshot: [S; 3],
     /// [`radiosity_hash`] after the frame.
     pub hash: u64,
@@ -201,18 +379,18 @@ impl core::error::Error for RunError {}
 /// # Errors
 /// [`RunError::GroupCount`] if `intensity` does not have one entry per light group, [`RunError::Solver`] if a
 /// change is rejected.
-pub fn apply_intensities<S: Scalar>(
-    solver: &mut Solver<'_, S>,
+pub fn apply_intensities<D: DeviceSolver>(
+    solver: &mut D,
     intensity: &[[f32; 3]],
     frame: Option<u32>,
 ) -> Result<u32, RunError> {
-    let groups = solver.table().group_count();
+    let groups = solver.group_count();
     if intensity.len() != groups as usize {
         return Err(RunError::GroupCount { frame, table: groups, script: intensity.len() });
     }
     let mut units = 0u32;
     for (g, rgb) in (0u32..).zip(intensity) {
-        let want = rgb.map(S::from_f32);
+        let want = rgb.map(D::Scalar::from_f32);
         if solver.intensity(g) != Some(want) {
             let u = solver.set_light(g, *rgb).map_err(|error| RunError::Solver { frame, error })?;
             units = units.saturating_add(u);
@@ -226,8 +404,8 @@ pub fn apply_intensities<S: Scalar>(
 ///
 /// # Errors
 /// As [`apply_intensities`].
-pub fn run_frame<S: Scalar>(
-    solver: &mut Solver<'_, S>,
+pub fn run_frame<D: DeviceSolver>(
+    solver: &mut D,
     frame: &Frame<'_>,
     index: u32,
 ) -> Result<(u32, Outcome), RunError> {
@@ -240,7 +418,7 @@ pub fn run_frame<S: Scalar>(
 ///
 /// # Errors
 /// As [`apply_intensities`], or [`RunError::BootNotConverged`].
-pub fn boot<S: Scalar>(solver: &mut Solver<'_, S>, script: &Script<'_>) -> Result<u32, RunError> {
+pub fn boot<D: DeviceSolver>(solver: &mut D, script: &Script<'_>) -> Result<u32, RunError> {
     solver.reset();
     apply_intensities(solver, script.initial, None)?;
     match solver.step(script.boot_budget) {
@@ -249,8 +427,9 @@ pub fn boot<S: Scalar>(solver: &mut Solver<'_, S>, script: &Script<'_>) -> Resul
     }
 }
 
-/// Total power (`(|r| + |g| + |b|) * area`, summed over every member of every light group) the lights emit at
-/// unit intensity, in f32 in member order (the same sum on every platform): the scale of [`Script::tolerance`].
+/// Total power (`(|r| + |g| + |b|) * area`, summed over every member of every light group) the lights of a
+/// flat table emit at unit intensity, in f32 in member order (the same sum on every platform): the scale of
+/// [`Script::tolerance`].
 #[must_use]
 pub fn unit_light_power(table: &Table<'_>) -> f32 {
     let mut total = 0.0f32;
@@ -265,24 +444,46 @@ pub fn unit_light_power(table: &Table<'_>) -> f32 {
     total
 }
 
-/// Creates a solver on `buffers` for `script` (absolute tolerance `script.tolerance * unit_light_power`), boots
-/// it and runs every frame, timing each frame (light changes and step) with `meter` and handing its record to
-/// `on_frame` together with the solver (whose state the caller may read, outside the timing). Returns the boot
-/// units.
+/// [`unit_light_power`] of a hierarchical table: `(|r| + |g| + |b|) * area` of every member (its stored f32
+/// emission at unit intensity, its leaf's area), summed in f32 in member order.
+#[must_use]
+pub fn hier_unit_light_power(table: &HierTable<'_>) -> f32 {
+    let mut total = 0.0f32;
+    for g in 0..table.group_count() {
+        for k in table.group_members(g).unwrap_or(0..0) {
+            if let Some(m) = table.member(k) {
+                let e = m.emission.map(f32::abs);
+                total += (e[0] + e[1] + e[2]) * table.leaf_area(m.leaf).unwrap_or(0.0);
+            }
+        }
+    }
+    total
+}
+
+/// The solver configuration of `script` on `table`: absolute tolerance `script.tolerance` times the table's
+/// [`DeviceTable::unit_light_power`], core's recommended overshoot.
+#[must_use]
+pub fn script_config<'a, T: DeviceTable<'a>, S: Scalar>(table: &T, script: &Script<'_>) -> Config<S> {
+    let tolerance = S::from_f32(script.tolerance * table.unit_light_power());
+    Config { tolerance, overshoot: Config::<S>::RECOMMENDED_OVERSHOOT }
+}
+
+/// Creates a solver on `buffers` for `script` (absolute tolerance `script.tolerance` times the table's
+/// [`DeviceTable::unit_light_power`]), boots it and runs every frame, timing each frame (light changes and
+/// step) with `meter` and handing its record to `on_frame` together with the solver (whose state the caller
+/// may read, outside the timing). Returns the boot units. The one device loop, for either table format.
 ///
 /// # Errors
 /// [`RunError::Buffers`], and as [`boot`] and [`run_frame`].
-pub fn run_script<'a, S: Bits, M: Meter>(
-    table: &Table<'a>,
-    buffers: Buffers<'a, S>,
+pub fn run_script<'a, T: DeviceTable<'a>, S: Bits + 'a, M: Meter>(
+    table: &T,
+    buffers: T::Buffers<S>,
     script: &Script<'_>,
     meter: &mut M,
-    mut on_frame: impl FnMut(&FrameRecord<S>, &Solver<'_, S>),
+    mut on_frame: impl FnMut(&FrameRecord<S>, &T::Solver<S>),
 ) -> Result<u32, RunError> {
-    let tolerance = S::from_f32(script.tolerance * unit_light_power(table));
-    let overshoot = Config::<S>::RECOMMENDED_OVERSHOOT;
-    let mut solver = Solver::new(table, buffers, Config { tolerance, overshoot })
-        .map_err(|error| RunError::Buffers { error })?;
+    let mut solver =
+        table.solver(buffers, script_config(table, script)).map_err(|error| RunError::Buffers { error })?;
     let solver = &mut solver;
     let boot_units = boot(solver, script)?;
     for (index, frame) in (0u32..).zip(script.frames) {
@@ -296,7 +497,7 @@ pub fn run_script<'a, S: Bits, M: Meter>(
             used: outcome.used(),
             light_units,
             outcome,
-            unshot: solver.total_unshot(),
+            unshot: solver.unshot_power(),
             hash: radiosity_hash(solver),
             instructions,
         };

@@ -6,7 +6,7 @@
 //!   with default features off and links only this module.
 //! - With the `std` feature (default): [`script`] (the `*.relight.toml` format), [`sim`] (the host simulator
 //!   with fixed buffers and CSV output), [`qemu`] (build the firmware, run it, parse its output, compare),
-//!   [`cost`] (the instructions-per-work-unit model), [`synthetic`] (a test table written with core's writer).
+//!   [`cost`] (the instructions-per-work-unit model), [`synthetic`] (test tables, flat and hierarchical, written with core's writers).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 

@@ -1,10 +1,11 @@
 //! `firmware-sim`: the host simulator of the radiosity firmware, and the driver of its QEMU runs.
 //!
 //! ```text
-//! firmware-sim gen-table OUT.rft
+//! firmware-sim gen-table OUT.rft [--hierarchical]
 //! firmware-sim run   [--table T] [--scripts S] [--arith f32|fixed] [--script NAME] [--csv OUT]
 //! firmware-sim qemu  [--table T] [--scripts S] [--target m4-f32|m4-fixed|m0-fixed] [--timeout SECONDS] [--log OUT]
 //! firmware-sim cost  --log LOG [--log LOG ...] [--calibrate SCRIPT] [--clock-mhz MHZ] [--out COST.md]
+//!                    [--table T [--scripts S]]
 //! ```
 //! Defaults: the committed synthetic table `firmware-sim/tables/uniform-enclosure.rft` and the Cornell box's
 //! scripts `scenes/cornell-box.relight.toml`. All command-line parsing (clap) lives in this file; the library
@@ -18,9 +19,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use firmware_sim::cost;
 use firmware_sim::qemu::{self, QemuLog, Target};
-use firmware_sim::script::{ScriptFile, TableGroups};
-use firmware_sim::sim::{self, Arith, ScriptSummary};
-use radiosity_core::Table;
+use firmware_sim::script::ScriptFile;
+use firmware_sim::sim::{self, AnyTable, Arith, ScriptSummary};
 
 /// The radiosity device loop on the host, and its Cortex-M firmware under QEMU.
 #[derive(Debug, Parser)]
@@ -32,11 +32,15 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Write the synthetic test table.
+    /// Write a synthetic test table (default: the flat uniform enclosure).
     GenTable {
         /// Output path of the table.
         #[arg(value_name = "OUT.rft")]
         out: PathBuf,
+        /// Write the hierarchical (format version 4) enclosure instead
+        /// (firmware-sim/tables/hierarchical-enclosure.rft).
+        #[arg(long)]
+        hierarchical: bool,
     },
     /// Run relight scripts on the host simulator (summary on stdout, per-frame CSV with --csv).
     Run {
@@ -80,6 +84,13 @@ enum Command {
         /// Write the report (markdown) to this file instead of stdout.
         #[arg(long, value_name = "COST.md")]
         out: Option<PathBuf>,
+        /// The table the logs ran (with --scripts): a hierarchical one adds the split of instructions into
+        /// per link and per node visit, from the host's count of each frame's work.
+        #[arg(long, value_name = "T")]
+        table: Option<PathBuf>,
+        /// The relight scripts the logs ran (default: scenes/cornell-box.relight.toml); used with --table.
+        #[arg(long, value_name = "S")]
+        scripts: Option<PathBuf>,
     },
 }
 
@@ -148,11 +159,10 @@ impl Input {
             self.scripts.clone().unwrap_or_else(|| root().join("scenes/cornell-box.relight.toml"));
         let bytes = std::fs::read(&table_path)
             .map_err(|e| format!("{}: cannot read table: {e}", table_path.display()))?;
-        let table = Table::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
+        let table = AnyTable::parse(&bytes).map_err(|e| format!("{}: {e}", table_path.display()))?;
         let scripts = ScriptFile::load(&scripts_path).map_err(|e| e.to_string())?;
-        let scripts = scripts
-            .resolve(&TableGroups::of(&table))
-            .map_err(|e| format!("{}: {e}", scripts_path.display()))?;
+        let scripts =
+            scripts.resolve(&table.groups()).map_err(|e| format!("{}: {e}", scripts_path.display()))?;
         Ok(Loaded { table_path, bytes, scripts_path, scripts })
     }
 }
@@ -164,8 +174,8 @@ fn simulate(
     only: Option<&str>,
     csv: Option<&mut dyn Write>,
 ) -> Result<Vec<ScriptSummary>, String> {
-    let table = Table::parse(bytes).map_err(|e| e.to_string())?;
-    sim::simulate_file(arith, &table, scripts, only, csv).map_err(|e| e.to_string())
+    let table = AnyTable::parse(bytes).map_err(|e| e.to_string())?;
+    sim::simulate_file(arith, table, scripts, only, csv).map_err(|e| e.to_string())
 }
 
 fn print_summary(arith: Arith, summaries: &[ScriptSummary]) {
@@ -194,8 +204,13 @@ fn file_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 
 fn run(command: Command) -> Result<(), String> {
     match command {
-        Command::GenTable { out } => {
-            let blob = firmware_sim::synthetic::default_table().map_err(|e| e.to_string())?;
+        Command::GenTable { out, hierarchical } => {
+            let blob = if hierarchical {
+                firmware_sim::synthetic::default_hierarchical_table()
+            } else {
+                firmware_sim::synthetic::default_table()
+            }
+            .map_err(|e| e.to_string())?;
             std::fs::write(&out, &blob).map_err(file_err(&out))?;
             println!("wrote {} ({} bytes)", out.display(), blob.len());
             Ok(())
@@ -222,7 +237,7 @@ fn run(command: Command) -> Result<(), String> {
         Command::Qemu { input, target, timeout, log } => {
             qemu_run(target.target(), &input.load()?, timeout, log.as_deref())
         }
-        Command::Cost { logs, calibrate, clock_mhz, out } => {
+        Command::Cost { logs, calibrate, clock_mhz, out, table, scripts } => {
             let mut parsed = Vec::new();
             for l in &logs {
                 let text = std::fs::read_to_string(l).map_err(file_err(l))?;
@@ -232,9 +247,16 @@ fn run(command: Command) -> Result<(), String> {
                 parsed.push((name, QemuLog::parse(&text).map_err(|e| format!("{}: {e}", l.display()))?));
             }
             let report = cost::report(&parsed, &calibrate, clock_mhz)?;
+            let mut markdown = report.markdown.clone();
+            if table.is_some() {
+                let loaded = Input { table, scripts }.load()?;
+                if let AnyTable::Hier(t) = AnyTable::parse(&loaded.bytes).map_err(|e| e.to_string())? {
+                    markdown.push_str(&cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?);
+                }
+            }
             match &out {
-                Some(p) => std::fs::write(p, &report.markdown).map_err(file_err(p))?,
-                None => print!("{}", report.markdown),
+                Some(p) => std::fs::write(p, &markdown).map_err(file_err(p))?,
+                None => print!("{markdown}"),
             }
             if report.violations > 0 {
                 return Err(format!("{} frames exceed the cost model's bound", report.violations));
@@ -245,14 +267,14 @@ fn run(command: Command) -> Result<(), String> {
 }
 
 fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -> Result<(), String> {
-    let table = Table::parse(&loaded.bytes).map_err(|e| e.to_string())?;
+    let table = AnyTable::parse(&loaded.bytes).map_err(|e| e.to_string())?;
     let paths = (loaded.table_path.as_path(), loaded.scripts_path.as_path());
     // The log is written as soon as QEMU ends, so a failed run can be read.
     let write_log = |text: &str| match log {
         Some(p) => std::fs::write(p, text).map_err(file_err(p)),
         None => Ok(()),
     };
-    let checked = qemu::check_firmware(target, &table, &loaded.scripts, paths, timeout, write_log)?;
+    let checked = qemu::check_firmware(target, table, &loaded.scripts, paths, timeout, write_log)?;
     let (flash, ram, stack) = (checked.sizes.flash, checked.sizes.ram, checked.stack.high_water);
     println!(
         "size: {} ({:?}, {} bytes of table): flash {flash} bytes, RAM {ram} bytes static + {stack} bytes stack \
@@ -262,6 +284,13 @@ fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -
         loaded.bytes.len(),
         ram + stack,
         checked.board_ram
+    );
+    println!(
+        "table: format version {}, {} {}, solver buffers {} bytes of the static RAM",
+        table.version(),
+        table.element_count(),
+        if table.version() == 4 { "leaves" } else { "patches" },
+        table.buffer_bytes(target.arith)
     );
     if let Some((expected, measured)) = checked.log.calibration {
         println!("SysTick calibration: loop of {expected} instructions measured as {measured}");

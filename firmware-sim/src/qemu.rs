@@ -464,23 +464,51 @@ pub struct Checked {
     pub frames_bit_exact: usize,
 }
 
+/// Refuses a table whose solver buffers alone (`table.buffer_bytes`, what the firmware's statics hold) exceed
+/// the board's RAM, before a build would end in a linker error.
+///
+/// # Errors
+/// A message naming the buffers' size, the formula's source and the board's RAM.
+pub fn check_buffers_fit(target: Target, table: &crate::sim::AnyTable<'_>) -> Result<(), String> {
+    let board_ram = board_ram(target)?;
+    let buffers = table.buffer_bytes(target.arith) as u64;
+    if buffers > board_ram {
+        let (what, formula) = match table {
+            crate::sim::AnyTable::Flat(_) => ("flat (version 3)", "BufferSizes::bytes"),
+            crate::sim::AnyTable::Hier(_) => ("hierarchical (version 4)", "HierBufferSizes::bytes"),
+        };
+        return Err(format!(
+            "the {what} table's solver buffers need {buffers} bytes of RAM in {} ({formula}, {} elements), more \
+             than the {} bytes of RAM of {}'s board ({}): use a smaller table or another target",
+            target.arith,
+            table.element_count(),
+            board_ram,
+            target.triple,
+            memory_map(target.triple)
+        ));
+    }
+    Ok(())
+}
+
 /// Builds the firmware for `target` with `table` and `scripts` compiled in, runs it under QEMU (at most
 /// `timeout_s` seconds; `on_output` sees the raw serial output as soon as QEMU ends, whatever follows), and
 /// compares every frame with the host simulator's run of the same table and scripts: the one QEMU check behind
 /// `firmware-sim run --qemu` and `radiosity relight --qemu`.
 ///
 /// # Errors
-/// A build, QEMU or size-tool failure, a firmware that reports errors or does not finish or does not fit the
-/// board's RAM ([`check_ram`]), a host simulation failure, or the first frame where firmware and host
-/// disagree.
-pub fn check_firmware(
+/// A table whose buffers cannot fit the board ([`check_buffers_fit`]), a build, QEMU or size-tool failure, a
+/// firmware that reports errors or does not finish or does not fit the board's RAM ([`check_ram`]), a host
+/// simulation failure, or the first frame where firmware and host disagree.
+pub fn check_firmware<'t>(
     target: Target,
-    table: &radiosity_core::Table<'_>,
+    table: impl Into<crate::sim::AnyTable<'t>>,
     scripts: &crate::script::ScriptFile,
     (table_path, scripts_path): (&Path, &Path),
     timeout_s: u32,
     on_output: impl FnOnce(&str) -> Result<(), String>,
 ) -> Result<Checked, String> {
+    let table = table.into();
+    check_buffers_fit(target, &table)?;
     let elf = build_firmware(target, table_path, scripts_path)?;
     let sizes = Sizes::of(&elf)?;
     let (text, ok) = run_qemu(target, &elf, timeout_s)?;
@@ -529,6 +557,39 @@ mod tests {
         );
         let err = check_ram(8192, stack(9000), ram).unwrap_err();
         assert!(err.contains("exceed the board's 16384 bytes"), "{err}");
+    }
+
+    #[test]
+    fn buffers_that_cannot_fit_the_board_are_refused_by_size() {
+        use radiosity_core::{
+            hier_required_len, write_hier_table, FfCodec, GroupSpec, HierSpec, HierTable, NodeSpec,
+            PatchSpec, RowsSpec,
+        };
+        // A hierarchical table of one root over 300 leaves (no links): 300 * 48 + 301 * 48 + 6 bytes in fixed
+        // point, over the micro:bit's 16 KiB; 14430 bytes in f32, within the Cortex-M4's 64 KiB.
+        let n = 300u32;
+        let nodes: Vec<NodeSpec> = (0..=n).map(|k| NodeSpec { parent: (k > 0).then_some(0) }).collect();
+        let leaf = PatchSpec { area: 1.0, material: 0, base_emission: [0.0; 3], base_irradiance: [0.0; 3] };
+        let row_start = vec![0u32; n as usize + 2];
+        let spec = HierSpec {
+            nodes: &nodes,
+            leaves: &vec![leaf; n as usize],
+            materials: &[[0.5; 3]],
+            groups: &[] as &[GroupSpec<'_>],
+            links: RowsSpec { row_start: &row_start, receiver: &[], form_factor: &[] },
+            codec: FfCodec::FLOAT16,
+            base_solved: false,
+            fingerprint: 0,
+        };
+        let mut blob = vec![0u8; hier_required_len(&spec).unwrap()];
+        let len = write_hier_table(&spec, &mut blob).unwrap();
+        let table = crate::sim::AnyTable::from(HierTable::parse(&blob[..len]).unwrap());
+        assert_eq!(table.buffer_bytes(Arith::Fixed), 300 * 48 + 301 * 48 + 6);
+        let err = check_buffers_fit(M0_FIXED, &table).unwrap_err();
+        assert!(err.contains("28854 bytes") && err.contains("16384 bytes"), "{err}");
+        assert!(err.contains("HierBufferSizes::bytes"), "{err}");
+        assert_eq!(check_buffers_fit(M4_FIXED, &table), Ok(()));
+        assert_eq!(check_buffers_fit(M4_F32, &table), Ok(()));
     }
 
     #[test]

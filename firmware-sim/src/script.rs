@@ -31,9 +31,7 @@ use std::fmt::{self, Write as _};
 
 use serde::Deserialize;
 
-use radiosity_core::Table;
-
-use crate::device::{Frame, Script};
+use crate::device::{DeviceTable, Frame, Script};
 
 /// Default boot budget (work units) when a script gives none.
 pub const DEFAULT_BOOT_BUDGET: u32 = 10_000_000;
@@ -151,9 +149,9 @@ pub struct TableGroups {
 }
 
 impl TableGroups {
-    /// The groups of `table`, names unknown.
+    /// The groups of `table` (either format), names unknown.
     #[must_use]
-    pub fn of(table: &Table<'_>) -> TableGroups {
+    pub fn of<'a>(table: &impl DeviceTable<'a>) -> TableGroups {
         let ids: Vec<u32> = (0..table.group_count()).filter_map(|g| table.group_id(g)).collect();
         let names = vec![None; ids.len()];
         TableGroups { ids, names }

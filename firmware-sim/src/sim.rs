@@ -1,15 +1,20 @@
 //! The host simulator: the device loop ([`crate::device`]) on the host, with the firmware's fixed buffers.
 //!
-//! The solver's buffers are core's [`OwnedBuffers`], sized once by [`BufferSizes::of`](radiosity_core::BufferSizes::of) (the sizes the
-//! firmware's build script gives its `StaticBuffers`); after they are created the device loop allocates
-//! nothing. Output
+//! Either table format runs: [`AnyTable::parse`] reads the version. The solver's buffers are core's
+//! [`OwnedBuffers`] (flat) or [`HierOwnedBuffers`] (hierarchical), sized once by
+//! [`BufferSizes::of`](radiosity_core::BufferSizes::of) or [`HierBufferSizes::of`] (the sizes the firmware's
+//! build script gives its static buffers); after they are created the device loop allocates nothing. Output
 //! (CSV rows, trace lines) is formatted by the caller's closures, outside the device loop.
 
 use std::io::Write;
 
-use radiosity_core::{Fixed, OwnedBuffers, Solver, Table};
+use radiosity_core::{
+    BufferSizes, Fixed, HierBufferSizes, HierOwnedBuffers, HierTable, OwnedBuffers, Table, TableError,
+};
 
-use crate::device::{self, write_trace, Bits, Frame, FrameRecord, NoMeter, RunError, Script};
+use crate::device::{
+    self, write_trace, Bits, DeviceSolver, DeviceTable, Frame, FrameRecord, NoMeter, RunError, Script,
+};
 use crate::script::{OwnedScript, ScriptFile};
 
 /// The arithmetic a device run uses: the one name for it in the workspace (host's check, bench, relight and the
@@ -57,6 +62,108 @@ impl core::str::FromStr for Arith {
     }
 }
 
+/// A parsed table of either format: flat (version 3) or hierarchical (version 4).
+#[derive(Clone, Copy, Debug)]
+pub enum AnyTable<'a> {
+    /// A flat table ([`Table`]): the elements are its patches.
+    Flat(Table<'a>),
+    /// A hierarchical table ([`HierTable`]): the elements are its leaves.
+    Hier(HierTable<'a>),
+}
+
+impl<'a> AnyTable<'a> {
+    /// Parses `bytes` as a flat table, or as a hierarchical one if [`Table::parse`] says it is one
+    /// ([`TableError::HierarchicalTable`]).
+    ///
+    /// # Errors
+    /// The parser's [`TableError`].
+    pub fn parse(bytes: &'a [u8]) -> Result<AnyTable<'a>, TableError> {
+        match Table::parse(bytes) {
+            Ok(t) => Ok(AnyTable::Flat(t)),
+            Err(TableError::HierarchicalTable) => HierTable::parse(bytes).map(AnyTable::Hier),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The format version: 3 (flat) or 4 (hierarchical).
+    #[must_use]
+    pub fn version(&self) -> u32 {
+        match self {
+            AnyTable::Flat(_) => 3,
+            AnyTable::Hier(_) => 4,
+        }
+    }
+
+    /// Elements whose radiosity the device shows (patches, or leaves).
+    #[must_use]
+    pub fn element_count(&self) -> u32 {
+        match self {
+            AnyTable::Flat(t) => t.patch_count(),
+            AnyTable::Hier(t) => t.leaf_count(),
+        }
+    }
+
+    /// Bytes of RAM the solver's buffers take with `arith` (core's `BufferSizes::bytes` or
+    /// `HierBufferSizes::bytes`): the firmware's static buffers.
+    #[must_use]
+    pub fn buffer_bytes(&self, arith: Arith) -> usize {
+        match (self, arith) {
+            (AnyTable::Flat(t), Arith::F32) => BufferSizes::of(t).bytes::<f32>(),
+            (AnyTable::Flat(t), Arith::Fixed) => BufferSizes::of(t).bytes::<Fixed>(),
+            (AnyTable::Hier(t), Arith::F32) => HierBufferSizes::of(t).bytes::<f32>(),
+            (AnyTable::Hier(t), Arith::Fixed) => HierBufferSizes::of(t).bytes::<Fixed>(),
+        }
+    }
+
+    /// The table's light groups, for resolving relight scripts.
+    #[must_use]
+    pub fn groups(&self) -> crate::script::TableGroups {
+        match self {
+            AnyTable::Flat(t) => crate::script::TableGroups::of(t),
+            AnyTable::Hier(t) => crate::script::TableGroups::of(t),
+        }
+    }
+
+    /// [`DeviceTable::unit_light_power`] of the table.
+    #[must_use]
+    pub fn unit_light_power(&self) -> f32 {
+        match self {
+            AnyTable::Flat(t) => t.unit_light_power(),
+            AnyTable::Hier(t) => t.unit_light_power(),
+        }
+    }
+}
+
+impl<'a> From<Table<'a>> for AnyTable<'a> {
+    fn from(t: Table<'a>) -> AnyTable<'a> {
+        AnyTable::Flat(t)
+    }
+}
+
+impl<'a> From<&Table<'a>> for AnyTable<'a> {
+    fn from(t: &Table<'a>) -> AnyTable<'a> {
+        AnyTable::Flat(*t)
+    }
+}
+
+impl<'a> From<HierTable<'a>> for AnyTable<'a> {
+    fn from(t: HierTable<'a>) -> AnyTable<'a> {
+        AnyTable::Hier(t)
+    }
+}
+
+impl<'a> From<&HierTable<'a>> for AnyTable<'a> {
+    fn from(t: &HierTable<'a>) -> AnyTable<'a> {
+        AnyTable::Hier(*t)
+    }
+}
+
+impl<'a> From<&AnyTable<'a>> for AnyTable<'a> {
+    fn from(t: &AnyTable<'a>) -> AnyTable<'a> {
+        *t
+    }
+}
+
 /// What a script run produced, per script.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScriptSummary {
@@ -78,7 +185,7 @@ pub struct ScriptSummary {
     pub trace: Vec<String>,
 }
 
-/// Header of the per-frame, per-patch CSV.
+/// Header of the per-frame, per-element CSV (`patch`: the flat table's patch, the hierarchical table's leaf).
 pub const CSV_HEADER: &str =
     "arith,script,frame,budget,used,light_units,outcome,converged,unshot_r,unshot_g,unshot_b,\
 unshot_r_bits,unshot_g_bits,unshot_b_bits,patch,b_r,b_g,b_b,b_r_bits,b_g_bits,b_b_bits";
@@ -87,11 +194,11 @@ fn csv_rows<S: Bits>(
     out: &mut dyn Write,
     script: &str,
     r: &FrameRecord<S>,
-    solver: &Solver<'_, S>,
+    solver: &impl DeviceSolver<Scalar = S>,
 ) -> std::io::Result<()> {
     let u = r.unshot;
-    for i in 0..solver.patch_count() {
-        let b = solver.radiosity(i).unwrap_or([S::ZERO; 3]);
+    for i in 0..solver.element_count() {
+        let b = solver.element_radiosity(i).unwrap_or([S::ZERO; 3]);
         writeln!(
             out,
             "{},{script},{},{},{},{},{},{},{:e},{:e},{:e},{:x},{:x},{:x},{i},{:e},{:e},{:e},{:x},{:x},{:x}",
@@ -147,50 +254,70 @@ impl std::fmt::Display for SimError {
 
 impl std::error::Error for SimError {}
 
-/// Runs `scripts` on `table` with arithmetic `S` in one [`OwnedBuffers`], writing CSV rows to `csv` if given.
+/// Runs one script on `buffers` (the device loop), collecting its summary and CSV rows.
+fn simulate_script<'a, T: DeviceTable<'a>, S: Bits + 'a>(
+    table: &T,
+    buffers: T::Buffers<S>,
+    script: &Script<'_>,
+    mut csv: Option<&mut (dyn Write + '_)>,
+) -> Result<ScriptSummary, SimError> {
+    let mut summary = ScriptSummary {
+        name: script.name.to_string(),
+        boot_units: 0,
+        frames: 0,
+        converged_frames: 0,
+        units_used: 0,
+        units_budgeted: 0,
+        max_fill: 0.0,
+        trace: Vec::with_capacity(script.frames.len()),
+    };
+    let mut io_error = None;
+    let result = device::run_script(table, buffers, script, &mut NoMeter, |r, solver| {
+        summary.frames += 1;
+        summary.converged_frames += u32::from(r.converged());
+        summary.units_used += u64::from(r.used);
+        summary.units_budgeted += u64::from(r.budget);
+        summary.max_fill = summary.max_fill.max(f64::from(r.used) / f64::from(r.budget));
+        let mut line = String::new();
+        let _ = write_trace(&mut line, script.name, r);
+        summary.trace.push(line);
+        if let Some(w) = csv.as_deref_mut() {
+            if let Err(e) = csv_rows(w, script.name, r, solver) {
+                io_error.get_or_insert(e);
+            }
+        }
+    });
+    summary.boot_units = result.map_err(|error| SimError::Run { script: script.name.to_string(), error })?;
+    if let Some(e) = io_error {
+        return Err(SimError::Io(e));
+    }
+    Ok(summary)
+}
+
+/// Runs `scripts` on `table` (either format) with arithmetic `S` in one set of owned buffers
+/// ([`OwnedBuffers`] or [`HierOwnedBuffers`]), writing CSV rows to `csv` if given.
 ///
 /// # Errors
 /// [`SimError`].
-pub fn simulate<S: Bits>(
-    table: &Table<'_>,
+pub fn simulate<'t, S: Bits>(
+    table: impl Into<AnyTable<'t>>,
     scripts: &[&Script<'_>],
     mut csv: Option<&mut dyn Write>,
 ) -> Result<Vec<ScriptSummary>, SimError> {
-    let mut memory = OwnedBuffers::<S>::for_table(table);
-    let mut out = Vec::new();
-    for script in scripts {
-        let mut summary = ScriptSummary {
-            name: script.name.to_string(),
-            boot_units: 0,
-            frames: 0,
-            converged_frames: 0,
-            units_used: 0,
-            units_budgeted: 0,
-            max_fill: 0.0,
-            trace: Vec::with_capacity(script.frames.len()),
-        };
-        let mut io_error = None;
-        let result = device::run_script(table, memory.buffers(), script, &mut NoMeter, |r, solver| {
-            summary.frames += 1;
-            summary.converged_frames += u32::from(r.converged());
-            summary.units_used += u64::from(r.used);
-            summary.units_budgeted += u64::from(r.budget);
-            summary.max_fill = summary.max_fill.max(f64::from(r.used) / f64::from(r.budget));
-            let mut line = String::new();
-            let _ = write_trace(&mut line, script.name, r);
-            summary.trace.push(line);
-            if let Some(w) = csv.as_deref_mut() {
-                if let Err(e) = csv_rows(w, script.name, r, solver) {
-                    io_error.get_or_insert(e);
-                }
+    let mut out = Vec::with_capacity(scripts.len());
+    match table.into() {
+        AnyTable::Flat(table) => {
+            let mut memory = OwnedBuffers::<S>::for_table(&table);
+            for script in scripts {
+                out.push(simulate_script(&table, memory.buffers(), script, csv.as_deref_mut())?);
             }
-        });
-        summary.boot_units =
-            result.map_err(|error| SimError::Run { script: script.name.to_string(), error })?;
-        if let Some(e) = io_error {
-            return Err(SimError::Io(e));
         }
-        out.push(summary);
+        AnyTable::Hier(table) => {
+            let mut memory = HierOwnedBuffers::<S>::for_table(&table);
+            for script in scripts {
+                out.push(simulate_script(&table, memory.buffers(), script, csv.as_deref_mut())?);
+            }
+        }
     }
     Ok(out)
 }
@@ -199,9 +326,9 @@ pub fn simulate<S: Bits>(
 ///
 /// # Errors
 /// [`SimError`].
-pub fn simulate_with(
+pub fn simulate_with<'t>(
     arith: Arith,
-    table: &Table<'_>,
+    table: impl Into<AnyTable<'t>>,
     scripts: &[&Script<'_>],
     csv: Option<&mut dyn Write>,
 ) -> Result<Vec<ScriptSummary>, SimError> {
@@ -215,9 +342,9 @@ pub fn simulate_with(
 ///
 /// # Errors
 /// [`SimError`]; a name that matches no script gives [`SimError::NoScript`].
-pub fn simulate_file(
+pub fn simulate_file<'t>(
     arith: Arith,
-    table: &Table<'_>,
+    table: impl Into<AnyTable<'t>>,
     file: &ScriptFile,
     only: Option<&str>,
     csv: Option<&mut dyn Write>,

@@ -1,5 +1,6 @@
-//! Host-side checks of the device loop: the committed table, the analytic answer of the uniform enclosure,
-//! no allocation in the device loop, and a comparison that catches a single flipped bit.
+//! Host-side checks of the device loop: the committed tables, the analytic answer of the uniform enclosure,
+//! the hierarchical enclosure's answer against its own linear system, budgets per frame, no allocation in
+//! the device loop, and a comparison that catches a single flipped bit.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -9,8 +10,7 @@ use firmware_sim::qemu::{self, QemuLog};
 use firmware_sim::script::{ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith};
 use firmware_sim::synthetic;
-use radiosity_core::OwnedBuffers;
-use radiosity_core::{Fixed, Scalar, Table};
+use radiosity_core::{Fixed, Frac, HierOwnedBuffers, HierSolver, HierTable, OwnedBuffers, Scalar, Table};
 
 /// Counts allocations made by the current thread (tests run on several threads).
 struct Counting;
@@ -41,6 +41,220 @@ fn root() -> std::path::PathBuf {
 
 fn committed_table() -> Vec<u8> {
     std::fs::read(root().join("firmware-sim/tables/uniform-enclosure.rft")).unwrap()
+}
+
+fn committed_hierarchical_table() -> Vec<u8> {
+    std::fs::read(root().join("firmware-sim/tables/hierarchical-enclosure.rft")).unwrap()
+}
+
+#[test]
+fn committed_hierarchical_table_is_the_generators_output() {
+    assert!(
+        committed_hierarchical_table() == synthetic::default_hierarchical_table().unwrap(),
+        "firmware-sim/tables/hierarchical-enclosure.rft is stale: regenerate it with \
+         `cargo run -p firmware-sim -- gen-table --hierarchical firmware-sim/tables/hierarchical-enclosure.rft`"
+    );
+}
+
+#[test]
+fn hierarchical_table_has_links_at_three_levels_and_closed_chains() {
+    let bytes = committed_hierarchical_table();
+    let table = HierTable::parse(&bytes).unwrap();
+    assert_eq!((table.node_count(), table.leaf_count()), (42, 24));
+    // Senders and receivers at the face (depth 0), half (1) and leaf (2) levels.
+    let depth = |mut n: u32| {
+        let mut d = 0;
+        while let Some(p) = table.parent(n) {
+            n = p;
+            d += 1;
+        }
+        d
+    };
+    let mut levels = std::collections::BTreeSet::new();
+    for s in 0..table.node_count() {
+        for k in table.run(s).unwrap() {
+            let (r, _) = table.link(s, k).unwrap();
+            levels.insert((depth(s), depth(r)));
+        }
+    }
+    assert_eq!(levels.into_iter().collect::<Vec<_>>(), [(0, 0), (1, 1), (2, 2)]);
+    // Every leaf's chain sums to 1 within the form-factor codec's rounding (FLOAT16: 2^-11 relative per
+    // entry, at most 8 entries per run, 3 runs per chain).
+    for l in 0..table.leaf_count() {
+        let mut n = Some(table.leaf_node(l).unwrap());
+        let mut sum = 0.0f64;
+        while let Some(node) = n {
+            sum += f64::from(table.run_sum(node).unwrap());
+            n = table.parent(node);
+        }
+        assert!(sum <= 1.0 && sum > 1.0 - 24.0 * 2f64.powi(-11), "leaf {l}: chain sum {sum}");
+    }
+}
+
+fn frac(f: Frac) -> f64 {
+    f64::from(f.mantissa) * 2f64.powi(-(f.shift as i32))
+}
+
+/// The hierarchical table's own linear system (core's `hier` module docs), from the table's decoded numbers,
+/// in f64, independently of the solver: `B_l = E_l + rho_l sum_{r in chain(l)} (1 / A_r) sum_s F_sr Phi_s`,
+/// `Phi_s = sum of A_l' B_l'` over the leaves below sender `s`, with every light group at `intensity`.
+/// Jacobi iteration until nothing changes in f64 (the iteration contracts by `rho_max <= 0.73` per step).
+fn hierarchical_system(table: &HierTable<'_>, intensity: f64) -> Vec<[f64; 3]> {
+    let leaves = table.leaf_count() as usize;
+    let area: Vec<f64> = (0..table.leaf_count()).map(|l| f64::from(table.leaf_area(l).unwrap())).collect();
+    let rho: Vec<[f64; 3]> = (0..table.leaf_count())
+        .map(|l| {
+            let code = table.reflectance(table.material(l).unwrap()).unwrap();
+            code.map(|c| frac(radiosity_core::codec::decode_reflectance(c)))
+        })
+        .collect();
+    let mut emission = vec![[0.0f64; 3]; leaves];
+    for g in 0..table.group_count() {
+        for k in table.group_members(g).unwrap() {
+            let m = table.member(k).unwrap();
+            for (e, m) in emission[m.leaf as usize].iter_mut().zip(m.emission) {
+                *e += intensity * f64::from(m);
+            }
+        }
+    }
+    let mut b = emission.clone();
+    for _ in 0..1000 {
+        // Power of every node's subtree, then the irradiance every node's links deliver.
+        let phi: Vec<[f64; 3]> = (0..table.node_count())
+            .map(|n| {
+                let mut p = [0.0; 3];
+                for l in table.leaf_range(n).unwrap() {
+                    for c in 0..3 {
+                        p[c] += area[l as usize] * b[l as usize][c];
+                    }
+                }
+                p
+            })
+            .collect();
+        let mut irradiance = vec![[0.0f64; 3]; table.node_count() as usize];
+        for s in 0..table.node_count() {
+            for k in table.run(s).unwrap() {
+                let (r, f) = table.link(s, k).unwrap();
+                let a_r = f64::from(table.node_area(r).unwrap());
+                for c in 0..3 {
+                    irradiance[r as usize][c] += frac(f) * phi[s as usize][c] / a_r;
+                }
+            }
+        }
+        let next: Vec<[f64; 3]> = (0..table.leaf_count())
+            .map(|l| {
+                let mut e = [0.0; 3];
+                let mut n = Some(table.leaf_node(l).unwrap());
+                while let Some(node) = n {
+                    for c in 0..3 {
+                        e[c] += irradiance[node as usize][c];
+                    }
+                    n = table.parent(node);
+                }
+                [0, 1, 2].map(|c| emission[l as usize][c] + rho[l as usize][c] * e[c])
+            })
+            .collect();
+        if next == b {
+            break;
+        }
+        b = next;
+    }
+    b
+}
+
+/// The device (host simulator, f32) boots the hierarchical enclosure to convergence and agrees with the
+/// table's own system ([`hierarchical_system`]) within a bound derived from f32 rounding and the tolerance.
+#[test]
+fn hierarchical_enclosure_converges_to_its_own_system() {
+    let bytes = committed_hierarchical_table();
+    let table = HierTable::parse(&bytes).unwrap();
+    let exact = hierarchical_system(&table, 1.0);
+    let mut memory = HierOwnedBuffers::<f32>::for_table(&table);
+    let initial = [[1.0f32; 3]];
+    let frames = [Frame { budget: 1, intensity: &initial }];
+    let tolerance = 1e-7f32;
+    let script =
+        Script { name: "boot", tolerance, initial: &initial, boot_budget: 10_000_000, frames: &frames };
+    let (mut worst, mut bound_used) = (0.0f64, 0.0f64);
+    let mut checked = 0;
+    device::run_script(&table, memory.buffers(), &script, &mut NoMeter, |r, solver: &HierSolver<'_, f32>| {
+        assert!(r.converged(), "{r:?}");
+        // Rounding: each bounce's path from a sender's unshot power to a leaf's power rounds at most
+        // 6 + 2 D times (shot F U, division by A_r, D pending additions down the chain, times A_l, times
+        // rho, the addition to the leaf's power; D pull additions back up into the unshot power), and a
+        // leaf's power and a node's unshot power each accumulate at most one addition per sweep; with
+        // overshoot (`Config::RECOMMENDED_OVERSHOOT`, 1/4) the terms of those sums have magnitudes at most
+        // 1 + 2/4 times their sum. Each bounce's relative error carries over to the next scaled by rho, so
+        // the relative error is at most `k u / (1 - rho_max)` with `k = 1.5 (6 + 2 D + 2 sweeps)`,
+        // `u = 2^-24`.
+        let d = f64::from(table.max_depth());
+        let k = 1.5 * (6.0 + 2.0 * d + 2.0 * f64::from(solver.sweeps()));
+        let rho_max = 0.73;
+        let relative = k * 2f64.powi(-24) / (1.0 - rho_max);
+        // Truncation: every linked node's unshot magnitude is at most the tolerance (absolute: tolerance
+        // times the unit light power) and nothing is pending; shot, that power raises a leaf's radiosity by
+        // at most rho_max / (1 - rho_max) times it over the smallest leaf area (chains sum to at most 1).
+        let linked = (0..table.node_count()).filter(|&n| table.has_links(n)).count() as f64;
+        let tau = f64::from(tolerance) * f64::from(device::hier_unit_light_power(&table));
+        let a_min =
+            (0..table.leaf_count()).map(|l| f64::from(table.leaf_area(l).unwrap())).fold(f64::MAX, f64::min);
+        let truncation = linked * tau * rho_max / (1.0 - rho_max) / a_min;
+        for (l, ex) in exact.iter().enumerate() {
+            let b = solver.radiosity(l as u32).unwrap();
+            for c in 0..3 {
+                let err = (f64::from(b[c]) - ex[c]).abs();
+                let allowed = relative * ex[c] + truncation;
+                assert!(
+                    err <= allowed,
+                    "leaf {l} channel {c}: device {} exact {} error {err:e} > {allowed:e}",
+                    b[c],
+                    ex[c]
+                );
+                worst = worst.max(err / ex[c]);
+                bound_used = bound_used.max(err / allowed);
+                checked += 1;
+            }
+        }
+    })
+    .unwrap();
+    assert_eq!(checked, 3 * 24);
+    eprintln!(
+        "hierarchical enclosure: worst relative error {worst:e}, largest share of the bound {bound_used:.3}"
+    );
+}
+
+/// Every frame of every shipped script on the hierarchical table spends at most its budget, in f32 and fixed
+/// point, and some frames spend all of it (so the check bites).
+#[test]
+fn hierarchical_frames_respect_their_budgets() {
+    fn check<S: device::Bits>(table: &HierTable<'_>, file: &ScriptFile) {
+        let mut memory = HierOwnedBuffers::<S>::for_table(table);
+        let mut full = 0;
+        for s in &file.scripts {
+            s.with_view(|script| {
+                device::run_script(table, memory.buffers(), script, &mut NoMeter, |r, _| {
+                    assert!(
+                        r.used <= r.budget,
+                        "{}: frame {} used {} > budget {}",
+                        script.name,
+                        r.frame,
+                        r.used,
+                        r.budget
+                    );
+                    full += usize::from(r.used == r.budget);
+                })
+                .unwrap();
+            });
+        }
+        assert!(full > 0, "{}: no frame used its whole budget", S::NAME);
+    }
+    let bytes = committed_hierarchical_table();
+    let table = HierTable::parse(&bytes).unwrap();
+    let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml"))
+        .and_then(|f| f.resolve(&TableGroups::of(&table)))
+        .unwrap();
+    check::<f32>(&table, &file);
+    check::<Fixed>(&table, &file);
 }
 
 #[test]
@@ -139,6 +353,17 @@ fn device_loop_allocates_nothing() {
             assert_eq!(frames, script.frames.len());
         });
     }
+    let bytes = committed_hierarchical_table();
+    let table = HierTable::parse(&bytes).unwrap();
+    let mut memory = HierOwnedBuffers::<f32>::for_table(&table);
+    for s in &file.scripts {
+        s.with_view(|script| {
+            let before = ALLOCATIONS.with(Cell::get);
+            device::run_script(&table, memory.buffers(), script, &mut NoMeter, |_, _| {}).unwrap();
+            let after = ALLOCATIONS.with(Cell::get);
+            assert_eq!(after - before, 0, "hierarchical, script {}: the device loop allocated", script.name);
+        });
+    }
 }
 
 #[test]
@@ -148,7 +373,7 @@ fn comparison_catches_one_flipped_bit_and_a_missing_frame() {
     let file = ScriptFile::load(&root().join("scenes/cornell-box.relight.toml"))
         .and_then(|f| f.resolve(&TableGroups::of(&table)))
         .unwrap();
-    let host = sim::simulate_file(Arith::Fixed, &table, &file, Some("flicker"), None).unwrap();
+    let host = sim::simulate_file(Arith::Fixed, table, &file, Some("flicker"), None).unwrap();
     let text: String = host[0].trace.iter().map(|l| format!("{l}\nB,fixed,flicker,0\n")).collect();
     let log = QemuLog::parse(&format!("{text}DONE,0\n")).unwrap();
     assert_eq!(qemu::compare(&host, &log).unwrap(), host[0].trace.len());

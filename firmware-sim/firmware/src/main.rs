@@ -1,5 +1,6 @@
-//! The radiosity device as Cortex-M firmware: the table in flash, the solver in static buffers sized from the
-//! table's counts, every compiled-in relight script run through firmware-sim's device loop, each frame timed
+//! The radiosity device as Cortex-M firmware: the table in flash (flat or hierarchical: the build script names
+//! its type, `FirmwareTable`), the solver in static buffers sized from the table's counts, every compiled-in
+//! relight script run through firmware-sim's device loop (the same for both formats), each frame timed
 //! with SysTick under QEMU's `-icount` (deterministic: instructions, not wall time). Output goes through
 //! semihosting, one line per event (format: `firmware_sim::qemu` module docs); the exit status is 0 if every
 //! script ran.
@@ -31,12 +32,10 @@ use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{entry, exception, ExceptionFrame, STACK_PAINT_VALUE};
 use cortex_m_semihosting::{debug, hio};
 use firmware_sim::device::{run_script, write_trace, Bits, Meter};
-use radiosity_core::Table;
-
 mod generated {
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
-use generated::{DeviceBuffers, INSTRUCTIONS_PER_TICK, SCRIPTS, TABLE};
+use generated::{DeviceBuffers, FirmwareTable, INSTRUCTIONS_PER_TICK, SCRIPTS, TABLE};
 
 /// The solver's arithmetic.
 #[cfg(not(feature = "fixed"))]
@@ -160,7 +159,7 @@ fn main() -> ! {
         cortex_m::asm::udf();
     }
 
-    let table = match Table::parse(TABLE) {
+    let table = match FirmwareTable::parse(TABLE) {
         Ok(t) => t,
         Err(e) => {
             emit(format_args!("E,table,{e}"));
