@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use radiosity_core::crc::crc32;
-use radiosity_core::format::{IndexArray, OffsetArray};
+use radiosity_core::format::IndexArray;
 use radiosity_core::{
     hier_required_len, write_hier_table, Config, FfCodec, Fixed, GroupSpec, HierBufferSizes,
     HierOwnedBuffers, HierSolver, HierSpec, HierStaticBuffers, HierTable, MemberSpec, NoProgressReason,
@@ -703,8 +703,8 @@ fn bulk_readout_is_the_per_leaf_readout() {
 }
 
 /// [`HierBufferSizes::bytes`] is what the buffers hold (their lengths times their element sizes, on f32 and
-/// fixed point); the senders and receivers it counts are the nodes with links and the nodes links reach,
-/// numbered in node order by the table's slots; a static buffer's sizes are its generics, field by field.
+/// fixed point), the inner index of every inner node is in range of the per-inner-node buffers, and a static
+/// buffer's sizes are its generics, field by field.
 #[test]
 fn ram_formula_is_the_buffers_bytes() {
     let mut rng = Lcg(7);
@@ -715,30 +715,30 @@ fn ram_formula_is_the_buffers_bytes() {
         let sizes = HierBufferSizes::of(&t);
         assert_eq!(HierOwnedBuffers::<f32>::new(sizes).held_bytes(), sizes.bytes::<f32>());
         assert_eq!(HierOwnedBuffers::<Fixed>::new(sizes).held_bytes(), sizes.bytes::<Fixed>());
-        assert_eq!(sizes.leaves, t.leaf_count() as usize);
-        assert_eq!(sizes.depth, t.max_depth() as usize);
-        let nodes = t.node_count();
-        let receives = |k: u32| (0..nodes).any(|s| t.run(s).unwrap().any(|j| t.link(s, j).unwrap().0 == k));
-        let (mut senders, mut receivers) = (0u32, 0u32);
-        for k in 0..nodes {
-            let sends = t.has_links(k);
-            assert_eq!(t.sender_slot(k), sends.then_some(senders), "node {k}");
-            senders += u32::from(sends);
-            let gets = receives(k);
-            assert_eq!(t.receiver_slot(k), gets.then_some(receivers), "node {k}");
-            receivers += u32::from(gets);
+        let inner: Vec<u32> = (0..t.node_count()).filter(|&k| !t.is_leaf(k)).collect();
+        assert_eq!(
+            (sizes.leaves, sizes.nodes, sizes.inner, sizes.depth),
+            (t.leaf_count() as usize, t.node_count() as usize, inner.len(), t.max_depth() as usize)
+        );
+        // Inner indices number the inner nodes in node order.
+        for (i, &k) in inner.iter().enumerate() {
+            assert_eq!(k - t.leaf_range(k).unwrap().start, i as u32);
         }
-        assert_eq!((sizes.senders, sizes.receivers), (senders as usize, receivers as usize));
-        assert_eq!((t.sender_slot(nodes), t.receiver_slot(nodes)), (None, None));
     }
-    // facing_squares' 10 nodes: senders 0, 1, 2, 5, 6, 9 and receivers 0, 1, 3, 4, 5, 6, 7; the others take no
-    // unshot or pending entry.
-    let sizes = HierBufferSizes::of(&HierTable::parse(&tables[0]).unwrap());
-    assert_eq!((sizes.senders, sizes.receivers), (6, 7));
     let st = HierStaticBuffers::<f32, 1, 2, 3, 4, 5, 6>::new();
-    let want = HierBufferSizes { leaves: 1, senders: 2, receivers: 3, depth: 4, groups: 5, materials: 6 };
+    let want = HierBufferSizes { leaves: 1, nodes: 2, inner: 3, depth: 4, groups: 5, materials: 6 };
     assert_eq!(st.sizes(), want);
     assert_eq!(core::mem::size_of_val(&st), want.bytes::<f32>());
+    // In f32: 24 bytes per leaf and 36 per inner node.
+    let one = |leaves, inner| HierBufferSizes {
+        leaves,
+        nodes: leaves + inner,
+        inner,
+        depth: 0,
+        groups: 0,
+        materials: 0,
+    };
+    assert_eq!((one(1, 0).bytes::<f32>(), one(0, 1).bytes::<f32>()), (24, 36));
 }
 
 // ---- Format ----
@@ -754,7 +754,7 @@ fn tiny() -> Hier {
 }
 
 const HEADER: usize = 16;
-const TOTAL: usize = HEADER + 181 + 4;
+const TOTAL: usize = HEADER + 149 + 4;
 
 #[rustfmt::skip]
 const GOLDEN: [u8; TOTAL] = [
@@ -793,10 +793,6 @@ const GOLDEN: [u8; TOTAL] = [
     0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
     // run exponents: 2 (0.25 in [2^-2, 2^-1)), 1 (0.5), 0 (empty)
     0x02, 0x01, 0x00,
-    // sender slot starts (u32, nodes + 1): nodes 0 and 1 have links: 0, 1, 2, 2
-    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
-    // receiver slot starts (u32, nodes + 1): links reach nodes 0 and 2: 0, 1, 1, 2
-    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
     // link receivers: 0, 2
     0x00, 0x00, 0x02, 0x00,
     // link codes: a row's largest entry at the top binade's base, 2^-e: x = 15, m = 0 -> 0xf000
@@ -826,9 +822,6 @@ fn golden_bytes_pin_the_layout() {
     assert_eq!(t.node_area(3), None);
     assert_eq!(t.leaf_node(2), None);
     assert!(t.run_view(1).unwrap().entries().map(|(r, _)| r).eq([2]));
-    assert_eq!((t.sender_count(), t.receiver_count()), (2, 2));
-    assert_eq!([0, 1, 2, 3].map(|k| t.sender_slot(k)), [Some(0), Some(1), None, None]);
-    assert_eq!([0, 1, 2, 3].map(|k| t.receiver_slot(k)), [Some(0), None, Some(1), None]);
 }
 
 #[test]
@@ -893,9 +886,7 @@ const LEAF_START: usize = END + 12;
 const AREA: usize = LEAF_START + 16;
 const LEAF_NODE: usize = AREA + 12;
 const RUN_EXPONENT: usize = LEAF_NODE + 4 + 16;
-const SENDER_SLOT: usize = RUN_EXPONENT + 3;
-const RECEIVER_SLOT: usize = SENDER_SLOT + 16;
-const RECEIVER: usize = RECEIVER_SLOT + 16;
+const RECEIVER: usize = RUN_EXPONENT + 3;
 const CODE: usize = RECEIVER + 4;
 
 #[test]
@@ -932,23 +923,6 @@ fn named_corruptions_map_to_their_errors() {
     assert_eq!(
         corrupt(|b| b[RECEIVER + 2] = 3),
         Err(E::IndexOutOfRange { array: IndexArray::LinkReceiver, position: 1, index: 3, bound: 3 })
-    );
-    // Node 2 (no links) given a sender slot; the last receiver (node 2) left without one; a step of 2.
-    assert_eq!(
-        corrupt(|b| b[SENDER_SLOT + 12] = 3),
-        Err(E::NonMonotoneOffsets { array: OffsetArray::SenderSlot, position: 3 })
-    );
-    assert_eq!(
-        corrupt(|b| b[RECEIVER_SLOT + 12] = 1),
-        Err(E::NonMonotoneOffsets { array: OffsetArray::ReceiverSlot, position: 3 })
-    );
-    assert_eq!(
-        corrupt(|b| b[RECEIVER_SLOT + 4] = 2),
-        Err(E::NonMonotoneOffsets { array: OffsetArray::ReceiverSlot, position: 1 })
-    );
-    assert_eq!(
-        corrupt(|b| b[SENDER_SLOT] = 1),
-        Err(E::NonMonotoneOffsets { array: OffsetArray::SenderSlot, position: 0 })
     );
     // Run 1 -> 2 raised to its largest code: 0.5 + 0.25 stays <= 1 only up to 0.75.
     assert_eq!(corrupt(|b| b[CODE + 3] = 0xff), Err(E::ChainSumExceedsOne { leaf: 0 }));

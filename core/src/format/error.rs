@@ -190,11 +190,6 @@ pub enum OffsetArray {
     RowStart,
     /// Light-group member starts.
     GroupStart,
-    /// Hierarchical tables: sender slot starts (a step other than 0 or 1, or not 1 exactly at the nodes
-    /// with links).
-    SenderSlot,
-    /// Hierarchical tables: receiver slot starts (a step other than 0 or 1, or 0 at a link's receiver).
-    ReceiverSlot,
 }
 
 /// The index array a [`TableError::IndexOutOfRange`] refers to.

@@ -73,10 +73,6 @@ pub struct HierSectionSizes {
     pub run_start: usize,
     /// Link run exponents (`u8` per node).
     pub run_exponent: usize,
-    /// Sender slot starts (`u32` per node, plus one).
-    pub sender_slot: usize,
-    /// Receiver slot starts (`u32` per node, plus one).
-    pub receiver_slot: usize,
     /// Link receivers (an index per link).
     pub link_receiver: usize,
     /// Link form-factor codes.
@@ -110,8 +106,6 @@ impl HierSectionSizes {
             leaf_node: n.checked_mul(ib)?,
             run_start: nn.checked_add(1)?.checked_mul(4)?,
             run_exponent: nn,
-            sender_slot: nn.checked_add(1)?.checked_mul(4)?,
-            receiver_slot: nn.checked_add(1)?.checked_mul(4)?,
             link_receiver: (h.link_count as usize).checked_mul(ib)?,
             link_code: (h.link_count as usize).checked_mul(usize::from(h.ff_bits / 8))?,
             crc: 4,
@@ -120,7 +114,7 @@ impl HierSectionSizes {
         Some(sizes)
     }
 
-    fn parts(&self) -> [usize; 22] {
+    fn parts(&self) -> [usize; 20] {
         [
             self.header,
             self.leaf_material,
@@ -139,8 +133,6 @@ impl HierSectionSizes {
             self.leaf_node,
             self.run_start,
             self.run_exponent,
-            self.sender_slot,
-            self.receiver_slot,
             self.link_receiver,
             self.link_code,
             self.crc,
@@ -181,8 +173,6 @@ pub struct HierTable<'a> {
     leaf_node: &'a [u8],
     run_start: &'a [u8],
     run_exponent: &'a [u8],
-    sender_slot: &'a [u8],
-    receiver_slot: &'a [u8],
     link_receiver: &'a [u8],
     link_code: &'a [u8],
 }
@@ -195,16 +185,6 @@ pub(crate) fn read_index(s: &[u8], width: u8, k: u32) -> u32 {
     } else {
         le_u32(s, k as usize)
     }
-}
-
-/// Entry `node` of a slot section (`docs/format.md`): its start if the node's step is one, else `None`.
-#[inline]
-fn slot(s: &[u8], node: u32, nodes: u32) -> Option<u32> {
-    if node >= nodes {
-        return None;
-    }
-    let a = le_u32(s, node as usize);
-    (le_u32(s, node as usize + 1) > a).then_some(a)
 }
 
 /// The path from a root down to the node last visited in preorder, as the running sum of the decoded run sums
@@ -330,8 +310,6 @@ impl<'a> HierTable<'a> {
             leaf_node: take(sizes.leaf_node),
             run_start: take(sizes.run_start),
             run_exponent: take(sizes.run_exponent),
-            sender_slot: take(sizes.sender_slot),
-            receiver_slot: take(sizes.receiver_slot),
             link_receiver: take(sizes.link_receiver),
             link_code: take(sizes.link_code),
         };
@@ -378,7 +356,6 @@ impl<'a> HierTable<'a> {
         )?;
         self.check_areas()?;
         check_offsets(self.run_start, nn, self.header.link_count, OffsetArray::RowStart)?;
-        self.check_slots()?;
         let one = 1u128 << EXACT_SHIFT;
         let mut path = PathSum::default();
         let mut max_depth = 0;
@@ -433,38 +410,6 @@ impl<'a> HierTable<'a> {
     }
 
     /// Decoded sum of `node`'s run (exact units), checking its exponent, receivers and order.
-    /// The slot sections: each starts at 0 and steps by 0 or 1 per node; a node's sender step is 1 exactly
-    /// when it has links, and every link's receiver has a receiver step of 1 (a node marked as a receiver
-    /// that no link reaches only wastes an entry; the writer marks none). `O(nodes + links)`.
-    fn check_slots(&self) -> Result<(), TableError> {
-        let nn = self.header.node_count;
-        for (s, array) in
-            [(self.sender_slot, OffsetArray::SenderSlot), (self.receiver_slot, OffsetArray::ReceiverSlot)]
-        {
-            if le_u32(s, 0) != 0 {
-                return Err(TableError::NonMonotoneOffsets { array, position: 0 });
-            }
-            for k in 0..nn {
-                let (a, b) = (le_u32(s, k as usize), le_u32(s, k as usize + 1));
-                let step = b.wrapping_sub(a);
-                let sender_ok = array != OffsetArray::SenderSlot || (step == 1) == self.has_links(k);
-                if step > 1 || !sender_ok {
-                    return Err(TableError::NonMonotoneOffsets { array, position: k + 1 });
-                }
-            }
-        }
-        for j in 0..self.header.link_count {
-            let r = self.index(self.link_receiver, j);
-            if r < nn && self.receiver_slot(r).is_none() {
-                return Err(TableError::NonMonotoneOffsets {
-                    array: OffsetArray::ReceiverSlot,
-                    position: r + 1,
-                });
-            }
-        }
-        Ok(())
-    }
-
     fn checked_run_sum(&self, node: u32) -> Result<u128, TableError> {
         let e = self.run_exponent.get(node as usize).copied().unwrap_or(0);
         if e > MAX_ROW_EXPONENT {
@@ -770,33 +715,6 @@ impl<'a> HierTable<'a> {
     #[inline]
     pub fn has_links(&self, node: u32) -> bool {
         self.run(node).is_some_and(|r| r.end > r.start)
-    }
-
-    /// Nodes with links (senders): the solver keeps unshot power for these only.
-    #[must_use]
-    pub fn sender_count(&self) -> u32 {
-        le_u32(self.sender_slot, self.node_count() as usize)
-    }
-
-    /// Nodes that links reach (receivers): the solver keeps pending irradiance for these only.
-    #[must_use]
-    pub fn receiver_count(&self) -> u32 {
-        le_u32(self.receiver_slot, self.node_count() as usize)
-    }
-
-    /// The slot of `node` among the senders (`0..sender_count()`, in node order), or `None` if it has no links.
-    #[must_use]
-    #[inline]
-    pub fn sender_slot(&self, node: u32) -> Option<u32> {
-        slot(self.sender_slot, node, self.node_count())
-    }
-
-    /// The slot of `node` among the receivers (`0..receiver_count()`, in node order), or `None` if no link
-    /// reaches it.
-    #[must_use]
-    #[inline]
-    pub fn receiver_slot(&self, node: u32) -> Option<u32> {
-        slot(self.receiver_slot, node, self.node_count())
     }
 
     /// Exponent of sender `node`'s run.

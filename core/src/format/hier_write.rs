@@ -298,26 +298,6 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
     }
     let exps_at = o.at;
     o.at += nn;
-    // Slots: senders are the nodes with links; receivers are marked (1 at `r + 1`) and then summed in place.
-    let mut senders = 0u32;
-    o.u32(0);
-    for j in 0..nn {
-        senders += u32::from(links.row_start[j + 1] > links.row_start[j]);
-        o.u32(senders);
-    }
-    let receivers_at = o.at;
-    for k in 0..=nn as u32 {
-        write_u32(o.buf, receivers_at, k, 0);
-    }
-    for &r in links.receiver {
-        write_u32(o.buf, receivers_at, r + 1, 1);
-    }
-    let mut receivers = 0u32;
-    for k in 1..=nn as u32 {
-        receivers += read_u32(o.buf, receivers_at, k);
-        write_u32(o.buf, receivers_at, k, receivers);
-    }
-    o.at = receivers_at + 4 * (nn + 1);
     for &r in links.receiver {
         o.index(r, ib);
     }

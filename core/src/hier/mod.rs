@@ -5,23 +5,25 @@
 //! links, in rounds, with the paper's push-pull done lazily in one sweep over the tree per round.
 //!
 //! # The scheme
-//! - Every sender (a node with links) `n` keeps `U_n`, the power emitted or reflected in `n`'s subtree that
-//!   has not yet been shot through `n`'s own links (other nodes keep none: they never shoot). A leaf's new
-//!   power is added to `U` of the leaf and of every sending ancestor: the links of a leaf's chain (the leaf
-//!   and its ancestors) each carry their part of the leaf's interactions.
-//! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` adds the irradiance
-//!   `F_sr U_s / A_r` to `r`'s **pending** irradiance (one buffer entry per receiver,
-//!   [`HierBuffers::pending`]), the irradiance of `r` taken as uniform over it. Nothing below or above `r` is
-//!   touched: a link costs the same whatever the size of its receiver.
+//! - Every node `n` with links keeps `U_n`, the power emitted or reflected in `n`'s subtree that has not yet
+//!   been shot through `n`'s own links (a node without links never shoots; its entry is never read). A
+//!   leaf's new power is added to `U` of the leaf and of every ancestor with links: the links of a leaf's
+//!   chain (the leaf and its ancestors) each carry their part of the leaf's interactions.
+//! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` delivers the power `F_sr U_s` to
+//!   `r`. An inner receiver keeps it as the **pending** irradiance `F_sr U_s / A_r` ([`HierBuffers::pending`]),
+//!   uniform over `r`: nothing below or above `r` is touched, so a link costs the same whatever the size of
+//!   its receiver. A leaf receiver takes it at once: into its incident power `H_l`, and the reflected
+//!   `rho_l F_sr U_s` into its own unshot power and into its parent's **reflected** entry
+//!   ([`HierBuffers::reflected`]), pending for the rest of its chain. So leaves need no pending entry.
 //! - A **sweep** then makes the pending light count, in one pass over the nodes in preorder that keeps the
 //!   path from a root to the current node as a stack of [`SweepFrame`]s ([`HierBuffers::path`], one per
-//!   level of the tree). **Entering** a node pushes its frame: its chain irradiance, the parent frame's plus
-//!   the node's own pending (which it takes), so a leaf's frame holds the sum over its chain; the leaf adds
-//!   `dH = A_l e` to its incident power `H_l` and starts its frame's reflected sum at `rho_l dH`. **Leaving**
-//!   a node (once the preorder has passed its subtree) pops its frame: the power reflected in its subtree
-//!   goes into its unshot power (if it sends) and into its parent's frame. A sweep leaves nothing pending,
-//!   and the path lives in the solver's buffers, so a sweep stops and resumes between any two nodes. The
-//!   chain and subtree sums need no per-node memory, so only receivers keep pending irradiance.
+//!   level of the tree). **Entering** a node pushes its frame: an inner node's chain irradiance is its
+//!   parent frame's plus its own pending, and its subtree sum starts with its reflected entry (both taken);
+//!   a leaf adds `dH = A_l e` to `H_l`, `e` its parent frame's chain irradiance, and starts its frame's
+//!   subtree sum at `rho_l dH`. **Leaving** a node (once the preorder has passed its subtree) pops its frame:
+//!   the power reflected in its subtree goes into its unshot power (if it has links) and into its parent's
+//!   frame. A sweep leaves nothing pending, and the path lives in the solver's buffers, so a sweep stops and
+//!   resumes between any two nodes.
 //! - A leaf's power is not stored: it is `Phi_l = E_l A_l + rho_l H_l`, its emission (static, and every light
 //!   group's members on it at their current intensities) plus its reflected incident power, computed on
 //!   readout ([`HierSolver::power`], or [`HierSolver::power_into`] for every leaf at once). The solver itself
@@ -36,25 +38,31 @@
 //!   chains, as the flat [`Solver`](crate::Solver) does; the static base as in the crate docs. Overshooting
 //!   ([`Config::overshoot`]) works as in the flat solver: a shot sends `(1 + overshoot / 256) U_s` and leaves
 //!   the excess as negative unshot power.
-//! - Leaves show the light of every shot up to the sweep's entry of the leaf: what a round shot shows after
-//!   its sweep.
+//! - Leaves show the light of links that reach them at once, and of links to their ancestors from the
+//!   sweep's entry of the leaf on: what a round shot shows after its sweep.
 //!
 //! # Memory
-//! The table numbers the senders and the receivers in node order (its slot sections, `docs/format.md`), so
-//! the solver's RAM is `[S; 3]` per leaf (`H_l`), per sender (`U_n`), per receiver (pending) and per light
-//! group (intensity), a [`SweepFrame`] per level of the tree and three reflectance codes per material:
-//! [`HierBufferSizes::bytes`].
+//! `[S; 3]` per leaf (`H_l`), per node (`U_n`), two per inner node (pending irradiance, reflected power) and
+//! one per light group (intensity), a [`SweepFrame`] per level of the tree and three reflectance codes per
+//! material ([`HierBufferSizes::bytes`]): in f32, 24 bytes per leaf and 36 per inner node, where storing each
+//! leaf's power and a pending entry per node (which carried the sweep's chain and subtree sums) took 48 and
+//! 24. Leaves are indexed by leaf index and inner nodes by `node - leaf_start(node)`, both from the table,
+//! so no node-to-entry map takes RAM. The alternatives weighed: entries only for nodes with links and for
+//! nodes that links reach, numbered by slot sections the table would store (flash), save only the nodes
+//! that neither send nor receive, few in baked tables; a pending entry per leaf instead of the parent's
+//! reflected entry costs one per leaf where this costs one per inner node, and inner nodes are the fewer.
 //!
 //! # Rounds: which nodes shoot
-//! The sweep's leaving is where the unshot powers become current, so it also finds the largest unshot magnitude
-//! `|r| + |g| + |b|`, `M`. If `M` is within the tolerance, the solver has converged: every node's unshot
-//! magnitude is `<= tolerance` and nothing is pending, the flat solver's convergence, so its remainder bound
-//! holds. Otherwise a round judges the nodes in index order and shoots every node whose unshot magnitude is at
-//! least `M / 4` (and above the tolerance), then sweeps. During a round a shot changes only the shooter's
-//! unshot power (what it delivers stays pending), so every node is judged on its unshot power as of the
-//! sweep before the round, plus what light changes and edits injected since: the rule judges the light reflected
-//! before the round, and light reflected from this round's shots waits for the next round, as it must (it is
-//! not yet computed).
+//! Leaving nodes is where the unshot powers become current, so a sweep also finds the largest unshot
+//! magnitude `|r| + |g| + |b|`, `M`. If `M` is within the tolerance, the solver has converged: every node's
+//! unshot magnitude is `<= tolerance` and nothing is pending, the flat solver's convergence, so its remainder
+//! bound holds. Otherwise a round judges the nodes in index order and shoots every node whose unshot
+//! magnitude is at least `M / 4` (and above the tolerance), then sweeps. During a round a shot changes the
+//! shooter's unshot power and, for links that reach leaves, those leaves' own unshot power; what reaches
+//! inner nodes, and the chains above the leaves, stays pending. So a node is judged on its unshot power as of
+//! the sweep before the round, plus what light changes and edits injected since, plus (a leaf) what this
+//! round's earlier shots reflected from it: the rule judges the light reflected before the round, and light
+//! reflected higher up waits for the next round, as it must (it is not yet computed).
 //!
 //! Why rounds: a sweep and a round's judging cost a fixed `3 N` units (`N` nodes) whatever is shot, so
 //! sweeping after every shot of the largest node would cost `3 N` per shot; shooting every
@@ -66,8 +74,9 @@
 //! selection structure kept current per shot; rounds need neither (no selection buffer).
 //!
 //! # Work units
-//! One unit each: a node judged in a round (a shot starts at no extra cost); a link applied (its irradiance
-//! computed and added to the receiver's pending); a node entered by a sweep (chain irradiance summed; for a
+//! One unit each: a node judged in a round (a shot starts at no extra cost); a link applied (its power
+//! computed and added to an inner receiver's pending, or to a leaf receiver's incident power, unshot power
+//! and parent's reflected entry); a node entered by a sweep (chain irradiance summed; for a
 //! leaf, incident power and reflected power updated); a node left by a sweep (reflected power summed into its
 //! parent's frame and its unshot power, the largest magnitude kept). Every action is one unit, so a step
 //! never spends more than its budget, any budget of one unit or more makes progress, and the next step
@@ -262,7 +271,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         for u in self.buf.unshot.iter_mut() {
             *u = [S::ZERO; 3];
         }
-        for p in self.buf.pending.iter_mut() {
+        for p in self.buf.pending.iter_mut().chain(self.buf.reflected.iter_mut()) {
             *p = [S::ZERO; 3];
         }
         let solved = self.table.base_solved();
@@ -357,29 +366,28 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         walked
     }
 
-    /// Adds `d` to `node`'s unshot power if it is a sender (a node without links never shoots and has no
-    /// entry).
+    /// Adds `d` to `node`'s unshot power if it has links (a node without links never shoots).
     fn add_unshot(&mut self, node: u32, d: [S; 3]) {
-        if let Some(u) = self.table.sender_slot(node).and_then(|i| self.buf.unshot.get_mut(i as usize)) {
+        if !self.table.has_links(node) {
+            return;
+        }
+        if let Some(u) = self.buf.unshot.get_mut(node as usize) {
             *u = add3(*u, d);
         }
     }
 
-    /// The unshot power of `node` (zero for a node that does not send).
+    /// The unshot power of `node` (zero for a node without links: what links reaching such a leaf add to its
+    /// entry is never read).
     fn unshot_of(&self, node: u32) -> [S; 3] {
-        self.table
-            .sender_slot(node)
-            .and_then(|i| self.buf.unshot.get(i as usize))
-            .copied()
-            .unwrap_or([S::ZERO; 3])
+        if !self.table.has_links(node) {
+            return [S::ZERO; 3];
+        }
+        self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])
     }
 
-    /// Takes (returns and clears) `node`'s pending irradiance (zero for a node that receives nothing).
-    fn take_pending(&mut self, node: u32) -> [S; 3] {
-        match self.table.receiver_slot(node).and_then(|i| self.buf.pending.get_mut(i as usize)) {
-            Some(p) => core::mem::replace(p, [S::ZERO; 3]),
-            None => [S::ZERO; 3],
-        }
+    /// The inner index of `node` (the inner nodes before it): its entry in the per-inner-node buffers.
+    fn inner_index(&self, node: u32) -> usize {
+        self.table.leaf_range(node).map_or(usize::MAX, |r| (node - r.start) as usize)
     }
 
     /// Runs actions (module docs) until convergence or until `budget` work units are spent. Every action
@@ -407,17 +415,16 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                     }
                     used += 1;
                     self.phase = Phase::Round { threshold, next: next + 1 };
-                    let Some(slot) = self.table.sender_slot(next) else { continue };
-                    let u = self.buf.unshot.get(slot as usize).copied().unwrap_or([S::ZERO; 3]);
+                    let u = self.unshot_of(next);
                     let m = magnitude(u);
-                    if m < threshold || m <= self.config.tolerance {
+                    if m < threshold || m <= self.config.tolerance || !self.table.has_links(next) {
                         continue;
                     }
                     // With overshooting the shot sends `(1 + overshoot / 256) U_s` and leaves
                     // `-overshoot / 256 U_s`, as the flat solver does.
                     let extra = Frac { mantissa: u32::from(self.config.overshoot), shift: 8 };
                     let power = u.map(|x| x.add(x.mul_frac(extra)));
-                    if let Some(v) = self.buf.unshot.get_mut(slot as usize) {
+                    if let Some(v) = self.buf.unshot.get_mut(next as usize) {
                         *v = [0, 1, 2].map(|c| v[c].sub(power[c]));
                     }
                     let run = self.table.run(next).unwrap_or(0..0);
@@ -473,55 +480,82 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         }
     }
 
-    /// Link `next` of `sender`'s run, `(r, F)`, leaves the irradiance `F U_s / A_r` pending at `r`.
+    /// Link `next` of `sender`'s run, `(r, F)`, delivers the power `F U_s` to node `r`. An inner receiver
+    /// keeps it as the irradiance `F U_s / A_r` pending for its subtree. A leaf takes it at once: into its
+    /// incident power, and the reflected `rho_l F U_s` into its own unshot power and, pending for the rest of
+    /// its chain, into its parent's reflected entry.
     fn apply_link(&mut self, sender: u32, next: u32, power: [S; 3]) {
         let Some((r, f)) = self.table.link(sender, next) else { return };
-        let Some(area) = self.table.node_area(r) else { return };
-        let area = S::from_f32(area);
-        let e = power.map(|p| p.mul_frac(f).div(area));
-        if let Some(p) = self.table.receiver_slot(r).and_then(|i| self.buf.pending.get_mut(i as usize)) {
-            *p = add3(*p, e);
+        let x = power.map(|p| p.mul_frac(f));
+        if !self.table.is_leaf(r) {
+            let area = S::from_f32(self.table.node_area(r).unwrap_or(0.0));
+            let i = self.inner_index(r);
+            if let Some(p) = self.buf.pending.get_mut(i) {
+                *p = add3(*p, x.map(|q| q.div(area)));
+            }
+            return;
+        }
+        let Some(l) = self.table.leaf_range(r).map(|x| x.start) else { return };
+        let rho = self.rho(l);
+        let reflected = [0, 1, 2].map(|c| x[c].mul_frac(decode_reflectance(rho[c])));
+        if let Some(h) = self.buf.incident.get_mut(l as usize) {
+            *h = add3(*h, x);
+        }
+        if let Some(u) = self.buf.unshot.get_mut(r as usize) {
+            *u = add3(*u, reflected);
+        }
+        if let Some(p) = self.table.parent(r) {
+            let i = self.inner_index(p);
+            if let Some(v) = self.buf.reflected.get_mut(i) {
+                *v = add3(*v, reflected);
+            }
         }
     }
 
     /// A sweep enters `node` (preorder; the path's top frame, at `depth - 1`, is its parent's, or the path is
-    /// empty for a root): the node's chain irradiance is its parent's plus its own pending, which it takes. A
-    /// leaf then takes the sum, the irradiance of every link on its chain since the last sweep: incident power
-    /// `dH = A_l e`, and its reflected power `rho_l dH` starts the frame's subtree sum.
+    /// empty for a root) and pushes its frame. An inner node's chain irradiance is its parent's plus its own
+    /// pending, and its subtree sum starts with its reflected entry (both taken, leaving zeros). A leaf takes
+    /// its parent's chain irradiance, the irradiance of every link above it since the last sweep: incident
+    /// power `dH = A_l e`, and its reflected power `rho_l dH` starts the frame's subtree sum.
     fn enter(&mut self, node: u32, depth: u32) {
         let above = depth
             .checked_sub(1)
             .and_then(|d| self.buf.path.get(d as usize))
             .map_or([S::ZERO; 3], |f| f.irradiance);
-        let e = add3(above, self.take_pending(node));
-        let mut reflected = [S::ZERO; 3];
-        if self.table.is_leaf(node) {
-            if let Some(l) = self.table.leaf_range(node).map(|r| r.start) {
-                let a = self.leaf_area(l);
-                let rho = self.rho(l);
-                let dh = e.map(|q| q.mul(a));
-                reflected = [0, 1, 2].map(|c| dh[c].mul_frac(decode_reflectance(rho[c])));
-                if let Some(v) = self.buf.incident.get_mut(l as usize) {
-                    *v = add3(*v, dh);
-                }
+        let (e, reflected) = if self.table.is_leaf(node) {
+            let l = self.table.leaf_range(node).map_or(u32::MAX, |r| r.start);
+            let a = self.leaf_area(l);
+            let rho = self.rho(l);
+            let dh = above.map(|q| q.mul(a));
+            if let Some(v) = self.buf.incident.get_mut(l as usize) {
+                *v = add3(*v, dh);
             }
-        }
+            (above, [0, 1, 2].map(|c| dh[c].mul_frac(decode_reflectance(rho[c]))))
+        } else {
+            let i = self.inner_index(node);
+            let take =
+                |v: Option<&mut [S; 3]>| v.map_or([S::ZERO; 3], |v| core::mem::replace(v, [S::ZERO; 3]));
+            let pending = take(self.buf.pending.get_mut(i));
+            (add3(above, pending), take(self.buf.reflected.get_mut(i)))
+        };
         if let Some(f) = self.buf.path.get_mut(depth as usize) {
             *f = SweepFrame { node, irradiance: e, reflected };
         }
     }
 
     /// A sweep leaves the node of the top frame (at `depth - 1`) once its subtree is done: the power
-    /// reflected in its subtree since the last sweep goes into its unshot power (if it sends) and into its
-    /// parent's frame. Returns the node's unshot magnitude if it sends.
+    /// reflected in its subtree since the last sweep goes into its unshot power (if it has links) and into
+    /// its parent's frame. Returns the node's unshot magnitude if it has links.
     fn leave(&mut self, depth: u32) -> Option<S> {
         let top = depth.checked_sub(1)?;
         let frame = *self.buf.path.get(top as usize)?;
         if let Some(parent) = top.checked_sub(1).and_then(|d| self.buf.path.get_mut(d as usize)) {
             parent.reflected = add3(parent.reflected, frame.reflected);
         }
-        let slot = self.table.sender_slot(frame.node)?;
-        let u = self.buf.unshot.get_mut(slot as usize)?;
+        if !self.table.has_links(frame.node) {
+            return None;
+        }
+        let u = self.buf.unshot.get_mut(frame.node as usize)?;
         *u = add3(*u, frame.reflected);
         Some(magnitude(*u))
     }
