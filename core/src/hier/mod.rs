@@ -437,10 +437,12 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                         self.phase = Phase::Round { threshold, next: sender + 1 };
                         continue;
                     }
-                    used += 1;
-                    self.links = self.links.saturating_add(1);
-                    self.apply_link(sender, next, power);
-                    self.phase = Phase::Shooting { sender, power, next: next + 1, end, threshold };
+                    // As many links as the budget allows, one unit each, in one loop over the run.
+                    let count = (end - next).min(budget - used);
+                    used += count;
+                    self.links = self.links.saturating_add(u64::from(count));
+                    self.apply_links(sender, next, count, power);
+                    self.phase = Phase::Shooting { sender, power, next: next + count, end, threshold };
                 }
                 Phase::Sweep { next, depth, largest, usable, stale } => {
                     let top =
@@ -480,12 +482,20 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         }
     }
 
-    /// Link `next` of `sender`'s run, `(r, F)`, delivers the power `F U_s` to node `r`. An inner receiver
+    /// Applies `count` links of `sender`'s run from table position `from` (a slice iterator over the run's
+    /// receivers and codes, decoded with the run's exponent).
+    fn apply_links(&mut self, sender: u32, from: u32, count: u32, power: [S; 3]) {
+        let Some(run) = self.table.run_view(sender) else { return };
+        for (r, f) in run.entries_from(from).take(count as usize) {
+            self.apply_link(r, f, power);
+        }
+    }
+
+    /// Link `(r, F)` delivers the power `F U_s` to node `r`. An inner receiver
     /// keeps it as the irradiance `F U_s / A_r` pending for its subtree. A leaf takes it at once: into its
     /// incident power, and the reflected `rho_l F U_s` into its own unshot power and, pending for the rest of
     /// its chain, into its parent's reflected entry.
-    fn apply_link(&mut self, sender: u32, next: u32, power: [S; 3]) {
-        let Some((r, f)) = self.table.link(sender, next) else { return };
+    fn apply_link(&mut self, r: u32, f: Frac, power: [S; 3]) {
         let x = power.map(|p| p.mul_frac(f));
         if !self.table.is_leaf(r) {
             let area = S::from_f32(self.table.node_area(r).unwrap_or(0.0));
