@@ -6,9 +6,10 @@ use proptest::prelude::*;
 use radiosity_core::crc::crc32;
 use radiosity_core::format::IndexArray;
 use radiosity_core::{
-    hier_required_len, write_hier_table, Config, FfCodec, Fixed, GroupSpec, HierOwnedBuffers, HierSolver,
-    HierSpec, HierTable, MemberSpec, NoProgressReason, NodeSpec, Outcome, PatchSpec, RowsSpec, Scalar, Table,
-    TableError, TreeFault, WriteError, FORMAT_VERSION, HIER_FORMAT_VERSION,
+    hier_required_len, write_hier_table, Config, FfCodec, Fixed, GroupSpec, HierBufferSizes,
+    HierOwnedBuffers, HierSolver, HierSpec, HierStaticBuffers, HierTable, MemberSpec, NoProgressReason,
+    NodeSpec, Outcome, PatchSpec, RowsSpec, Scalar, Table, TableError, TreeFault, WriteError, FORMAT_VERSION,
+    HIER_FORMAT_VERSION,
 };
 
 /// Unit roundoff of f32.
@@ -648,6 +649,96 @@ fn a_solved_static_base_costs_no_work() {
     // E_s + rho G_s: leaf 2 has rho 0.5 and no static emission.
     assert_eq!(s.radiosity(2), Some([0.125, 0.25, 0.5]));
     assert_eq!(s.radiosity(5), Some([0.5, 0.5, 0.5]));
+}
+
+/// The bulk readouts are the per-leaf ones bit for bit (two light groups sharing a leaf, a static emitter,
+/// reflected power before and after a light change and a reflectance edit), on f32 and fixed point; a longer
+/// output slice keeps its extra elements and a shorter one gets only its leaves.
+#[test]
+fn bulk_readout_is_the_per_leaf_readout() {
+    fn check<S: Scalar>(bytes: &[u8]) {
+        let t = HierTable::parse(bytes).unwrap();
+        let n = t.leaf_count() as usize;
+        let bits = |v: &[[S; 3]]| format!("{v:?}");
+        let same = |s: &HierSolver<'_, S>| {
+            let marker = [S::from_f32(-7.0); 3];
+            let mut p = vec![marker; n + 2];
+            assert_eq!(s.power_into(&mut p), n);
+            let mut b = vec![marker; n + 2];
+            assert_eq!(s.radiosity_into(&mut b), n);
+            let p_one: Vec<[S; 3]> = (0..n as u32).map(|l| s.power(l).unwrap()).collect();
+            let b_one: Vec<[S; 3]> = (0..n as u32).map(|l| s.radiosity(l).unwrap()).collect();
+            assert_eq!(bits(&p[..n]), bits(&p_one));
+            assert_eq!(bits(&b[..n]), bits(&b_one));
+            assert_eq!(bits(&p[n..]), bits(&[marker; 2]));
+            let mut short = vec![marker; 3];
+            assert_eq!(s.power_into(&mut short), 3);
+            assert_eq!(bits(&short), bits(&p_one[..3]));
+            assert_eq!(s.power(n as u32), None);
+        };
+        let mut store = HierOwnedBuffers::<S>::for_table(&t);
+        let floor = radiosity_core::hier_convergence_floor::<S>(&t);
+        let tol = if floor > S::from_f32(1e-6) { floor } else { S::from_f32(1e-6) };
+        let mut s = HierSolver::new(&t, store.buffers(), Config { tolerance: tol, overshoot: 0 }).unwrap();
+        same(&s);
+        assert_eq!(s.step(37), Outcome::BudgetSpent { used: 37 });
+        same(&s);
+        converge(&mut s, 50);
+        same(&s);
+        s.set_light(1, [0.0, 2.0, 0.5]).unwrap();
+        s.set_reflectance(1, [0.125, 0.5, 0.875]).unwrap();
+        same(&s);
+        converge(&mut s, 50);
+        same(&s);
+    }
+    let mut h = facing_squares();
+    h.groups.push((
+        4,
+        [0.5, 0.25, 1.0],
+        vec![MemberSpec { patch: 0, emission: [0.5; 3] }, MemberSpec { patch: 6, emission: [2.0, 1.0, 0.5] }],
+    ));
+    let bytes = h.write();
+    check::<f32>(&bytes);
+    check::<Fixed>(&bytes);
+}
+
+/// [`HierBufferSizes::bytes`] is what the buffers hold (their lengths times their element sizes, on f32 and
+/// fixed point), the inner index of every inner node is in range of the per-inner-node buffers, and a static
+/// buffer's sizes are its generics, field by field.
+#[test]
+fn ram_formula_is_the_buffers_bytes() {
+    let mut rng = Lcg(7);
+    let tables =
+        [facing_squares().write(), cluster_box().write(), tiny().write(), random_hier(&mut rng, 40).write()];
+    for bytes in &tables {
+        let t = HierTable::parse(bytes).unwrap();
+        let sizes = HierBufferSizes::of(&t);
+        assert_eq!(HierOwnedBuffers::<f32>::new(sizes).held_bytes(), sizes.bytes::<f32>());
+        assert_eq!(HierOwnedBuffers::<Fixed>::new(sizes).held_bytes(), sizes.bytes::<Fixed>());
+        let inner: Vec<u32> = (0..t.node_count()).filter(|&k| !t.is_leaf(k)).collect();
+        assert_eq!(
+            (sizes.leaves, sizes.nodes, sizes.inner, sizes.depth),
+            (t.leaf_count() as usize, t.node_count() as usize, inner.len(), t.max_depth() as usize)
+        );
+        // Inner indices number the inner nodes in node order.
+        for (i, &k) in inner.iter().enumerate() {
+            assert_eq!(k - t.leaf_range(k).unwrap().start, i as u32);
+        }
+    }
+    let st = HierStaticBuffers::<f32, 1, 2, 3, 4, 5, 6>::new();
+    let want = HierBufferSizes { leaves: 1, nodes: 2, inner: 3, depth: 4, groups: 5, materials: 6 };
+    assert_eq!(st.sizes(), want);
+    assert_eq!(core::mem::size_of_val(&st), want.bytes::<f32>());
+    // In f32: 24 bytes per leaf and 36 per inner node.
+    let one = |leaves, inner| HierBufferSizes {
+        leaves,
+        nodes: leaves + inner,
+        inner,
+        depth: 0,
+        groups: 0,
+        materials: 0,
+    };
+    assert_eq!((one(1, 0).bytes::<f32>(), one(0, 1).bytes::<f32>()), (24, 36));
 }
 
 // ---- Format ----

@@ -1,26 +1,56 @@
 //! The hierarchical solver's memory: [`HierBuffers`] (borrowed slices), [`HierBufferSizes`] (the one place
-//! their lengths are derived from a table), [`HierStaticBuffers`] (const-capacity storage for firmware) and,
-//! with the `std` feature, [`HierOwnedBuffers`].
+//! their lengths and their bytes are derived from a table), [`HierStaticBuffers`] (const-capacity storage for
+//! firmware) and, with the `std` feature, [`HierOwnedBuffers`].
+//!
+//! What is stored, and why nothing else (the module docs of [`hier`](super) say how it is used):
+//! - per leaf, its incident power `H_l` (reflectance edits need it; the leaf's power is computed from it on
+//!   readout, `Phi_l = E_l A_l + rho_l H_l`, so it is not stored);
+//! - per node, its unshot power (read for the nodes with links only);
+//! - per inner node (a node with children), the irradiance its incoming links left pending for its subtree,
+//!   and the power reflected by its children from links that reached them directly, pending for its chain;
+//! - per level of the tree, one [`SweepFrame`]: a sweep's path from a root to the node it visits, which
+//!   carries the chain sums down and the subtree sums up, so no node needs a buffer entry for them;
+//! - per light group its intensity, per material its reflectance codes.
+//!
+//! Leaves are indexed by leaf index and inner nodes by inner index, `node - leaf_start(node)` (the inner
+//! nodes before `node`), both read from the table, so no node-to-entry map takes RAM.
 
 use crate::format::HierTable;
 use crate::scalar::Scalar;
+
+/// One node on the path of a sweep (root first): the node, the irradiance summed down its chain since the
+/// last sweep, and the power reflected in the part of its subtree visited so far.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SweepFrame<S> {
+    pub(crate) node: u32,
+    pub(crate) irradiance: [S; 3],
+    pub(crate) reflected: [S; 3],
+}
+
+impl<S: Scalar> SweepFrame<S> {
+    /// An unused frame (what buffers start with; a sweep overwrites a frame before it reads it).
+    pub const EMPTY: SweepFrame<S> =
+        SweepFrame { node: 0, irradiance: [S::ZERO; 3], reflected: [S::ZERO; 3] };
+}
 
 /// Caller-supplied buffers of a [`HierSolver`](super::HierSolver). Every slice must hold at least the count
 /// [`HierBufferSizes::of`] names (extra elements are unused).
 #[derive(Debug)]
 pub struct HierBuffers<'b, S> {
-    /// Power `Phi_l = B_l A_l` (RGB) per leaf: [`HierBufferSizes::leaves`].
-    pub power: &'b mut [[S; 3]],
-    /// Incident power `H_l` received so far (RGB) per leaf, before reflection (reflectance edits need it):
-    /// [`HierBufferSizes::leaves`].
+    /// Incident power `H_l` received so far (RGB) per leaf, before reflection: [`HierBufferSizes::leaves`].
     pub incident: &'b mut [[S; 3]],
     /// Unshot power `U_n` (RGB) per node: power reflected or emitted in the node's subtree and not yet shot
-    /// through the node's own links: [`HierBufferSizes::nodes`].
+    /// through its links (read only for nodes with links): [`HierBufferSizes::nodes`].
     pub unshot: &'b mut [[S; 3]],
-    /// Pending (RGB) per node: between sweeps, the irradiance (incident power per unit area) the node's links
-    /// delivered since the last sweep; during a sweep's pull, the power reflected in its subtree:
-    /// [`HierBufferSizes::nodes`].
+    /// Pending irradiance (RGB) per inner node: what the node's incoming links delivered since the last sweep
+    /// entered it: [`HierBufferSizes::inner`].
     pub pending: &'b mut [[S; 3]],
+    /// Pending reflected power (RGB) per inner node: what its leaf children reflected from links that reached
+    /// them directly since the last sweep entered it, still to be summed up its chain:
+    /// [`HierBufferSizes::inner`].
+    pub reflected: &'b mut [[S; 3]],
+    /// A sweep's path, one frame per level: [`HierBufferSizes::depth`].
+    pub path: &'b mut [SweepFrame<S>],
     /// Current intensity (RGB) per light group: [`HierBufferSizes::groups`].
     pub intensity: &'b mut [[S; 3]],
     /// Current reflectance codes (RGB) per material: [`HierBufferSizes::materials`].
@@ -30,10 +60,15 @@ pub struct HierBuffers<'b, S> {
 /// How many elements each hierarchical solver buffer needs for a table.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct HierBufferSizes {
-    /// Leaves: [`HierBuffers::power`], [`HierBuffers::incident`].
+    /// Leaves: [`HierBuffers::incident`].
     pub leaves: usize,
-    /// Nodes: [`HierBuffers::unshot`], [`HierBuffers::pending`].
+    /// Nodes: [`HierBuffers::unshot`].
     pub nodes: usize,
+    /// Inner nodes (nodes with children, `nodes - leaves`): [`HierBuffers::pending`],
+    /// [`HierBuffers::reflected`].
+    pub inner: usize,
+    /// Longest chain (a leaf and its ancestors, [`HierTable::max_depth`]): [`HierBuffers::path`].
+    pub depth: usize,
     /// Light groups: [`HierBuffers::intensity`].
     pub groups: usize,
     /// Materials: [`HierBuffers::reflectance`].
@@ -47,25 +82,34 @@ impl HierBufferSizes {
         HierBufferSizes {
             leaves: table.leaf_count() as usize,
             nodes: table.node_count() as usize,
+            inner: table.node_count().saturating_sub(table.leaf_count()) as usize,
+            depth: table.max_depth() as usize,
             groups: table.group_count() as usize,
             materials: table.material_count() as usize,
         }
     }
 
-    /// Bytes of RAM the buffers take with arithmetic `S`.
+    /// Bytes of RAM the buffers take with arithmetic `S`:
+    /// `rgb (leaves + nodes + 2 inner + groups) + frame depth + 6 materials`, `rgb` the size of `[S; 3]` and
+    /// `frame` that of a [`SweepFrame`]: in f32 (12-byte `rgb`, 28-byte frame), 24 bytes per leaf and 36 per
+    /// inner node.
     #[must_use]
     pub fn bytes<S>(&self) -> usize {
         let rgb = core::mem::size_of::<[S; 3]>();
-        self.leaves * 2 * rgb + self.nodes * 2 * rgb + self.groups * rgb + self.materials * 6
+        let frame = core::mem::size_of::<SweepFrame<S>>();
+        (self.leaves + self.nodes + 2 * self.inner + self.groups) * rgb
+            + self.depth * frame
+            + self.materials * core::mem::size_of::<[u16; 3]>()
     }
 
     /// The first buffer of `buffers` shorter than these sizes: `(name, needed, given)`.
     pub(crate) fn shortfall<S>(&self, b: &HierBuffers<'_, S>) -> Option<(&'static str, u32, usize)> {
-        let checks: [(&'static str, usize, usize); 6] = [
-            ("power", b.power.len(), self.leaves),
+        let checks: [(&'static str, usize, usize); 7] = [
             ("incident", b.incident.len(), self.leaves),
             ("unshot", b.unshot.len(), self.nodes),
-            ("pending", b.pending.len(), self.nodes),
+            ("pending", b.pending.len(), self.inner),
+            ("reflected", b.reflected.len(), self.inner),
+            ("path", b.path.len(), self.depth),
             ("intensity", b.intensity.len(), self.groups),
             ("reflectance", b.reflectance.len(), self.materials),
         ];
@@ -76,35 +120,48 @@ impl HierBufferSizes {
     }
 }
 
-/// Hierarchical solver buffers with capacities fixed at compile time, for firmware (a table's
-/// [`HierBufferSizes`] as constants). `const`-constructible, so it can live in a `static`.
+/// Hierarchical solver buffers with capacities fixed at compile time, for firmware: a table's
+/// [`HierBufferSizes`] as constants, one generic per field of the same name (`LEAVES = leaves`,
+/// `NODES = nodes`, `INNER = inner`, `DEPTH = depth`, `GROUPS = groups`,
+/// `MATERIALS = materials`). `const`-constructible, so it can live in a `static`.
 #[derive(Debug)]
 pub struct HierStaticBuffers<
     S,
     const LEAVES: usize,
     const NODES: usize,
+    const INNER: usize,
+    const DEPTH: usize,
     const GROUPS: usize,
     const MATERIALS: usize,
 > {
-    power: [[S; 3]; LEAVES],
     incident: [[S; 3]; LEAVES],
     unshot: [[S; 3]; NODES],
-    pending: [[S; 3]; NODES],
+    pending: [[S; 3]; INNER],
+    reflected: [[S; 3]; INNER],
+    path: [SweepFrame<S>; DEPTH],
     intensity: [[S; 3]; GROUPS],
     reflectance: [[u16; 3]; MATERIALS],
 }
 
-impl<S: Scalar, const LEAVES: usize, const NODES: usize, const GROUPS: usize, const MATERIALS: usize>
-    HierStaticBuffers<S, LEAVES, NODES, GROUPS, MATERIALS>
+impl<
+        S: Scalar,
+        const LEAVES: usize,
+        const NODES: usize,
+        const INNER: usize,
+        const DEPTH: usize,
+        const GROUPS: usize,
+        const MATERIALS: usize,
+    > HierStaticBuffers<S, LEAVES, NODES, INNER, DEPTH, GROUPS, MATERIALS>
 {
     /// Zeroed buffers.
     #[must_use]
     pub const fn new() -> Self {
         HierStaticBuffers {
-            power: [[S::ZERO; 3]; LEAVES],
             incident: [[S::ZERO; 3]; LEAVES],
             unshot: [[S::ZERO; 3]; NODES],
-            pending: [[S::ZERO; 3]; NODES],
+            pending: [[S::ZERO; 3]; INNER],
+            reflected: [[S::ZERO; 3]; INNER],
+            path: [SweepFrame::EMPTY; DEPTH],
             intensity: [[S::ZERO; 3]; GROUPS],
             reflectance: [[0; 3]; MATERIALS],
         }
@@ -113,18 +170,32 @@ impl<S: Scalar, const LEAVES: usize, const NODES: usize, const GROUPS: usize, co
     /// The capacities, as [`HierBufferSizes`].
     #[must_use]
     pub const fn sizes(&self) -> HierBufferSizes {
-        HierBufferSizes { leaves: LEAVES, nodes: NODES, groups: GROUPS, materials: MATERIALS }
+        HierBufferSizes {
+            leaves: LEAVES,
+            nodes: NODES,
+            inner: INNER,
+            depth: DEPTH,
+            groups: GROUPS,
+            materials: MATERIALS,
+        }
     }
 
     /// The buffers, borrowed for one solver.
     pub fn buffers(&mut self) -> HierBuffers<'_, S> {
-        let HierStaticBuffers { power, incident, unshot, pending, intensity, reflectance } = self;
-        HierBuffers { power, incident, unshot, pending, intensity, reflectance }
+        let HierStaticBuffers { incident, unshot, pending, reflected, path, intensity, reflectance } = self;
+        HierBuffers { incident, unshot, pending, reflected, path, intensity, reflectance }
     }
 }
 
-impl<S: Scalar, const LEAVES: usize, const NODES: usize, const GROUPS: usize, const MATERIALS: usize> Default
-    for HierStaticBuffers<S, LEAVES, NODES, GROUPS, MATERIALS>
+impl<
+        S: Scalar,
+        const LEAVES: usize,
+        const NODES: usize,
+        const INNER: usize,
+        const DEPTH: usize,
+        const GROUPS: usize,
+        const MATERIALS: usize,
+    > Default for HierStaticBuffers<S, LEAVES, NODES, INNER, DEPTH, GROUPS, MATERIALS>
 {
     fn default() -> Self {
         Self::new()
@@ -135,10 +206,11 @@ impl<S: Scalar, const LEAVES: usize, const NODES: usize, const GROUPS: usize, co
 #[cfg(any(test, feature = "std"))]
 #[derive(Clone, Debug)]
 pub struct HierOwnedBuffers<S> {
-    power: std::vec::Vec<[S; 3]>,
     incident: std::vec::Vec<[S; 3]>,
     unshot: std::vec::Vec<[S; 3]>,
     pending: std::vec::Vec<[S; 3]>,
+    reflected: std::vec::Vec<[S; 3]>,
+    path: std::vec::Vec<SweepFrame<S>>,
     intensity: std::vec::Vec<[S; 3]>,
     reflectance: std::vec::Vec<[u16; 3]>,
 }
@@ -149,10 +221,11 @@ impl<S: Scalar> HierOwnedBuffers<S> {
     #[must_use]
     pub fn new(sizes: HierBufferSizes) -> Self {
         HierOwnedBuffers {
-            power: std::vec![[S::ZERO; 3]; sizes.leaves],
             incident: std::vec![[S::ZERO; 3]; sizes.leaves],
             unshot: std::vec![[S::ZERO; 3]; sizes.nodes],
-            pending: std::vec![[S::ZERO; 3]; sizes.nodes],
+            pending: std::vec![[S::ZERO; 3]; sizes.inner],
+            reflected: std::vec![[S::ZERO; 3]; sizes.inner],
+            path: std::vec![SweepFrame::EMPTY; sizes.depth],
             intensity: std::vec![[S::ZERO; 3]; sizes.groups],
             reflectance: std::vec![[0; 3]; sizes.materials],
         }
@@ -166,7 +239,20 @@ impl<S: Scalar> HierOwnedBuffers<S> {
 
     /// The buffers, borrowed for one solver.
     pub fn buffers(&mut self) -> HierBuffers<'_, S> {
-        let HierOwnedBuffers { power, incident, unshot, pending, intensity, reflectance } = self;
-        HierBuffers { power, incident, unshot, pending, intensity, reflectance }
+        let HierOwnedBuffers { incident, unshot, pending, reflected, path, intensity, reflectance } = self;
+        HierBuffers { incident, unshot, pending, reflected, path, intensity, reflectance }
+    }
+
+    /// Bytes these buffers hold with their current lengths, counted from the vectors themselves (a check on
+    /// [`HierBufferSizes::bytes`]).
+    #[must_use]
+    pub fn held_bytes(&self) -> usize {
+        core::mem::size_of_val(self.incident.as_slice())
+            + core::mem::size_of_val(self.unshot.as_slice())
+            + core::mem::size_of_val(self.pending.as_slice())
+            + core::mem::size_of_val(self.reflected.as_slice())
+            + core::mem::size_of_val(self.path.as_slice())
+            + core::mem::size_of_val(self.intensity.as_slice())
+            + core::mem::size_of_val(self.reflectance.as_slice())
     }
 }

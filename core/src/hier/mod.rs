@@ -5,41 +5,64 @@
 //! links, in rounds, with the paper's push-pull done lazily in one sweep over the tree per round.
 //!
 //! # The scheme
-//! - Every node `n` keeps `U_n`, the power emitted or reflected in `n`'s subtree that has not yet been shot
-//!   through `n`'s own links (nodes without links keep none: they never shoot). A leaf's new power is added to
-//!   `U` of the leaf and of every ancestor that has links: the links of a leaf's chain (the leaf and its
-//!   ancestors) each carry their part of the leaf's interactions.
-//! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` adds the irradiance
-//!   `F_sr U_s / A_r` to `r`'s **pending** irradiance (one buffer entry per node, [`HierBuffers::pending`]),
-//!   the irradiance of `r` taken as uniform over it. Nothing below or above `r` is touched: a link costs the
-//!   same whatever the size of its receiver.
-//! - A **sweep** then makes the pending light count. Its push visits the nodes in preorder: each adds its
-//!   parent's pending irradiance to its own, so a leaf ends with the sum over its chain; the leaf adds
-//!   `dH = A_l e` to its incident power `H_l` and reflects `rho_l dH` into its power `Phi_l`. Its pull visits
-//!   the nodes in reverse preorder and sums the reflected power up the tree: each node adds its subtree's sum
-//!   to its unshot power (if it has links) and passes it to its parent. A sweep leaves nothing pending; each
-//!   pass is resumable node by node.
+//! - Every node `n` with links keeps `U_n`, the power emitted or reflected in `n`'s subtree that has not yet
+//!   been shot through `n`'s own links (a node without links never shoots; its entry is never read). A
+//!   leaf's new power is added to `U` of the leaf and of every ancestor with links: the links of a leaf's
+//!   chain (the leaf and its ancestors) each carry their part of the leaf's interactions.
+//! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` delivers the power `F_sr U_s` to
+//!   `r`. An inner receiver keeps it as the **pending** irradiance `F_sr U_s / A_r` ([`HierBuffers::pending`]),
+//!   uniform over `r`: nothing below or above `r` is touched, so a link costs the same whatever the size of
+//!   its receiver. A leaf receiver takes it at once: into its incident power `H_l`, and the reflected
+//!   `rho_l F_sr U_s` into its own unshot power and into its parent's **reflected** entry
+//!   ([`HierBuffers::reflected`]), pending for the rest of its chain. So leaves need no pending entry.
+//! - A **sweep** then makes the pending light count, in one pass over the nodes in preorder that keeps the
+//!   path from a root to the current node as a stack of [`SweepFrame`]s ([`HierBuffers::path`], one per
+//!   level of the tree). **Entering** a node pushes its frame: an inner node's chain irradiance is its
+//!   parent frame's plus its own pending, and its subtree sum starts with its reflected entry (both taken);
+//!   a leaf adds `dH = A_l e` to `H_l`, `e` its parent frame's chain irradiance, and starts its frame's
+//!   subtree sum at `rho_l dH`. **Leaving** a node (once the preorder has passed its subtree) pops its frame:
+//!   the power reflected in its subtree goes into its unshot power (if it has links) and into its parent's
+//!   frame. A sweep leaves nothing pending, and the path lives in the solver's buffers, so a sweep stops and
+//!   resumes between any two nodes.
+//! - A leaf's power is not stored: it is `Phi_l = E_l A_l + rho_l H_l`, its emission (static, and every light
+//!   group's members on it at their current intensities) plus its reflected incident power, computed on
+//!   readout ([`HierSolver::power`], or [`HierSolver::power_into`] for every leaf at once). The solver itself
+//!   needs only the changes of power, which it injects as unshot power when they happen.
 //! - So the solver converges to the solution of `B_l = E_l + rho_l sum_{r in chain(l)} (1 / A_r) sum_s F_sr
 //!   Phi_s`, `Phi_s` the power of the leaves below sender `s`: the linear system of the table's hierarchy.
 //!   The table's chain bound (every leaf's chain of decoded run sums `<= 1`, checked by
 //!   [`HierTable::parse`]) makes the power a leaf shoots at most the power it holds, and reflectances are
 //!   `< 1`, so the total unshot magnitude shrinks geometrically and shooting converges.
-//! - Light changes ([`HierSolver::set_light`]) and reflectance edits ([`HierSolver::set_reflectance`]) are
-//!   injected as unshot power at the leaves and their chains, as the flat [`Solver`](crate::Solver) does; the
-//!   static base as in the crate docs. Overshooting ([`Config::overshoot`]) works as in the flat solver: a shot
-//!   sends `(1 + overshoot / 256) U_s` and leaves the excess as negative unshot power.
-//! - Leaves show the light of every shot up to the last sweep's push: what a round shot shows after its sweep.
+//! - Light changes ([`HierSolver::set_light`]) and reflectance edits ([`HierSolver::set_reflectance`],
+//!   `(rho_new - rho_old) H_l` per leaf of the material) are injected as unshot power at the leaves and their
+//!   chains, as the flat [`Solver`](crate::Solver) does; the static base as in the crate docs. Overshooting
+//!   ([`Config::overshoot`]) works as in the flat solver: a shot sends `(1 + overshoot / 256) U_s` and leaves
+//!   the excess as negative unshot power.
+//! - Leaves show the light of links that reach them at once, and of links to their ancestors from the
+//!   sweep's entry of the leaf on: what a round shot shows after its sweep.
+//!
+//! # Memory
+//! `[S; 3]` per leaf (`H_l`), per node (`U_n`), two per inner node (pending irradiance, reflected power) and
+//! one per light group (intensity), a [`SweepFrame`] per level of the tree and three reflectance codes per
+//! material ([`HierBufferSizes::bytes`]): in f32, 24 bytes per leaf and 36 per inner node, where storing each
+//! leaf's power and a pending entry per node (which carried the sweep's chain and subtree sums) took 48 and
+//! 24. Leaves are indexed by leaf index and inner nodes by `node - leaf_start(node)`, both from the table,
+//! so no node-to-entry map takes RAM. The alternatives weighed: entries only for nodes with links and for
+//! nodes that links reach, numbered by slot sections the table would store (flash), save only the nodes
+//! that neither send nor receive, few in baked tables; a pending entry per leaf instead of the parent's
+//! reflected entry costs one per leaf where this costs one per inner node, and inner nodes are the fewer.
 //!
 //! # Rounds: which nodes shoot
-//! The pull is where the unshot powers become current, so it also finds the largest unshot magnitude
-//! `|r| + |g| + |b|`, `M`. If `M` is within the tolerance, the solver has converged: every node's unshot
-//! magnitude is `<= tolerance` and nothing is pending, the flat solver's convergence, so its remainder bound
-//! holds. Otherwise a round judges the nodes in index order and shoots every node whose unshot magnitude is at
-//! least `M / 4` (and above the tolerance), then sweeps. During a round a shot changes only the shooter's
-//! unshot power (what it delivers stays pending), so every node is judged on its unshot power as of the
-//! sweep before the round, plus what light changes and edits injected since: the rule judges the light reflected
-//! before the round, and light reflected from this round's shots waits for the next round, as it must (it is
-//! not yet computed).
+//! Leaving nodes is where the unshot powers become current, so a sweep also finds the largest unshot
+//! magnitude `|r| + |g| + |b|`, `M`. If `M` is within the tolerance, the solver has converged: every node's
+//! unshot magnitude is `<= tolerance` and nothing is pending, the flat solver's convergence, so its remainder
+//! bound holds. Otherwise a round judges the nodes in index order and shoots every node whose unshot
+//! magnitude is at least `M / 4` (and above the tolerance), then sweeps. During a round a shot changes the
+//! shooter's unshot power and, for links that reach leaves, those leaves' own unshot power; what reaches
+//! inner nodes, and the chains above the leaves, stays pending. So a node is judged on its unshot power as of
+//! the sweep before the round, plus what light changes and edits injected since, plus (a leaf) what this
+//! round's earlier shots reflected from it: the rule judges the light reflected before the round, and light
+//! reflected higher up waits for the next round, as it must (it is not yet computed).
 //!
 //! Why rounds: a sweep and a round's judging cost a fixed `3 N` units (`N` nodes) whatever is shot, so
 //! sweeping after every shot of the largest node would cost `3 N` per shot; shooting every
@@ -51,21 +74,24 @@
 //! selection structure kept current per shot; rounds need neither (no selection buffer).
 //!
 //! # Work units
-//! One unit each: a node judged in a round (a shot starts at no extra cost); a link applied (its irradiance
-//! computed and added to the receiver's pending); a node visited by a sweep's push (parent's pending added;
-//! for a leaf, incident power, power and reflected power updated); a node visited by a sweep's pull (pending
-//! summed into its parent and its unshot power, the largest magnitude kept). Every action is one unit, so a
-//! step never spends more than its budget, any budget of one unit or more makes progress, and the next step
+//! One unit each: a node judged in a round (a shot starts at no extra cost); a link applied (its power
+//! computed and added to an inner receiver's pending, or to a leaf receiver's incident power, unshot power
+//! and parent's reflected entry); a node entered by a sweep (chain irradiance summed; for a
+//! leaf, incident power and reflected power updated); a node left by a sweep (reflected power summed into its
+//! parent's frame and its unshot power, the largest magnitude kept). Every action is one unit, so a step
+//! never spends more than its budget, any budget of one unit or more makes progress, and the next step
 //! resumes where it stopped. The sequence of actions does not depend on how the budget is split, so runs with
 //! different budgets are bit-identical at every action boundary, and at convergence.
 //!
 //! A round costs `3 N` units plus one per link of the nodes it shoots: a link costs one unit whatever the
-//! receiver, and the push and pull are paid once per round for all the links shot in it.
+//! receiver, and the sweep is paid once per round for all the links shot in it.
 //!
 //! Outside any budget, returned as work counts: [`HierSolver::set_light`] (members times their chain walks),
-//! [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); a change during a sweep's pull makes
-//! the pull run again before convergence is judged. [`HierSolver::new`] and [`HierSolver::reset`] are
-//! `O(leaves x depth + links)`.
+//! [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); a change during a sweep makes the sweep
+//! run again before convergence is judged. [`HierSolver::new`] and [`HierSolver::reset`] are
+//! `O(leaves x depth + links)`. Readout: [`HierSolver::power`] and [`HierSolver::radiosity`] are
+//! `O(members)` per leaf, [`HierSolver::power_into`] and [`HierSolver::radiosity_into`] `O(leaves + members)`
+//! for all.
 //!
 //! # Example
 //! ```
@@ -109,7 +135,7 @@ mod buffers;
 
 #[cfg(any(test, feature = "std"))]
 pub use buffers::HierOwnedBuffers;
-pub use buffers::{HierBufferSizes, HierBuffers, HierStaticBuffers};
+pub use buffers::{HierBufferSizes, HierBuffers, HierStaticBuffers, SweepFrame};
 
 use crate::base::emission;
 use crate::codec::{decode_reflectance, encode_reflectance, Frac};
@@ -128,12 +154,10 @@ enum Phase<S> {
     Round { threshold: S, next: u32 },
     /// Shooting `sender`'s `power` over its run (next link position, run end), then back to the round.
     Shooting { sender: u32, power: [S; 3], next: u32, end: u32, threshold: S },
-    /// The push of a sweep: nodes `next..` in preorder take their parent's pending irradiance.
-    Push { next: u32 },
-    /// The pull of a sweep: nodes `..left` in reverse preorder still to pull; the largest unshot magnitude of
-    /// the nodes pulled so far, whether all of them were usable, and whether a change since the pull began
-    /// may have raised a node already passed (then the pull is run again before it is trusted).
-    Pull { left: u32, largest: S, usable: bool, stale: bool },
+    /// A sweep: nodes `next..` still to enter in preorder, `depth` frames on the path; the largest unshot
+    /// magnitude of the nodes left so far, whether all of them were usable, and whether a change since the
+    /// sweep began may have raised a node already left (then a sweep runs again before it is trusted).
+    Sweep { next: u32, depth: u32, largest: S, usable: bool, stale: bool },
     /// Every node's unshot magnitude is within the tolerance and nothing is pending (until a change).
     Converged,
 }
@@ -247,50 +271,43 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         for u in self.buf.unshot.iter_mut() {
             *u = [S::ZERO; 3];
         }
-        for p in self.buf.pending.iter_mut() {
+        for p in self.buf.pending.iter_mut().chain(self.buf.reflected.iter_mut()) {
             *p = [S::ZERO; 3];
         }
         let solved = self.table.base_solved();
         for l in 0..self.table.leaf_count() {
             let a: S = self.leaf_area(l);
-            let e = self.table.base_emission(l).unwrap_or([0; 3]);
             let g = self.table.base_irradiance(l).unwrap_or([0; 3]);
-            let rho = self.rho(l);
             let h = [0, 1, 2].map(|c| emission::<S>(g[c]).mul(a));
-            let p =
-                [0, 1, 2].map(|c| emission::<S>(e[c]).mul(a).add(h[c].mul_frac(decode_reflectance(rho[c]))));
-            if let Some(v) = self.buf.power.get_mut(l as usize) {
-                *v = p;
-            }
             if let Some(v) = self.buf.incident.get_mut(l as usize) {
                 *v = h;
             }
             if !solved {
-                self.add_to_chain(l, p);
+                self.add_to_chain(l, self.base_power(l));
             }
         }
         for g in 0..self.table.group_count() {
             let rgb = self.buf.intensity.get(g as usize).copied().unwrap_or([S::ZERO; 3]);
             self.add_group_emission(g, rgb);
         }
-        // Nothing is pending, so a pull alone finds the largest unshot magnitude for the first round.
-        self.phase = self.first_pull();
+        // Nothing is pending, so the first sweep only finds the largest unshot magnitude for the first round.
+        self.phase = Self::new_sweep();
         self.shots = 0;
         self.sweeps = 0;
         self.links = 0;
     }
 
-    /// A pull over every node with nothing changed yet.
-    fn first_pull(&self) -> Phase<S> {
-        Phase::Pull { left: self.table.node_count(), largest: S::ZERO, usable: true, stale: false }
+    /// A sweep from the first node with nothing changed yet.
+    fn new_sweep() -> Phase<S> {
+        Phase::Sweep { next: 0, depth: 0, largest: S::ZERO, usable: true, stale: false }
     }
 
-    /// Unshot power was injected outside a step: a converged solver judges again, and a pull that already
-    /// passed some nodes is run again before its largest magnitude is trusted.
+    /// Unshot power was injected outside a step: a converged solver judges again, and a sweep that already
+    /// left some nodes is run again before its largest magnitude is trusted.
     fn changed(&mut self) {
         match &mut self.phase {
-            Phase::Converged => self.phase = self.first_pull(),
-            Phase::Pull { stale, .. } => *stale = true,
+            Phase::Converged => self.phase = Self::new_sweep(),
+            Phase::Sweep { next, stale, .. } if *next > 0 => *stale = true,
             _ => {}
         }
     }
@@ -305,23 +322,35 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3])
     }
 
-    /// Adds `scale` times group `g`'s unit emission (times area) to its members' power and chains; returns the
-    /// work (one unit per member and per node walked).
+    /// The power of `leaf` without its light-group emission: static emission `E_l A_l` plus the reflected
+    /// `rho_l H_l` (static irradiance included in `H_l`).
+    fn base_power(&self, leaf: u32) -> [S; 3] {
+        let a = self.leaf_area(leaf);
+        let e = self.table.base_emission(leaf).unwrap_or([0; 3]);
+        let h = self.buf.incident.get(leaf as usize).copied().unwrap_or([S::ZERO; 3]);
+        let rho = self.rho(leaf);
+        [0, 1, 2].map(|c| emission::<S>(e[c]).mul(a).add(h[c].mul_frac(decode_reflectance(rho[c]))))
+    }
+
+    /// The power member `k` (of group `g`) emits at intensity `scale`: `scale e_k A_l`, and its leaf.
+    fn member_power(&self, k: u32, scale: [S; 3]) -> Option<(u32, [S; 3])> {
+        let m = self.table.member(k)?;
+        let a = self.leaf_area(m.leaf);
+        Some((m.leaf, [0, 1, 2].map(|c| scale[c].mul(S::from_f32(m.emission[c])).mul(a))))
+    }
+
+    /// Adds `scale` times group `g`'s unit emission (times area) to its members' chains; returns the work (one
+    /// unit per member and per node walked).
     fn add_group_emission(&mut self, g: u32, scale: [S; 3]) -> u32 {
         let mut units = 0u32;
         for k in self.table.group_members(g).unwrap_or(0..0) {
-            let Some(m) = self.table.member(k) else { continue };
-            let a = self.leaf_area(m.leaf);
-            let d = [0, 1, 2].map(|c| scale[c].mul(S::from_f32(m.emission[c])).mul(a));
-            if let Some(v) = self.buf.power.get_mut(m.leaf as usize) {
-                *v = add3(*v, d);
-            }
-            units = units.saturating_add(1 + self.add_to_chain(m.leaf, d));
+            let Some((leaf, d)) = self.member_power(k, scale) else { continue };
+            units = units.saturating_add(1 + self.add_to_chain(leaf, d));
         }
         units
     }
 
-    /// Adds `d` to the unshot power of `leaf` and every linked ancestor; returns the nodes walked.
+    /// Adds `d` to the unshot power of `leaf` and every sending ancestor; returns the nodes walked.
     fn add_to_chain(&mut self, leaf: u32, d: [S; 3]) -> u32 {
         let Some(mut node) = self.table.leaf_node(leaf) else { return 0 };
         let mut walked = 0u32;
@@ -347,14 +376,18 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         }
     }
 
-    fn pending(&self, node: u32) -> [S; 3] {
-        self.buf.pending.get(node as usize).copied().unwrap_or([S::ZERO; 3])
+    /// The unshot power of `node` (zero for a node without links: what links reaching such a leaf add to its
+    /// entry is never read).
+    fn unshot_of(&self, node: u32) -> [S; 3] {
+        if !self.table.has_links(node) {
+            return [S::ZERO; 3];
+        }
+        self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])
     }
 
-    fn set_pending(&mut self, node: u32, v: [S; 3]) {
-        if let Some(p) = self.buf.pending.get_mut(node as usize) {
-            *p = v;
-        }
+    /// The inner index of `node` (the inner nodes before it): its entry in the per-inner-node buffers.
+    fn inner_index(&self, node: u32) -> usize {
+        self.table.leaf_range(node).map_or(usize::MAX, |r| (node - r.start) as usize)
     }
 
     /// Runs actions (module docs) until convergence or until `budget` work units are spent. Every action
@@ -377,12 +410,12 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                 Phase::Round { threshold, next } => {
                     if next >= self.table.node_count() {
                         self.sweeps = self.sweeps.saturating_add(1);
-                        self.phase = Phase::Push { next: 0 };
+                        self.phase = Self::new_sweep();
                         continue;
                     }
                     used += 1;
                     self.phase = Phase::Round { threshold, next: next + 1 };
-                    let u = self.buf.unshot.get(next as usize).copied().unwrap_or([S::ZERO; 3]);
+                    let u = self.unshot_of(next);
                     let m = magnitude(u);
                     if m < threshold || m <= self.config.tolerance || !self.table.has_links(next) {
                         continue;
@@ -404,31 +437,34 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                         self.phase = Phase::Round { threshold, next: sender + 1 };
                         continue;
                     }
-                    used += 1;
-                    self.links = self.links.saturating_add(1);
-                    // Link `(r, F)` leaves the irradiance `F U_s / A_r` pending at `r`.
-                    if let Some((r, f)) = self.table.link(sender, next) {
-                        if let Some(area) = self.table.node_area(r) {
-                            let area = S::from_f32(area);
-                            let e = power.map(|p| p.mul_frac(f).div(area));
-                            self.set_pending(r, add3(self.pending(r), e));
-                        }
-                    }
-                    self.phase = Phase::Shooting { sender, power, next: next + 1, end, threshold };
+                    // As many links as the budget allows, one unit each, in one loop over the run.
+                    let count = (end - next).min(budget - used);
+                    used += count;
+                    self.links = self.links.saturating_add(u64::from(count));
+                    self.apply_links(sender, next, count, power);
+                    self.phase = Phase::Shooting { sender, power, next: next + count, end, threshold };
                 }
-                Phase::Push { next } => {
-                    if next >= self.table.node_count() {
-                        self.phase = self.first_pull();
-                        continue;
-                    }
-                    used += 1;
-                    self.push_node(next);
-                    self.phase = Phase::Push { next: next + 1 };
-                }
-                Phase::Pull { left, largest, usable, stale } => {
-                    if left == 0 {
+                Phase::Sweep { next, depth, largest, usable, stale } => {
+                    let top =
+                        depth.checked_sub(1).and_then(|d| self.buf.path.get(d as usize)).map(|f| f.node);
+                    let leaves_top =
+                        top.and_then(|t| self.table.subtree_end(t)).is_some_and(|end| next >= end);
+                    if leaves_top {
+                        used += 1;
+                        let (largest, usable) = match self.leave(depth) {
+                            Some(m) if !m.is_usable() => (largest, false),
+                            Some(m) if m > largest => (m, usable),
+                            _ => (largest, usable),
+                        };
+                        self.phase = Phase::Sweep { next, depth: depth - 1, largest, usable, stale };
+                    } else if next < self.table.node_count() {
+                        used += 1;
+                        self.enter(next, depth);
+                        self.phase =
+                            Phase::Sweep { next: next + 1, depth: depth + 1, largest, usable, stale };
+                    } else {
                         if stale {
-                            self.phase = self.first_pull();
+                            self.phase = Self::new_sweep();
                             continue;
                         }
                         if !usable {
@@ -440,66 +476,98 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                         }
                         let share = Frac { mantissa: 1, shift: ROUND_SHARE_SHIFT };
                         self.phase = Phase::Round { threshold: largest.mul_frac(share), next: 0 };
-                        continue;
                     }
-                    used += 1;
-                    let node = left - 1;
-                    let m = self.pull_node(node);
-                    let (largest, usable) = match m {
-                        Some(m) if !m.is_usable() => (largest, false),
-                        Some(m) if m > largest => (m, usable),
-                        _ => (largest, usable),
-                    };
-                    self.phase = Phase::Pull { left: node, largest, usable, stale };
                 }
             }
         }
     }
 
-    /// The push of one node (preorder): it adds its parent's pending irradiance to its own, and the last child
-    /// clears the parent's (every descendant reads its own parent only). A leaf then takes the sum, the
-    /// irradiance of every link on its chain since the last sweep: incident power `dH = A_l e`, reflected
-    /// `rho_l dH` into its power, and the reflected power is left pending for the pull.
-    fn push_node(&mut self, node: u32) {
-        let mut e = self.pending(node);
-        if let Some(p) = self.table.parent(node) {
-            e = add3(e, self.pending(p));
-            if self.table.subtree_end(node) == self.table.subtree_end(p) {
-                self.set_pending(p, [S::ZERO; 3]);
-            }
+    /// Applies `count` links of `sender`'s run from table position `from` (a slice iterator over the run's
+    /// receivers and codes, decoded with the run's exponent).
+    fn apply_links(&mut self, sender: u32, from: u32, count: u32, power: [S; 3]) {
+        let Some(run) = self.table.run_view(sender) else { return };
+        for (r, f) in run.entries_from(from).take(count as usize) {
+            self.apply_link(r, f, power);
         }
-        if !self.table.is_leaf(node) {
-            self.set_pending(node, e);
-            return;
-        }
-        let Some(l) = self.table.leaf_range(node).map(|r| r.start) else { return };
-        let a = self.leaf_area(l);
-        let rho = self.rho(l);
-        let dh = e.map(|q| q.mul(a));
-        let dphi = [0, 1, 2].map(|c| dh[c].mul_frac(decode_reflectance(rho[c])));
-        if let Some(v) = self.buf.incident.get_mut(l as usize) {
-            *v = add3(*v, dh);
-        }
-        if let Some(v) = self.buf.power.get_mut(l as usize) {
-            *v = add3(*v, dphi);
-        }
-        self.set_pending(node, dphi);
     }
 
-    /// The pull of one node (reverse preorder): its pending value is the power reflected in its subtree since
-    /// the last sweep (its children added theirs); it goes into the node's unshot power (if it has links) and
-    /// to its parent, and the node's pending is cleared. Returns the node's unshot magnitude if it has links.
-    fn pull_node(&mut self, node: u32) -> Option<S> {
-        let r = self.pending(node);
-        self.set_pending(node, [S::ZERO; 3]);
-        if let Some(p) = self.table.parent(node) {
-            self.set_pending(p, add3(self.pending(p), r));
+    /// Link `(r, F)` delivers the power `F U_s` to node `r`. An inner receiver
+    /// keeps it as the irradiance `F U_s / A_r` pending for its subtree. A leaf takes it at once: into its
+    /// incident power, and the reflected `rho_l F U_s` into its own unshot power and, pending for the rest of
+    /// its chain, into its parent's reflected entry.
+    fn apply_link(&mut self, r: u32, f: Frac, power: [S; 3]) {
+        let x = power.map(|p| p.mul_frac(f));
+        if !self.table.is_leaf(r) {
+            let area = S::from_f32(self.table.node_area(r).unwrap_or(0.0));
+            let i = self.inner_index(r);
+            if let Some(p) = self.buf.pending.get_mut(i) {
+                *p = add3(*p, x.map(|q| q.div(area)));
+            }
+            return;
         }
-        if !self.table.has_links(node) {
+        let Some(l) = self.table.leaf_range(r).map(|x| x.start) else { return };
+        let rho = self.rho(l);
+        let reflected = [0, 1, 2].map(|c| x[c].mul_frac(decode_reflectance(rho[c])));
+        if let Some(h) = self.buf.incident.get_mut(l as usize) {
+            *h = add3(*h, x);
+        }
+        if let Some(u) = self.buf.unshot.get_mut(r as usize) {
+            *u = add3(*u, reflected);
+        }
+        if let Some(p) = self.table.parent(r) {
+            let i = self.inner_index(p);
+            if let Some(v) = self.buf.reflected.get_mut(i) {
+                *v = add3(*v, reflected);
+            }
+        }
+    }
+
+    /// A sweep enters `node` (preorder; the path's top frame, at `depth - 1`, is its parent's, or the path is
+    /// empty for a root) and pushes its frame. An inner node's chain irradiance is its parent's plus its own
+    /// pending, and its subtree sum starts with its reflected entry (both taken, leaving zeros). A leaf takes
+    /// its parent's chain irradiance, the irradiance of every link above it since the last sweep: incident
+    /// power `dH = A_l e`, and its reflected power `rho_l dH` starts the frame's subtree sum.
+    fn enter(&mut self, node: u32, depth: u32) {
+        let above = depth
+            .checked_sub(1)
+            .and_then(|d| self.buf.path.get(d as usize))
+            .map_or([S::ZERO; 3], |f| f.irradiance);
+        let (e, reflected) = if self.table.is_leaf(node) {
+            let l = self.table.leaf_range(node).map_or(u32::MAX, |r| r.start);
+            let a = self.leaf_area(l);
+            let rho = self.rho(l);
+            let dh = above.map(|q| q.mul(a));
+            if let Some(v) = self.buf.incident.get_mut(l as usize) {
+                *v = add3(*v, dh);
+            }
+            (above, [0, 1, 2].map(|c| dh[c].mul_frac(decode_reflectance(rho[c]))))
+        } else {
+            let i = self.inner_index(node);
+            let take =
+                |v: Option<&mut [S; 3]>| v.map_or([S::ZERO; 3], |v| core::mem::replace(v, [S::ZERO; 3]));
+            let pending = take(self.buf.pending.get_mut(i));
+            (add3(above, pending), take(self.buf.reflected.get_mut(i)))
+        };
+        if let Some(f) = self.buf.path.get_mut(depth as usize) {
+            *f = SweepFrame { node, irradiance: e, reflected };
+        }
+    }
+
+    /// A sweep leaves the node of the top frame (at `depth - 1`) once its subtree is done: the power
+    /// reflected in its subtree since the last sweep goes into its unshot power (if it has links) and into
+    /// its parent's frame. Returns the node's unshot magnitude if it has links.
+    fn leave(&mut self, depth: u32) -> Option<S> {
+        let top = depth.checked_sub(1)?;
+        let frame = *self.buf.path.get(top as usize)?;
+        if let Some(parent) = top.checked_sub(1).and_then(|d| self.buf.path.get_mut(d as usize)) {
+            parent.reflected = add3(parent.reflected, frame.reflected);
+        }
+        if !self.table.has_links(frame.node) {
             return None;
         }
-        self.add_unshot(node, r);
-        Some(magnitude(self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])))
+        let u = self.buf.unshot.get_mut(frame.node as usize)?;
+        *u = add3(*u, frame.reflected);
+        Some(magnitude(*u))
     }
 
     /// Sets light `group` to intensity `rgb`: every member's emission change is injected as unshot power
@@ -527,8 +595,9 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     }
 
     /// Sets the reflectance of `material` to `rgb` (each in `[0, 1)`, quantized by the reflectance codec): for
-    /// every leaf of the material, `(rho_new - rho_old) H_l` is added to its power and injected as unshot
-    /// power. Returns the work done (one unit per leaf scanned and per node walked), outside any budget.
+    /// every leaf of the material, `(rho_new - rho_old) H_l` is injected as unshot power (the leaf's power,
+    /// read out as `E_l A_l + rho_l H_l`, changes by as much). Returns the work done (one unit per leaf scanned
+    /// and per node walked), outside any budget.
     ///
     /// # Errors
     /// [`SolverError::NoSuchMaterial`], [`SolverError::BadValue`] (not in `[0, 1)`).
@@ -553,13 +622,10 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                 continue;
             }
             let h = self.buf.incident.get(l as usize).copied().unwrap_or([S::ZERO; 3]);
-            // rho_new H - rho_old H, each product rounded as a push rounds it.
+            // rho_new H - rho_old H, each product rounded as the readout rounds it.
             let d = [0, 1, 2].map(|c| {
                 h[c].mul_frac(decode_reflectance(new[c])).sub(h[c].mul_frac(decode_reflectance(old[c])))
             });
-            if let Some(v) = self.buf.power.get_mut(l as usize) {
-                *v = add3(*v, d);
-            }
             units = units.saturating_add(self.add_to_chain(l, d));
         }
         self.changed();
@@ -578,13 +644,48 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         self.buf.intensity.get(group as usize).copied().filter(|_| group < self.table.group_count())
     }
 
-    /// Power `Phi_l = B_l A_l` (RGB) of `leaf`.
+    /// Power `Phi_l = B_l A_l` (RGB) of `leaf`: `E_l A_l + rho_l H_l`, its emission (static and every light
+    /// group's members on it at their current intensities) plus its reflected incident power. `O(members)`
+    /// (the member list is searched for the leaf); [`HierSolver::power_into`] reads every leaf in
+    /// `O(leaves + members)` with the same bits.
     #[must_use]
     pub fn power(&self, leaf: u32) -> Option<[S; 3]> {
-        self.buf.power.get(leaf as usize).copied().filter(|_| leaf < self.table.leaf_count())
+        if leaf >= self.table.leaf_count() {
+            return None;
+        }
+        let mut p = self.base_power(leaf);
+        for g in 0..self.table.group_count() {
+            let scale = self.intensity(g).unwrap_or([S::ZERO; 3]);
+            for k in self.table.group_members(g).unwrap_or(0..0) {
+                match self.member_power(k, scale) {
+                    Some((l, d)) if l == leaf => p = add3(p, d),
+                    _ => {}
+                }
+            }
+        }
+        Some(p)
     }
 
-    /// Radiosity `B_l = Phi_l / A_l` (W/m^2, RGB) of `leaf`.
+    /// Writes the power of leaves `0..out.len()` (at most every leaf) into `out`, bit for bit what
+    /// [`HierSolver::power`] returns for each, in `O(leaves + members)`. Returns the leaves written.
+    pub fn power_into(&self, out: &mut [[S; 3]]) -> usize {
+        let n = out.len().min(self.table.leaf_count() as usize);
+        for (l, p) in out.iter_mut().take(n).enumerate() {
+            *p = self.base_power(l as u32);
+        }
+        for g in 0..self.table.group_count() {
+            let scale = self.intensity(g).unwrap_or([S::ZERO; 3]);
+            for k in self.table.group_members(g).unwrap_or(0..0) {
+                let Some((l, d)) = self.member_power(k, scale) else { continue };
+                if let Some(p) = out.get_mut(l as usize).filter(|_| (l as usize) < n) {
+                    *p = add3(*p, d);
+                }
+            }
+        }
+        n
+    }
+
+    /// Radiosity `B_l = Phi_l / A_l` (W/m^2, RGB) of `leaf`, from [`HierSolver::power`] (`O(members)`).
     #[must_use]
     pub fn radiosity(&self, leaf: u32) -> Option<[S; 3]> {
         let p = self.power(leaf)?;
@@ -592,11 +693,22 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         Some(p.map(|x| x.div(a)))
     }
 
-    /// Unshot power `U_n` (RGB) of `node`: excluding a shot in flight, and the power reflected from what is
-    /// still pending (shot since the last sweep's push).
+    /// Writes the radiosity of leaves `0..out.len()` (at most every leaf) into `out`, bit for bit what
+    /// [`HierSolver::radiosity`] returns for each, in `O(leaves + members)`. Returns the leaves written.
+    pub fn radiosity_into(&self, out: &mut [[S; 3]]) -> usize {
+        let n = self.power_into(out);
+        for (l, b) in out.iter_mut().take(n).enumerate() {
+            let a = self.leaf_area(l as u32);
+            *b = b.map(|x| x.div(a));
+        }
+        n
+    }
+
+    /// Unshot power `U_n` (RGB) of `node` (zero for a node without links): excluding a shot in flight, and
+    /// the power reflected from what is still pending (shot since the last sweep entered the receiver).
     #[must_use]
     pub fn unshot(&self, node: u32) -> Option<[S; 3]> {
-        self.buf.unshot.get(node as usize).copied().filter(|_| node < self.table.node_count())
+        (node < self.table.node_count()).then(|| self.unshot_of(node))
     }
 
     /// Shots started since the last cold start (saturating).
@@ -605,8 +717,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         self.shots
     }
 
-    /// Sweeps (push and pull over the tree after a round of shots) started since the last cold start
-    /// (saturating).
+    /// Sweeps (over the tree after a round of shots) started since the last cold start (saturating).
     #[must_use]
     pub fn sweeps(&self) -> u32 {
         self.sweeps

@@ -408,12 +408,9 @@ impl HierBakeSummary {
         )
         .map_err(|e| BakeError::Input(format!("core's hierarchical solver refuses the table: {e:?}")))?;
         let device = |s: &HierSolver<'_, f32>| -> Vec<Rgb> {
-            (0..baked.radiosity.len() as u32)
-                .map(|t| {
-                    let b = s.radiosity(t).unwrap_or([0.0; 3]);
-                    Rgb::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))
-                })
-                .collect()
+            let mut b = vec![[0.0f32; 3]; baked.radiosity.len()];
+            s.radiosity_into(&mut b);
+            b.iter().map(|b| Rgb::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2]))).collect()
         };
         let (mut units, mut to_one, mut converged) = (0u64, None, None);
         for _ in 0..SUMMARY_MAX_FRAMES {
