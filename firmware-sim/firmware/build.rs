@@ -109,7 +109,8 @@ fn device_types(table: &firmware_sim::sim::AnyTable<'_>) -> String {
         }
         AnyTable::Hier(t) => {
             let s = radiosity_core::HierBufferSizes::of(t);
-            let generics = format!("{}, {}, {}, {}", s.leaves, s.nodes, s.groups, s.materials);
+            let generics =
+                format!("{}, {}, {}, {}, {}, {}", s.leaves, s.nodes, s.inner, s.depth, s.groups, s.materials);
             ("HierTable", format!("HierBufferSizes::of: {s:?}"), format!("HierStaticBuffers<S, {generics}>"))
         }
     };
