@@ -15,21 +15,28 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-use firmware_sim::device::{self, Bits, NoMeter};
+use firmware_sim::device::{self, Bits, DeviceSolver, DeviceTable, NoMeter};
 use firmware_sim::qemu::{self, QemuLog, Target};
 use firmware_sim::script::{OwnedScript, ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith};
-use radiosity_core::{Fixed, Table};
+use radiosity_core::{Fixed, HierTable, Table};
 use serde::Serialize;
 use thiserror::Error;
 
+use crate::bake::BakedHierarchy;
+use crate::formfactor::{compute_form_factors, FormFactorError, FormFactorOptions};
+use crate::hierarchy::HierarchicalSolution;
+use crate::lighting::PatchLighting;
 use crate::metrics::{self, ErrorReport, MetricsError};
 use crate::picture::render::{trace_view, write_frame_sequence, Frame};
 use crate::picture::shading::{ShadingOptions, SmoothShader};
 use crate::picture::PictureError;
 use crate::pipeline::Prepared;
-use crate::reference::{exact_transfer, Method, ReferenceError};
+use crate::reference::{
+    exact_transfer, transfer_vectors, LightGroupEmission, Method, RadiositySystem, ReferenceError,
+};
 use crate::rgb::Rgb;
+use crate::scene::Scene;
 use crate::view::{default_camera, PatchTracer, ViewError};
 
 /// Why a relight run failed.
@@ -56,6 +63,9 @@ pub enum RelightError {
     /// The f64 reference failed.
     #[error("f64 reference: {0}")]
     Reference(#[from] ReferenceError),
+    /// The form factors of the dense reference of a hierarchical table failed.
+    #[error("dense reference form factors: {0}")]
+    FormFactors(#[from] FormFactorError),
     /// Error metrics failed (e.g. a non-finite device value).
     #[error("{0}")]
     Metrics(#[from] MetricsError),
@@ -109,8 +119,12 @@ pub struct FrameRow {
     pub light_units: u32,
     /// Whether the frame ended converged.
     pub converged: bool,
-    /// The device's radiosity against the exact f64 answer for the frame's intensities.
+    /// The device's radiosity against the exact f64 answer for the frame's intensities (for a hierarchical
+    /// table: of the table's own system).
     pub error: ErrorReport,
+    /// Hierarchical tables only: against the dense f64 answer of the same leaves (every leaf-to-leaf form factor),
+    /// which adds the hierarchy's own approximation to the device's error.
+    pub dense_error: Option<ErrorReport>,
     /// Instructions the frame took on the emulated Cortex-M4 (light changes and step), when QEMU ran.
     pub instructions: Option<u64>,
 }
@@ -161,17 +175,34 @@ struct DeviceFrame {
     b: Vec<Rgb>,
 }
 
-/// Runs `script` through the device loop in arithmetic `S`, collecting every frame's radiosity.
+/// Runs `script` through the device loop on a flat table in arithmetic `S`, collecting every frame's radiosity.
 fn device_frames<S: Bits>(table: &Table<'_>, script: &OwnedScript) -> Result<Vec<DeviceFrame>, RelightError> {
     let mut memory = radiosity_core::OwnedBuffers::<S>::for_table(table);
+    collect_frames(table, memory.buffers(), script)
+}
+
+/// [`device_frames`] on a hierarchical table (elements are its leaves, in table order).
+fn hier_device_frames<S: Bits>(
+    table: &HierTable<'_>,
+    script: &OwnedScript,
+) -> Result<Vec<DeviceFrame>, RelightError> {
+    let mut memory = radiosity_core::HierOwnedBuffers::<S>::for_table(table);
+    collect_frames(table, memory.buffers(), script)
+}
+
+/// Runs `script` through the device loop on `table` with `buffers`, collecting every frame's radiosity.
+fn collect_frames<'a, T: DeviceTable<'a>, S: Bits + 'a>(
+    table: &T,
+    buffers: T::Buffers<S>,
+    script: &OwnedScript,
+) -> Result<Vec<DeviceFrame>, RelightError> {
     let mut frames = Vec::with_capacity(script.frames.len());
-    let n = table.patch_count();
     script
         .with_view(|view| {
-            device::run_script(table, memory.buffers(), view, &mut NoMeter, |r, solver| {
-                let b = (0..n)
+            device::run_script(table, buffers, view, &mut NoMeter, |r, solver| {
+                let b = (0..solver.element_count())
                     .map(|i| {
-                        let v = solver.radiosity(i).unwrap_or([S::ZERO; 3]);
+                        let v = solver.element_radiosity(i).unwrap_or([S::ZERO; 3]);
                         Rgb::from_array(v.map(|x| f64::from(x.to_f32())))
                     })
                     .collect();
@@ -241,18 +272,8 @@ pub fn relight(
     check_match(p, &table)?;
     let script_error = |reason: String| RelightError::Scripts { path: scripts_path.to_path_buf(), reason };
     let groups = table_groups(p, &table);
-    let file = ScriptFile::load(scripts_path)
-        .and_then(|f| f.resolve(&groups))
-        .map_err(|e| script_error(e.to_string()))?;
-    let selected: Vec<&OwnedScript> =
-        file.scripts.iter().filter(|s| options.only.as_deref().is_none_or(|n| n == s.name)).collect();
-    if selected.is_empty() {
-        return Err(script_error(format!(
-            "no script named {:?} (the file has {})",
-            options.only.as_deref().unwrap_or_default(),
-            file.scripts.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
-        )));
-    }
+    let file = load_scripts(scripts_path, &groups)?;
+    let selected = select_scripts(&file, scripts_path, options)?;
 
     let tv = exact_transfer(&p.lighting, &p.form_factors, &Method::for_size(p.patches.len()))?;
     let area: Vec<f64> = p.patches.iter().map(|q| q.area).collect();
@@ -280,6 +301,7 @@ pub fn relight(
                     light_units: f.light_units,
                     converged: f.converged,
                     error,
+                    dense_error: None,
                     instructions: None,
                 });
             }
@@ -292,19 +314,8 @@ pub fn relight(
     let mut qemu_runs = Vec::new();
     if options.qemu {
         for (target, name) in [(qemu::M4_F32, "m4-f32"), (qemu::M4_FIXED, "m4-fixed")] {
-            let (run, log) = run_firmware(target, name, &table, &file, table_path, scripts_path, options)?;
-            let arith = target.arith;
-            // Frames in the log are in script order, frame order; pair them with the rows by script and index.
-            let mut index = std::collections::HashMap::<&str, u32>::new();
-            for q in &log.frames {
-                let k = index.entry(q.script.as_str()).or_insert(0);
-                if let Some(row) =
-                    rows.iter_mut().find(|r| r.arith == arith && r.script == q.script && r.frame == *k)
-                {
-                    row.instructions = Some(q.instructions);
-                }
-                *k += 1;
-            }
+            let (run, log) = run_firmware(target, name, table, &file, table_path, scripts_path, options)?;
+            attach_instructions(&mut rows, target.arith, &log);
             qemu_runs.push(run);
         }
     }
@@ -321,12 +332,158 @@ pub fn relight(
     })
 }
 
+/// The relight scripts of `path`, their light groups resolved against `groups`.
+fn load_scripts(path: &Path, groups: &TableGroups) -> Result<ScriptFile, RelightError> {
+    ScriptFile::load(path)
+        .and_then(|f| f.resolve(groups))
+        .map_err(|e| RelightError::Scripts { path: path.to_path_buf(), reason: e.to_string() })
+}
+
+/// The scripts of `file` that `options` selects (all, or the one named), or an error naming the file's scripts.
+fn select_scripts<'f>(
+    file: &'f ScriptFile,
+    path: &Path,
+    options: &RelightOptions,
+) -> Result<Vec<&'f OwnedScript>, RelightError> {
+    let selected: Vec<&OwnedScript> =
+        file.scripts.iter().filter(|s| options.only.as_deref().is_none_or(|n| n == s.name)).collect();
+    if selected.is_empty() {
+        return Err(RelightError::Scripts {
+            path: path.to_path_buf(),
+            reason: format!(
+                "no script named {:?} (the file has {})",
+                options.only.as_deref().unwrap_or_default(),
+                file.scripts.iter().map(|s| s.name.as_str()).collect::<Vec<_>>().join(", ")
+            ),
+        });
+    }
+    Ok(selected)
+}
+
+/// Runs the relight scripts of `scripts_path` on the hierarchical table `baked` (baked from `solution` of
+/// `scene`, written to `table_path`) the way the device runs them, and compares every frame with two f64
+/// answers: the table's own system's ([`BakedHierarchy::exact`]: what the device converges to but for codes and
+/// arithmetic) and the dense solve of the same leaves (every leaf-to-leaf form factor by the patch estimator;
+/// `dense_error`). With [`RelightOptions::qemu`], also on the Cortex-M4 f32 firmware under QEMU (the fixed-point
+/// build's buffers take twice the RAM).
+///
+/// # Errors
+/// [`RelightError`], naming the script, frame or file.
+pub fn relight_hierarchical(
+    scene: &Scene,
+    solution: &HierarchicalSolution,
+    baked: &BakedHierarchy,
+    (table_path, scripts_path): (&Path, &Path),
+    options: &RelightOptions,
+) -> Result<RelightReport, RelightError> {
+    let table = HierTable::parse(&baked.table).map_err(RelightError::Table)?;
+    let groups = TableGroups::of(&table).named(scene.light_groups.iter().map(|g| g.name.as_str()));
+    let file = load_scripts(scripts_path, &groups)?;
+    let selected = select_scripts(&file, scripts_path, options)?;
+    let script_error = |reason: String| RelightError::Scripts { path: scripts_path.to_path_buf(), reason };
+
+    // The dense answer of the same leaves: the estimator's raw rows may exceed 1 by its quadrature error next to
+    // adjacent neighbours; any excess that keeps rho times the row sum below 1 leaves the system a contraction.
+    let (ff, _) = compute_form_factors(
+        &solution.leaves,
+        &FormFactorOptions { progress: false, ..FormFactorOptions::default() },
+    )?;
+    let lighting = PatchLighting::new(scene, &solution.leaves);
+    let rho_max = lighting.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
+    let system = RadiositySystem::with_row_sum_tolerance(&lighting.rho, &ff, 0.5 * (1.0 / rho_max - 1.0))?;
+    let dense = transfer_vectors(
+        system,
+        &LightGroupEmission::of(&lighting),
+        &Method::for_size(solution.leaves.len()),
+    )?;
+    let area: Vec<f64> = baked.solution_leaf.iter().map(|&l| solution.leaves[l].area).collect();
+    let mut rows = Vec::new();
+    let mut first_script_frames = Vec::new();
+    for arith in Arith::ALL {
+        for (k, script) in selected.iter().enumerate() {
+            let frames = match arith {
+                Arith::F32 => hier_device_frames::<f32>(&table, script)?,
+                Arith::Fixed => hier_device_frames::<Fixed>(&table, script)?,
+            };
+            for (f, spec) in frames.iter().zip(&script.frames) {
+                let intensity: Vec<Rgb> =
+                    spec.intensity.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
+                let own = baked.exact(&intensity).map_err(|e| script_error(e.to_string()))?;
+                let dense_b = dense.relight(&intensity)?;
+                let dense_b: Vec<Rgb> = baked.solution_leaf.iter().map(|&l| dense_b[l]).collect();
+                let compare = |exact: &[Rgb]| {
+                    metrics::compare(&f.b, exact, &area).map_err(|e| {
+                        script_error(format!("script {:?} frame {} ({arith}): {e}", script.name, f.frame))
+                    })
+                };
+                rows.push(FrameRow {
+                    arith,
+                    script: script.name.clone(),
+                    frame: f.frame,
+                    budget: f.budget,
+                    used: f.used,
+                    light_units: f.light_units,
+                    converged: f.converged,
+                    error: compare(&own)?,
+                    dense_error: Some(compare(&dense_b)?),
+                    instructions: None,
+                });
+            }
+            if arith == Arith::F32 && k == 0 {
+                // Pictures use the scene's order: the solution's leaves.
+                first_script_frames = frames
+                    .into_iter()
+                    .map(|f| {
+                        let mut b = vec![Rgb::ZERO; f.b.len()];
+                        for (t, &l) in baked.solution_leaf.iter().enumerate() {
+                            b[l] = f.b[t];
+                        }
+                        b
+                    })
+                    .collect();
+            }
+        }
+    }
+    let mut qemu_runs = Vec::new();
+    if options.qemu {
+        let (run, log) =
+            run_firmware(qemu::M4_F32, "m4-f32", table, &file, table_path, scripts_path, options)?;
+        attach_instructions(&mut rows, Arith::F32, &log);
+        qemu_runs.push(run);
+    }
+    Ok(RelightReport {
+        patches: baked.solution_leaf.len(),
+        table_bytes: baked.table.len(),
+        frames: rows,
+        qemu: qemu_runs,
+        first_script_frames,
+        first_script: selected[0].name.clone(),
+        light_groups: (0..groups.len())
+            .map(|g| groups.name(g).map_or_else(|| groups.label(g), str::to_owned))
+            .collect(),
+    })
+}
+
+/// Pairs the frames of a QEMU `log` (script order, frame order) with `rows` of arithmetic `arith` and records
+/// their instructions.
+fn attach_instructions(rows: &mut [FrameRow], arith: Arith, log: &QemuLog) {
+    let mut index = std::collections::HashMap::<&str, u32>::new();
+    for q in &log.frames {
+        let k = index.entry(q.script.as_str()).or_insert(0);
+        if let Some(row) = rows.iter_mut().find(|r| r.arith == arith && r.script == q.script && r.frame == *k)
+        {
+            row.instructions = Some(q.instructions);
+        }
+        *k += 1;
+    }
+}
+
 /// Builds the firmware for `target` with the table and scripts, runs it under QEMU, checks it against the host
 /// simulator bit for bit and reads its size and stack use.
-fn run_firmware(
+fn run_firmware<'t>(
     target: Target,
     name: &'static str,
-    table: &Table<'_>,
+    table: impl Into<firmware_sim::sim::AnyTable<'t>>,
     file: &ScriptFile,
     table_path: &Path,
     scripts_path: &Path,
@@ -462,9 +619,17 @@ impl fmt::Display for RelightReport {
             )?;
         }
         let has_qemu = !self.qemu.is_empty();
+        let has_dense = self.frames.iter().any(|r| r.dense_error.is_some());
+        if has_dense {
+            writeln!(
+                f,
+                "hierarchical table: err = against the f64 answer of the table's own system; dense f32 = the f32 \
+                 device against the dense f64 solve of the same leaves (adds the hierarchy's approximation)"
+            )?;
+        }
         writeln!(
             f,
-            "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10} {:>10}{}",
+            "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10} {:>10}{}{}",
             "script",
             "frame",
             "budget",
@@ -472,6 +637,7 @@ impl fmt::Display for RelightReport {
             "conv",
             "err f32",
             "err fixed",
+            if has_dense { "  dense f32" } else { "" },
             if has_qemu { "   instr f32 instr fixed" } else { "" }
         )?;
         let f32_rows = self.frames.iter().filter(|r| r.arith == Arith::F32);
@@ -491,6 +657,9 @@ impl fmt::Display for RelightReport {
                 error_cell(&r.error),
                 fixed.map_or("-".into(), |x| error_cell(&x.error))
             )?;
+            if has_dense {
+                write!(f, " {:>10}", r.dense_error.as_ref().map_or("-".into(), error_cell))?;
+            }
             if has_qemu {
                 let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
                 write!(f, " {:>11} {:>11}", show(r.instructions), show(fixed.and_then(|x| x.instructions)))?;

@@ -59,12 +59,40 @@ pub struct BakedHierarchy {
     pub radiosity: Vec<Rgb>,
     /// The f64 static radiosity of the table's system per table leaf (W/m^2).
     pub static_radiosity: Vec<Rgb>,
+    /// The f64 response of the table's system to each dynamic light group at unit intensity (white), per table
+    /// leaf (W/m^2): with [`BakedHierarchy::static_radiosity`], the answer for any intensities
+    /// ([`BakedHierarchy::exact`]).
+    pub responses: Vec<Vec<Rgb>>,
     /// Nodes, leaves, links (each link is an entry in both ends' runs).
     pub counts: (usize, usize, usize),
     /// What the chain-sum cap changed.
     pub capped: ChainCap,
     /// Largest chain sum after the cap (at most 1), the table system's `rho_max` times which is its contraction.
     pub chain_sum: f64,
+}
+
+impl BakedHierarchy {
+    /// The f64 answer of the table's system for light-group `intensity` (RGB per group, table order), per table
+    /// leaf: static radiosity plus each group's response times its intensity.
+    ///
+    /// # Errors
+    /// [`BakeError::Input`] if `intensity` does not have one entry per group.
+    pub fn exact(&self, intensity: &[Rgb]) -> Result<Vec<Rgb>, BakeError> {
+        if intensity.len() != self.responses.len() {
+            return Err(BakeError::Input(format!(
+                "{} intensities for {} light groups",
+                intensity.len(),
+                self.responses.len()
+            )));
+        }
+        let mut b = self.static_radiosity.clone();
+        for (response, i) in self.responses.iter().zip(intensity) {
+            for (b, r) in b.iter_mut().zip(response) {
+                *b += *i * *r;
+            }
+        }
+        Ok(b)
+    }
 }
 
 /// The sender runs of a network with their sums along each leaf's chain.
@@ -241,6 +269,18 @@ pub fn bake_hierarchy(
         .fold(0.0, f64::max);
     let b_static = runs.solve(&e_static, &rho)?;
     let b_default = runs.solve(&e_default, &rho)?;
+    let mut b_groups = Vec::with_capacity(lighting.default_intensity.len());
+    for g in 0..lighting.default_intensity.len() {
+        let e: Vec<Rgb> = net
+            .nodes
+            .iter()
+            .map(|x| match x.leaf.map(|l| l as usize) {
+                Some(l) if lighting.group[l] == Some(g) => lighting.unit_emission[l],
+                _ => Rgb::ZERO,
+            })
+            .collect();
+        b_groups.push(runs.solve(&e, &rho)?);
+    }
     let irradiance = runs.gather(&b_static);
     // The power kept back by the cap: each node's removed share of the power below it.
     let mut power = vec![0.0; net.nodes.len()];
@@ -318,6 +358,7 @@ pub fn bake_hierarchy(
     Ok(BakedHierarchy {
         radiosity: leaf_nodes.iter().map(|&k| b_default[k]).collect(),
         static_radiosity: leaf_nodes.iter().map(|&k| b_static[k]).collect(),
+        responses: b_groups.iter().map(|b| leaf_nodes.iter().map(|&k| b[k]).collect()).collect(),
         counts: (net.nodes.len(), solution_leaf.len(), net.links.len()),
         capped,
         chain_sum,
