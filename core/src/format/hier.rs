@@ -445,7 +445,6 @@ impl<'a> HierTable<'a> {
     }
 
     #[inline]
-    #[inline]
     fn subtree_end_raw(&self, node: u32) -> u32 {
         le_u32(self.node_end, node as usize)
     }
