@@ -565,9 +565,11 @@ mod tests {
             hier_required_len, write_hier_table, FfCodec, GroupSpec, HierSpec, HierTable, NodeSpec,
             PatchSpec, RowsSpec,
         };
-        // A hierarchical table of one root over 300 leaves (no links): 300 * 48 + 301 * 48 + 6 bytes in fixed
-        // point, over the micro:bit's 16 KiB; 14430 bytes in f32, within the Cortex-M4's 64 KiB.
-        let n = 300u32;
+        // A hierarchical table of one root over 600 leaves (no links), in fixed point (`HierBufferSizes::bytes`):
+        // 24 bytes of incident power per leaf, 24 of unshot power per node, 48 for the inner node's pending and
+        // reflected entries, two 56-byte sweep frames and one material: over the micro:bit's 16 KiB, within the
+        // Cortex-M4's 64 KiB.
+        let n = 600u32;
         let nodes: Vec<NodeSpec> = (0..=n).map(|k| NodeSpec { parent: (k > 0).then_some(0) }).collect();
         let leaf = PatchSpec { area: 1.0, material: 0, base_emission: [0.0; 3], base_irradiance: [0.0; 3] };
         let row_start = vec![0u32; n as usize + 2];
@@ -584,9 +586,9 @@ mod tests {
         let mut blob = vec![0u8; hier_required_len(&spec).unwrap()];
         let len = write_hier_table(&spec, &mut blob).unwrap();
         let table = crate::sim::AnyTable::from(HierTable::parse(&blob[..len]).unwrap());
-        assert_eq!(table.buffer_bytes(Arith::Fixed), 300 * 48 + 301 * 48 + 6);
+        assert_eq!(table.buffer_bytes(Arith::Fixed), 600 * 24 + 601 * 24 + 48 + 2 * 56 + 6);
         let err = check_buffers_fit(M0_FIXED, &table).unwrap_err();
-        assert!(err.contains("28854 bytes") && err.contains("16384 bytes"), "{err}");
+        assert!(err.contains("28990 bytes") && err.contains("16384 bytes"), "{err}");
         assert!(err.contains("HierBufferSizes::bytes"), "{err}");
         assert_eq!(check_buffers_fit(M4_FIXED, &table), Ok(()));
         assert_eq!(check_buffers_fit(M4_F32, &table), Ok(()));

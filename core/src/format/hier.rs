@@ -600,6 +600,7 @@ impl<'a> HierTable<'a> {
 
     /// End of `node`'s subtree: its descendants are the nodes `node + 1..subtree_end`.
     #[must_use]
+    #[inline]
     pub fn subtree_end(&self, node: u32) -> Option<u32> {
         (node < self.node_count()).then(|| self.subtree_end_raw(node))
     }
@@ -617,6 +618,17 @@ impl<'a> HierTable<'a> {
     pub fn leaf_range(&self, node: u32) -> Option<core::ops::Range<u32>> {
         let end = self.subtree_end(node)?;
         Some(le_u32(self.node_leaf_start, node as usize)..le_u32(self.node_leaf_start, end as usize))
+    }
+
+    /// The number of leaves before `node` in preorder (`leaf_range(node).start`, one read); 0 out of range.
+    #[must_use]
+    #[inline]
+    pub fn leaf_start(&self, node: u32) -> u32 {
+        if node < self.node_count() {
+            le_u32(self.node_leaf_start, node as usize)
+        } else {
+            0
+        }
     }
 
     /// Area of `node` (scene units squared; an inner node's is the sum of its children's).

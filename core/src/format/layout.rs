@@ -157,11 +157,16 @@ impl SectionSizes {
     }
 }
 
-// Byte offsets use checked arithmetic: on 32-bit targets `usize` is 32 bits.
+// Byte offsets cannot overflow: on 32-bit targets `usize` is 32 bits, and an index is checked against the
+// element count (`len / width`) before it is scaled.
 #[inline]
 pub(super) fn le_u16(s: &[u8], i: usize) -> u16 {
-    let Some(at) = i.checked_mul(2) else { return 0 };
-    match s.get(at..at.saturating_add(2)) {
+    // `i < len / 2` makes `2 i + 2 <= len`: one comparison, and the compiler drops the slice's own checks.
+    if i >= s.len() / 2 {
+        return 0;
+    }
+    let at = 2 * i;
+    match s.get(at..at + 2) {
         Some(&[a, b]) => u16::from_le_bytes([a, b]),
         _ => 0,
     }
@@ -169,8 +174,12 @@ pub(super) fn le_u16(s: &[u8], i: usize) -> u16 {
 
 #[inline]
 pub(super) fn le_u32(s: &[u8], i: usize) -> u32 {
-    let Some(at) = i.checked_mul(4) else { return 0 };
-    match s.get(at..at.saturating_add(4)) {
+    // As `le_u16`: one comparison bounds the read.
+    if i >= s.len() / 4 {
+        return 0;
+    }
+    let at = 4 * i;
+    match s.get(at..at + 4) {
         Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
         _ => 0,
     }

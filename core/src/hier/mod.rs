@@ -387,7 +387,11 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
 
     /// The inner index of `node` (the inner nodes before it): its entry in the per-inner-node buffers.
     fn inner_index(&self, node: u32) -> usize {
-        self.table.leaf_range(node).map_or(usize::MAX, |r| (node - r.start) as usize)
+        if node < self.table.node_count() {
+            node.wrapping_sub(self.table.leaf_start(node)) as usize
+        } else {
+            usize::MAX
+        }
     }
 
     /// Runs actions (module docs) until convergence or until `budget` work units are spent. Every action
@@ -505,7 +509,8 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             }
             return;
         }
-        let Some(l) = self.table.leaf_range(r).map(|x| x.start) else { return };
+        // `r` is a node (`is_leaf` checked), so its leaf index is one read.
+        let l = self.table.leaf_start(r);
         let rho = self.rho(l);
         let reflected = [0, 1, 2].map(|c| x[c].mul_frac(decode_reflectance(rho[c])));
         if let Some(h) = self.buf.incident.get_mut(l as usize) {
@@ -533,7 +538,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             .and_then(|d| self.buf.path.get(d as usize))
             .map_or([S::ZERO; 3], |f| f.irradiance);
         let (e, reflected) = if self.table.is_leaf(node) {
-            let l = self.table.leaf_range(node).map_or(u32::MAX, |r| r.start);
+            let l = self.table.leaf_start(node);
             let a = self.leaf_area(l);
             let rho = self.rho(l);
             let dh = above.map(|q| q.mul(a));
