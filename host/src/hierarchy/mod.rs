@@ -123,8 +123,8 @@ pub enum Refinement {
     Budgets,
     /// The direct-light pass's rule again with the solved radiosity (brightness-weighted refinement iterated,
     /// Hanrahan, Salzman, Aupperle 1991): every link's power error within `epsilon * LINK_SHARE` of the brightest
-    /// face polygon's emitted power. An absolute bound, so dim regions keep coarse links: an order of magnitude
-    /// fewer links per element (device tables), with larger relative errors where the light is dim.
+    /// face polygon's emitted power. An absolute bound, so dim regions keep coarse links: far fewer links per
+    /// element (device tables; a test checks fewer than half), with larger relative errors where the light is dim.
     Brightness,
 }
 

@@ -49,8 +49,8 @@ pub enum RefinementArg {
     /// and the most links per element.
     Budgets,
     /// Every link's power error within 1% of `--epsilon` times the brightest face's emitted power
-    /// (brightness-weighted refinement against the solved light): about ten times fewer links per element,
-    /// larger relative errors where the light is dim. For device tables.
+    /// (brightness-weighted refinement against the solved light): far fewer links per element (the bake summary
+    /// prints them), larger relative errors where the light is dim. For device tables.
     Brightness,
 }
 

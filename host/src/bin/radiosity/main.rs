@@ -1065,8 +1065,9 @@ fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), B
     demo_hierarchical(&p.scene, &dir.join("cornell-box-m4-hier.rft"), &scripts, options.qemu, out)
 }
 
-/// The hierarchy's epsilon of the demo's hierarchical device table: the element count (about 1,500 on the
-/// Cornell box) whose buffers and stack fit the Cortex-M4's 64 KiB of RAM in f32.
+/// The hierarchy's epsilon of the demo's hierarchical device table: chosen for an element count on the Cornell
+/// box whose buffers and stack fit the Cortex-M4's 64 KiB of RAM in f32 (the demo prints the count, the QEMU run
+/// the RAM).
 const DEMO_HIER_EPSILON: f64 = 0.02;
 
 /// The demo's hierarchical part: the Cornell box as a hierarchical device table (brightness refinement), its
