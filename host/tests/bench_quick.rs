@@ -106,6 +106,43 @@ fn quick_bench_writes_a_well_formed_report() {
         h.discretization
     );
     assert!(md.contains("Discretization error of the flat rows"));
+    // Both refinements have a row.
+    for label in ["hierarchical, budgets", "hierarchical, brightness"] {
+        assert!(h.rows.iter().any(|r| r.method.starts_with(label)), "no {label} row");
+    }
+    // The device curves: the flat and the hierarchical table, each from a cold start to convergence, work
+    // strictly increasing, instructions = units x the build's bound per unit, and the converged error against
+    // the table's own answer within 1% (the 16-bit codes' floor is about 2^-12 per form factor and 2^-11 per
+    // emission code, far below; the flat table's own answer is the scene matrix's, so its sparsification enters).
+    assert_eq!(h.device.len(), 2, "{:?}", h.device.iter().map(|c| &c.name).collect::<Vec<_>>());
+    for c in &h.device {
+        assert!(
+            c.converged && c.points.len() > 1,
+            "{}: {} points, converged {}",
+            c.name,
+            c.points.len(),
+            c.converged
+        );
+        assert!(c.points.windows(2).all(|w| w[0].units < w[1].units), "{}: units not increasing", c.name);
+        for p in &c.points {
+            assert!(
+                (p.instructions - p.units as f64 * c.per_unit).abs() <= 1e-9 * p.instructions,
+                "{}",
+                c.name
+            );
+            assert!(p.faces.worst.is_finite() && p.faces.mean <= p.faces.worst, "{}: {p:?}", c.name);
+        }
+        let (first, last) = (c.points.first().unwrap(), c.points.last().unwrap());
+        assert!(
+            last.own < first.own && last.own < 0.01,
+            "{}: own error {} -> {}",
+            c.name,
+            first.own,
+            last.own
+        );
+    }
+    assert!(md.contains("### Device tables: flat against hierarchical"));
+    assert!(out.join("cornell-box-device-flat-vs-hier.svg").exists());
     if std::env::var_os("RADIOSITY_KEEP_BENCH").is_none() {
         let _ = std::fs::remove_dir_all(&out);
     }

@@ -8,7 +8,7 @@ use std::time::Instant;
 use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
 use crate::formfactor::{compute_form_factors, FormFactorOptions};
-use crate::hierarchy::{solve_hierarchical, HierarchyOptions};
+use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
 use crate::patch::Patch;
 use crate::pipeline::{prepare, PrepareOptions};
@@ -57,6 +57,8 @@ pub struct HierarchyRow {
     pub method: String,
     /// The hierarchy's epsilon (`None` for flat rows).
     pub epsilon: Option<f64>,
+    /// The hierarchy's refinement (`None` for flat rows).
+    pub refinement: Option<Refinement>,
     /// Leaves or patches.
     pub elements: usize,
     /// Links, or the flat matrix's nonzero entries.
@@ -82,12 +84,16 @@ pub struct HierarchySection {
     pub rows: Vec<HierarchyRow>,
     /// The continuous reference's cost and reach: scene, paths, seconds, largest relative standard error.
     pub references: Vec<(String, u64, f64, f64)>,
-    /// Log-log slopes over the hierarchical rows of one scene: links and seconds against leaves.
+    /// Log-log slopes over the hierarchical rows of one scene and refinement (named together): links and seconds
+    /// against leaves.
     pub exponents: Vec<(String, Option<f64>, Option<f64>)>,
     /// Log-log slopes over the flat rows of one scene: the mean and the worst face's error against the continuous
     /// reference, against the patch count (how fast the discretization error falls with the mesh; a slope near 0
     /// is a bias that refinement does not remove).
     pub discretization: Vec<(String, Option<f64>, Option<f64>)>,
+    /// Device tables of the same scene, flat against hierarchical: error against model instructions
+    /// ([`super::hierdevice`]).
+    pub device: Vec<super::hierdevice::DeviceCurve>,
     /// The process's peak resident memory after the section (bytes), if the system reports it.
     pub peak_rss: Option<u64>,
 }
@@ -95,7 +101,7 @@ pub struct HierarchySection {
 /// Area-averaged radiosity per OBJ face of `patches` carrying `b` (faces without patches are `None`), over the
 /// whole face as `reference` has it: area the patches do not cover (fragments mesh repair culled, which no point
 /// sees) counts with `B = E`, as in the continuous reference.
-fn face_means(patches: &[Patch], b: &[Rgb], reference: &ContinuousReference) -> Vec<Option<Rgb>> {
+pub(super) fn face_means(patches: &[Patch], b: &[Rgb], reference: &ContinuousReference) -> Vec<Option<Rgb>> {
     let faces = reference.faces.iter().map(|f| f.face).max().map_or(0, |m| m + 1);
     let mut sums = vec![(0.0, Rgb::ZERO); faces];
     for (p, v) in patches.iter().zip(b) {
@@ -116,7 +122,7 @@ fn face_means(patches: &[Patch], b: &[Rgb], reference: &ContinuousReference) -> 
 }
 
 /// Per-face errors of `got` against `want` over `faces` (the faces taken into account).
-fn face_errors(got: &[Option<Rgb>], want: &[Option<Rgb>], faces: &[usize]) -> FaceErrors {
+pub(super) fn face_errors(got: &[Option<Rgb>], want: &[Option<Rgb>], faces: &[usize]) -> FaceErrors {
     let mut out = FaceErrors { worst: 0.0, worst_face: 0, mean: 0.0 };
     let mut n = 0;
     for &f in faces {
@@ -152,6 +158,14 @@ fn judged_faces(reference: &ContinuousReference) -> Vec<usize> {
 }
 
 /// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
+/// The refinement's name as the CLI spells it.
+fn refinement_label(refinement: Refinement) -> &'static str {
+    match refinement {
+        Refinement::Budgets => "budgets",
+        Refinement::Brightness => "brightness",
+    }
+}
+
 fn peak_rss() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
@@ -159,14 +173,28 @@ fn peak_rss() -> Option<u64> {
     Some(kb * 1024)
 }
 
-/// Runs the section on the Cornell box: the hierarchy at each epsilon (quick: one), the flat solve at several
-/// patch budgets (full run: 500, its default, 2,000 and 4,000; quick: 100 and 200), each judged by one continuous
-/// reference.
+/// Runs the section on the Cornell box: the hierarchy with each refinement at several epsilons (quick: one each),
+/// the flat solve at several patch budgets (full run: 500, its default, 2,000 and 4,000; quick: 100 and 200),
+/// each judged by one continuous reference, and the device curves of the flat and the hierarchical device table
+/// ([`super::hierdevice`]).
 ///
 /// # Errors
 /// Loading, meshing, the solves and the reference; a failure is the bench's.
 pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
-    let epsilons: &[f64] = if options.quick { &[0.3] } else { &[0.3, 0.1, 0.03, 0.01] };
+    let epsilons: &[(Refinement, f64)] = if options.quick {
+        &[(Refinement::Budgets, 0.3), (Refinement::Brightness, 0.1)]
+    } else {
+        &[
+            (Refinement::Budgets, 0.3),
+            (Refinement::Budgets, 0.1),
+            (Refinement::Budgets, 0.03),
+            (Refinement::Budgets, 0.01),
+            (Refinement::Brightness, 0.02),
+            (Refinement::Brightness, 0.01),
+            (Refinement::Brightness, 0.005),
+            (Refinement::Brightness, 0.0025),
+        ]
+    };
     let flat_sizes: &[Option<usize>] =
         if options.quick { &[Some(100), Some(200)] } else { &[Some(500), None, Some(2000), Some(4000)] };
     let name = "cornell-box";
@@ -198,11 +226,17 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     let judged = judged_faces(&reference);
     let worst_se = reference.faces.iter().map(|f| f.relative_standard_error).fold(0.0, f64::max);
     let mut rows = Vec::new();
-    for &epsilon in epsilons {
-        log(options, &format!("hierarchy: epsilon {epsilon}"));
+    for &(refinement, epsilon) in epsilons {
+        let label = refinement_label(refinement);
+        log(options, &format!("hierarchy: {label} refinement, epsilon {epsilon}"));
         let start = Instant::now();
-        let sol = solve_hierarchical(&scene, &HierarchyOptions { epsilon, ..HierarchyOptions::default() })
-            .map_err(|e| BenchError::Options(format!("hierarchical solve at epsilon {epsilon}: {e}")))?;
+        let sol = solve_hierarchical(
+            &scene,
+            &HierarchyOptions { epsilon, refinement, ..HierarchyOptions::default() },
+        )
+        .map_err(|e| {
+            BenchError::Options(format!("hierarchical solve ({label}) at epsilon {epsilon}: {e}"))
+        })?;
         let seconds = start.elapsed().as_secs_f64();
         let got = face_means(&sol.leaves, &sol.b, &reference);
         let vs_dense = if sol.leaves.len() <= DENSE_LIMIT {
@@ -223,8 +257,9 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         let links = sol.stats.surface_links + sol.stats.cluster_links;
         rows.push(HierarchyRow {
             scene: name.to_owned(),
-            method: format!("hierarchical (epsilon {epsilon})"),
+            method: format!("hierarchical, {label} (epsilon {epsilon})"),
             epsilon: Some(epsilon),
+            refinement: Some(refinement),
             elements: sol.leaves.len(),
             links,
             bytes: links * LINK_BYTES,
@@ -249,6 +284,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             scene: name.to_owned(),
             method: format!("flat ({} patches)", prepared.patches.len()),
             epsilon: None,
+            refinement: None,
             elements: prepared.patches.len(),
             links: entries,
             bytes: entries * ENTRY_BYTES,
@@ -259,15 +295,21 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             claimed: None,
         });
     }
-    let hierarchical: Vec<&HierarchyRow> = rows.iter().filter(|r| r.epsilon.is_some()).collect();
-    let exponents = if hierarchical.len() >= 2 {
-        let links: Vec<(f64, f64)> =
-            hierarchical.iter().map(|r| (r.elements as f64, r.links as f64)).collect();
-        let time: Vec<(f64, f64)> = hierarchical.iter().map(|r| (r.elements as f64, r.seconds)).collect();
-        vec![(name.to_owned(), loglog_slope(&links), loglog_slope(&time))]
-    } else {
-        Vec::new()
-    };
+    let mut exponents = Vec::new();
+    for refinement in [Refinement::Budgets, Refinement::Brightness] {
+        let hierarchical: Vec<&HierarchyRow> =
+            rows.iter().filter(|r| r.refinement == Some(refinement)).collect();
+        if hierarchical.len() >= 2 {
+            let links: Vec<(f64, f64)> =
+                hierarchical.iter().map(|r| (r.elements as f64, r.links as f64)).collect();
+            let time: Vec<(f64, f64)> = hierarchical.iter().map(|r| (r.elements as f64, r.seconds)).collect();
+            exponents.push((
+                format!("{name}, {} refinement", refinement_label(refinement)),
+                loglog_slope(&links),
+                loglog_slope(&time),
+            ));
+        }
+    }
     let flat: Vec<&HierarchyRow> = rows.iter().filter(|r| r.epsilon.is_none()).collect();
     let discretization = if flat.len() >= 2 {
         let mean: Vec<(f64, f64)> = flat.iter().map(|r| (r.elements as f64, r.vs_continuous.mean)).collect();
@@ -277,8 +319,10 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     } else {
         Vec::new()
     };
+    let device = super::hierdevice::curves(options, &path, &scene, &reference, &want, &judged)?;
     Ok(HierarchySection {
         rows,
+        device,
         references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
         exponents,
         discretization,

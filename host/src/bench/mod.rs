@@ -29,6 +29,7 @@ pub mod device;
 pub mod fit;
 mod growth;
 pub mod hierarchy;
+pub mod hierdevice;
 pub mod report;
 pub mod roofline;
 mod scenes;
@@ -431,6 +432,18 @@ impl InstructionsPerUnit {
 /// # Errors
 /// If the table or a build's row is missing.
 pub fn instructions_per_unit(cost_md: &str) -> Result<InstructionsPerUnit, BenchError> {
+    Ok(InstructionsPerUnit {
+        f32: bound_per_unit(cost_md, &format!("m4-{}", Arith::F32))?,
+        fixed: bound_per_unit(cost_md, &format!("m4-{}", Arith::Fixed))?,
+    })
+}
+
+/// The bound instructions per work unit of firmware build `build` (`m4-f32`, `hier-m4-f32`, ...) from the cost
+/// tables in `firmware-sim/COST.md` (every table there has the same columns).
+///
+/// # Errors
+/// If no table header or no row for `build` is found, or its bound does not parse.
+pub fn bound_per_unit(cost_md: &str, build: &str) -> Result<f64, BenchError> {
     let header = cost_md
         .lines()
         .find(|l| l.starts_with("| build |"))
@@ -439,22 +452,18 @@ pub fn instructions_per_unit(cost_md: &str) -> Result<InstructionsPerUnit, Bench
         .split('|')
         .position(|c| c.trim() == "bound instr. per unit")
         .ok_or_else(|| BenchError::Options("COST.md: no `bound instr. per unit` column".into()))?;
-    let value = |arith: Arith| -> Result<f64, BenchError> {
-        let build = format!("m4-{arith}");
-        let row = cost_md
-            .lines()
-            .find(|l| l.starts_with(&format!("| {build} |")))
-            .ok_or_else(|| BenchError::Options(format!("COST.md: no row for build {build}")))?;
-        row.split('|')
-            .nth(col)
-            .and_then(|c| c.trim().parse::<f64>().ok())
-            .ok_or_else(|| BenchError::Options(format!("COST.md: bad bound per unit for {build}")))
-    };
-    Ok(InstructionsPerUnit { f32: value(Arith::F32)?, fixed: value(Arith::Fixed)? })
+    let row = cost_md
+        .lines()
+        .find(|l| l.starts_with(&format!("| {build} |")))
+        .ok_or_else(|| BenchError::Options(format!("COST.md: no row for build {build}")))?;
+    row.split('|')
+        .nth(col)
+        .and_then(|c| c.trim().parse::<f64>().ok())
+        .ok_or_else(|| BenchError::Options(format!("COST.md: bad bound per unit for {build}")))
 }
 
 /// The cost model as built in.
-const COST_MD: &str = include_str!("../../../firmware-sim/COST.md");
+pub(crate) const COST_MD: &str = include_str!("../../../firmware-sim/COST.md");
 
 /// Overshoot of the "with overshooting" curves: core's recommended `64 / 256`, a relaxation factor of 1.25.
 pub const OVERSHOOT: u8 = radiosity_core::Config::<f32>::RECOMMENDED_OVERSHOOT;

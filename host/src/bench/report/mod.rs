@@ -156,9 +156,40 @@ pub fn write(results: &BenchResults, out: &Path) -> Result<(), BenchError> {
     for s in &results.scenes {
         plot_files.push((s.name.clone(), plots(results, out, &s.name)?));
     }
+    device_plot(results, out)?;
     let md = markdown(results, &plot_files);
     let path = out.join("REPORT.md");
     write_atomic(&path, md.as_bytes()).map_err(written(&path))?;
+    Ok(())
+}
+
+/// File of the device-curve plot (flat against hierarchical table) in the output folder.
+pub const DEVICE_PLOT: &str = "cornell-box-device-flat-vs-hier";
+
+/// Writes the device curves of the hierarchy section (if any) as [`DEVICE_PLOT`]`.svg`: for each table, its
+/// error against its own f64 answer and its mean face error against the continuous reference, against model
+/// instructions.
+fn device_plot(results: &BenchResults, out: &Path) -> Result<(), BenchError> {
+    let device = &results.hierarchy.device;
+    if device.is_empty() {
+        return Ok(());
+    }
+    let mut series = Vec::new();
+    for c in device {
+        let own = c.points.iter().map(|p| (p.instructions, p.own.max(1e-16))).collect();
+        let faces = c.points.iter().map(|p| (p.instructions, p.faces.mean.max(1e-16))).collect();
+        series.push(Series { name: format!("{}: vs its own f64 answer", c.name), points: own });
+        series.push(Series { name: format!("{}: mean face vs continuous", c.name), points: faces });
+    }
+    series.retain(|s| !s.points.is_empty());
+    let plot = Plot::ErrorWork {
+        title: "cornell-box device tables, cold lights-on (f32 shooting): error against model instructions"
+            .into(),
+        x_label: "model instructions (Cortex-M4 bound of each table's build)".into(),
+        y_label: "relative error".into(),
+        series,
+    };
+    plot.write(&out.join(DEVICE_PLOT), 1100, 700)?;
     Ok(())
 }
 
@@ -340,7 +371,7 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
         let f = |k: &Option<f64>| k.map_or("-".to_owned(), |k| format!("{k:.2}"));
         let _ = writeln!(
             s,
-            "\nGrowth over the hierarchical rows of `{scene}` (log-log least squares against leaves): links {}, \
+            "\nGrowth over the hierarchical rows of {scene} (log-log least squares against leaves): links {}, \
              seconds {}.",
             f(links),
             f(time)
@@ -357,6 +388,7 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
             f(worst)
         );
     }
+    device_curves(s, &h.device);
     if let Some(rss) = h.peak_rss {
         let _ = writeln!(
             s,
@@ -365,4 +397,71 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
         );
     }
     let _ = writeln!(s);
+}
+
+/// The device-curve subsection of the hierarchy section: what each table is and costs, and its error at
+/// each checkpoint.
+fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
+    if device.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "\n### Device tables: flat against hierarchical (cold lights-on, f32 shooting)\n\nThe `demo`'s two device \
+         tables of the Cornell box, each relit by core's f32 solver from a cold start at the default intensities \
+         (host simulator, bit-identical to the firmware under QEMU): \"own\" is the area-weighted relative L2 error \
+         against the table's own f64 answer (its convergence), \"faces\" the per-face error against the continuous \
+         reference above (the common yardstick of two different discretizations). Model instructions are work \
+         units times the bound per unit of the table's firmware build in `firmware-sim/COST.md` (measured under \
+         QEMU).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| table | elements | bytes | build (instr. per unit) | instructions to 10% own | to 1% own | last: own | last: worst face vs continuous (face) | last: mean face |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let f = |v: Option<f64>| v.map_or("not reached".to_owned(), |v| format!("{v:.3e}"));
+    for c in device {
+        let last = c.points.last();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} ({:.2}) | {} | {} | {}{} | {} | {} |",
+            c.name,
+            c.elements,
+            c.bytes,
+            c.build,
+            c.per_unit,
+            f(c.instructions_to(0.1)),
+            f(c.instructions_to(0.01)),
+            last.map_or("-".to_owned(), |p| format!("{:.2e}", p.own)),
+            if c.converged { " (converged)" } else { "" },
+            last.map_or("-".to_owned(), |p| format!(
+                "{:.2}% ({})",
+                100.0 * p.faces.worst,
+                p.faces.worst_face
+            )),
+            last.map_or("-".to_owned(), |p| format!("{:.2}%", 100.0 * p.faces.mean)),
+        );
+    }
+    let _ = writeln!(s, "\n![{DEVICE_PLOT}.svg]({DEVICE_PLOT}.svg)\n");
+    let _ = writeln!(
+        s,
+        "| table | units | model instructions | own | worst face vs continuous | mean face vs continuous |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
+    for c in device {
+        for p in &c.points {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.3e} | {:.2e} | {:.2}% ({}) | {:.2}% |",
+                c.name,
+                p.units,
+                p.instructions,
+                p.own,
+                100.0 * p.faces.worst,
+                p.faces.worst_face,
+                100.0 * p.faces.mean
+            );
+        }
+    }
 }
