@@ -213,6 +213,24 @@ impl Scalar for Fixed {
         Fixed::saturate((i128::from(self.0) << FIXED_FRAC_BITS) / i128::from(other.0))
     }
     fn mul_frac(self, f: Frac) -> Fixed {
+        // Shifts `1..=32` (the usual form factors and reflectances) take 64-bit products instead of a 128-bit
+        // one: with `self = hi 2^32 + lo` (`hi` signed, `lo < 2^32`), `hi m 2^32` is a multiple of `2^shift`, so
+        // `floor((self m + half) / 2^shift) = hi m 2^(32 - shift) + floor((lo m + half) / 2^shift)`, and the
+        // last term is summed from `lo m`'s high and low parts so that adding `half` cannot overflow. When the
+        // result fits in an i64 these are the bits of the 128-bit path below (which saturates otherwise).
+        if (1..=32).contains(&f.shift) {
+            let (s, m) = (f.shift, u64::from(f.mantissa));
+            let hi = (self.0 >> 32) * m as i64;
+            let lo = u64::from(self.0 as u32) * m;
+            let low = (lo >> s) + (((lo & ((1u64 << s) - 1)) + (1u64 << (s - 1))) >> s);
+            let sum = hi
+                .checked_mul(1i64 << (32 - s))
+                .zip(i64::try_from(low).ok())
+                .and_then(|(h, l)| h.checked_add(l));
+            if let Some(v) = sum {
+                return Fixed(v);
+            }
+        }
         // |self| < 2^63 and mantissa < 2^32: the product fits in i128. Round half up: flooring would bias
         // every transfer down by half a unit on average, which adds up over thousands of shots.
         let shift = f.shift.min(126);
@@ -312,6 +330,43 @@ mod tests {
                     Fixed::saturate((i128::from(a) << FIXED_FRAC_BITS) / i128::from(b))
                 };
                 assert_eq!(Fixed(a).div(Fixed(b)), expected, "{a} / {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn fixed_mul_frac_matches_the_128_bit_product() {
+        // The 64-bit path (shifts 1..=32) against the 128-bit product, signs, edges and saturation included.
+        let reference = |x: i64, f: Frac| {
+            let shift = f.shift.min(126);
+            let p = i128::from(x) * i128::from(f.mantissa);
+            let half = if shift == 0 { 0 } else { 1i128 << (shift - 1) };
+            shift_saturating(p + half, -(shift as i32))
+        };
+        let mut xs =
+            vec![0i64, 1, -1, 2, -2, (1 << 32) - 1, 1 << 32, -(1 << 32), i64::MAX, i64::MIN, i64::MIN + 1];
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for _ in 0..400 {
+            let v = next();
+            xs.push((v as i64) >> (v % 64));
+        }
+        let mut mantissas = vec![0u32, 1, 2, 0xffff, 0x1_0000, u32::MAX, u32::MAX - 1, 1 << 31];
+        for _ in 0..40 {
+            let v = next();
+            mantissas.push((v as u32) >> (v % 32));
+        }
+        for &x in &xs {
+            for &mantissa in &mantissas {
+                for shift in 0..=40 {
+                    let f = Frac { mantissa, shift };
+                    assert_eq!(Fixed(x).mul_frac(f), reference(x, f), "{x} * {mantissa} / 2^{shift}");
+                }
             }
         }
     }

@@ -288,7 +288,23 @@ pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K
 /// Instructions of a hierarchical table's frames split by kind of work: the least-squares fit
 /// `instructions = overhead + per_link * links + per_node * node visits` over the frames of one calibration
 /// script that change no light (frames with different shares of links and node visits separate the two
-/// costs).
+/// costs), and the two-rate bound built on it.
+///
+/// The **two-rate bound** of a frame is the larger of a scaled and a shifted envelope of the fit's rates over
+/// the calibration frames: `max(bound_overhead + bound_scale * w, bound_shift + w)`, with the frame's fitted
+/// work `w = per_link * links + per_node * nodes + max(per_link, per_node) * light_units` (negative fitted
+/// rates count as 0; light-change units, member and chain walks, are neither kind and too few frames carry
+/// them to fit a rate of their own, so they take the larger one). So a frame heavy in links is not held to
+/// the rate of a frame heavy in node visits. The scaled form is built as the one-slope bound ([`calibrate`]):
+/// `bound_overhead` is the largest of the fitted overhead, 0 and an idle calibration frame's instructions, and
+/// `bound_scale` the largest ratio of a calibration frame's instructions over `bound_overhead` to its fitted
+/// work (at least 1). The shifted form's `bound_shift` is the largest excess of a calibration frame's
+/// instructions over its fitted work (at least an idle frame's instructions); it covers small frames whose
+/// fixed costs (a sweep's end, the convergence test) the scaled form, tight at large frames, does not. Each
+/// form covers every calibration frame, so their maximum does too. It is checked on every frame of every
+/// script, with each frame's counts from the host simulator's bit-identical run. Before a frame runs, its
+/// links and node visits are at most its budget, so the same maximum with
+/// `w = max(per_link, per_node) * (budget + light_units)` bounds it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HierSplit {
     /// The build (log name).
@@ -303,6 +319,33 @@ pub struct HierSplit {
     pub per_node: f64,
     /// Root-mean-square residual of the fit relative to the root-mean-square instructions of its frames.
     pub residual: f64,
+    /// Overhead of the two-rate bound.
+    pub bound_overhead: f64,
+    /// Factor of the two-rate bound's scaled form on the fitted rates.
+    pub bound_scale: f64,
+    /// Overhead of the two-rate bound's shifted form (the fitted rates unscaled).
+    pub bound_shift: f64,
+    /// Frames checked against the two-rate bound (all scripts).
+    pub checked: usize,
+    /// Frames whose measurement exceeded the two-rate bound.
+    pub violations: usize,
+    /// Smallest `1 - measured / bound` over the checked frames.
+    pub worst_margin: f64,
+    /// The frame with the smallest margin: (script, budget, measured).
+    pub worst_frame: (String, u32, u64),
+}
+
+impl HierSplit {
+    /// The two-rate bound of a frame with `links` links, `nodes` node visits and `light_units` light-change
+    /// units.
+    #[must_use]
+    pub fn bound(&self, links: u64, nodes: u64, light_units: u64) -> f64 {
+        let (link_rate, node_rate) = (self.per_link.max(0.0), self.per_node.max(0.0));
+        let work = link_rate * links as f64
+            + node_rate * nodes as f64
+            + link_rate.max(node_rate) * light_units as f64;
+        (self.bound_overhead + self.bound_scale * work).max(self.bound_shift + work)
+    }
 }
 
 /// Fits [`HierSplit`] on the frames of `calibrate` of `log`, with the work of each frame from `work` (from
@@ -339,11 +382,51 @@ pub fn hier_split(
         total += y * y;
     }
     let residual = if total > 0.0 { (sq / total).sqrt() } else { 0.0 };
-    Ok(HierSplit { build: build.to_string(), samples: cal.len(), overhead, per_link, per_node, residual })
+    let idle = rows.iter().filter(|(x, _)| x[1] + x[2] == 0.0).map(|r| r.1).fold(0.0f64, f64::max);
+    let bound_overhead = overhead.max(idle);
+    let (link_rate, node_rate) = (per_link.max(0.0), per_node.max(0.0));
+    let bound_shift =
+        rows.iter().map(|(x, y)| y - link_rate * x[1] - node_rate * x[2]).fold(0.0f64, f64::max).max(idle);
+    let bound_scale = rows
+        .iter()
+        .map(|(x, y)| (y - bound_overhead, link_rate * x[1] + node_rate * x[2]))
+        .filter(|&(_, w)| w > 0.0)
+        .map(|(excess, w)| excess / w)
+        .fold(1.0f64, f64::max);
+    let mut m = HierSplit {
+        build: build.to_string(),
+        samples: cal.len(),
+        overhead,
+        per_link,
+        per_node,
+        residual,
+        bound_overhead,
+        bound_scale,
+        bound_shift,
+        checked: 0,
+        violations: 0,
+        worst_margin: f64::INFINITY,
+        worst_frame: (String::new(), 0, 0),
+    };
+    for (f, w) in log.frames.iter().zip(work) {
+        let bound = m.bound(w.links, w.nodes, w.light_units);
+        let margin = 1.0 - f.instructions as f64 / bound;
+        m.checked += 1;
+        // As in `calibrate`: a calibration frame on the envelope may evaluate a few ulps above its bound.
+        if f.instructions as f64 > bound * (1.0 + 8.0 * f64::EPSILON) {
+            m.violations += 1;
+        }
+        if margin < m.worst_margin {
+            m.worst_margin = margin;
+            m.worst_frame = (f.script.clone(), f.budget, f.instructions);
+        }
+    }
+    Ok(m)
 }
 
 /// The markdown section of [`hier_split`] for every log (`(name, log)`) of a hierarchical table and its
-/// scripts; the arithmetic of each log is read from its frame lines.
+/// scripts, and the number of frames over their two-rate bound; the arithmetic of each log is read from its
+/// frame lines.
 ///
 /// # Errors
 /// As [`hier_work`] and [`hier_split`].
@@ -352,7 +435,7 @@ pub fn hier_split_report(
     table: &HierTable<'_>,
     file: &ScriptFile,
     calibrate: &str,
-) -> Result<String, String> {
+) -> Result<(String, usize), String> {
     let mut md = String::new();
     let _ = writeln!(
         md,
@@ -360,11 +443,22 @@ pub fn hier_split_report(
          Least squares `instructions = overhead + per link * links + per node * node visits` over the frames of \
          `{calibrate}` that change no light; each frame's links and node visits (judged in a round, pushed or \
          pulled in a sweep) are counted by the host simulator's bit-identical run (`firmware-sim/src/cost.rs`, \
-         `hier_split`). Residual: RMS of the fit's residuals over RMS instructions.\n"
+         `hier_split`). Residual: RMS of the fit's residuals over RMS instructions. Two-rate bound of a frame: \
+         `bound overhead + scale * (per link * links + per node * node visits + max(per link, per node) * light units)`, \
+         the fitted rates
+         scaled to the upper envelope of the calibration frames (bound overhead = max(overhead, 0, an idle \
+         calibration frame), scale = largest (instructions - bound overhead) / (per link * links + per node * \
+         node visits) of a calibration frame, at least 1), or the fitted rates shifted up by the largest excess of \
+         a calibration frame (bound shift), whichever is larger, checked on every frame of every script with the \
+         host run's counts.\n"
     );
-    let _ =
-        writeln!(md, "| build | frames | overhead | instr. per link | instr. per node visit | residual |");
-    let _ = writeln!(md, "|---|---|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "| build | frames | overhead | instr. per link | instr. per node visit | residual | bound overhead | \
+         bound scale | bound shift | frames checked | over bound | worst margin | worst frame (script, budget, measured) |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut violations = 0;
     for (name, log) in logs {
         let arith = log
             .frames
@@ -377,13 +471,28 @@ pub fn hier_split_report(
             Arith::Fixed => hier_work::<radiosity_core::Fixed>(table, file)?,
         };
         let m = hier_split(name, log, &work, calibrate)?;
+        violations += m.violations;
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1e} |",
-            m.build, m.samples, m.overhead, m.per_link, m.per_node, m.residual
+            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1e} | {:.0} | {:.3} | {:.0} | {} | {} | {:.1} % | {}, {}, {} |",
+            m.build,
+            m.samples,
+            m.overhead,
+            m.per_link,
+            m.per_node,
+            m.residual,
+            m.bound_overhead,
+            m.bound_scale,
+            m.bound_shift,
+            m.checked,
+            m.violations,
+            100.0 * m.worst_margin,
+            m.worst_frame.0,
+            m.worst_frame.1,
+            m.worst_frame.2
         );
     }
-    Ok(md)
+    Ok((md, violations))
 }
 
 #[cfg(test)]

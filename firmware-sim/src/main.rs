@@ -248,18 +248,21 @@ fn run(command: Command) -> Result<(), String> {
             }
             let report = cost::report(&parsed, &calibrate, clock_mhz)?;
             let mut markdown = report.markdown.clone();
+            let mut violations = report.violations;
             if table.is_some() {
                 let loaded = Input { table, scripts }.load()?;
                 if let AnyTable::Hier(t) = AnyTable::parse(&loaded.bytes).map_err(|e| e.to_string())? {
-                    markdown.push_str(&cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?);
+                    let (section, over) = cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?;
+                    markdown.push_str(&section);
+                    violations += over;
                 }
             }
             match &out {
                 Some(p) => std::fs::write(p, &markdown).map_err(file_err(p))?,
                 None => print!("{markdown}"),
             }
-            if report.violations > 0 {
-                return Err(format!("{} frames exceed the cost model's bound", report.violations));
+            if violations > 0 {
+                return Err(format!("{violations} frames exceed the cost model's bounds"));
             }
             Ok(())
         }

@@ -486,13 +486,11 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         }
     }
 
-    /// Applies `count` links of `sender`'s run from table position `from` (a slice iterator over the run's
-    /// receivers and codes, decoded with the run's exponent).
+    /// Applies `count` links of `sender`'s run from table position `from` (one loop over the run's receivers
+    /// and codes at the table's widths, decoded with the run's exponent).
     fn apply_links(&mut self, sender: u32, from: u32, count: u32, power: [S; 3]) {
         let Some(run) = self.table.run_view(sender) else { return };
-        for (r, f) in run.entries_from(from).take(count as usize) {
-            self.apply_link(r, f, power);
-        }
+        run.for_each_from(from, count, |r, f| self.apply_link(r, f, power));
     }
 
     /// Link `(r, F)` delivers the power `F U_s` to node `r`. An inner receiver
