@@ -5,15 +5,15 @@
 
 use std::time::Instant;
 
+pub use super::faces::FaceErrors;
+use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
 use crate::formfactor::{compute_form_factors, FormFactorOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
-use crate::patch::Patch;
 use crate::pipeline::{prepare, PrepareOptions};
 use crate::reference::{exact_transfer, solve_many, Method, RadiositySystem};
-use crate::rgb::Rgb;
 use crate::scene::Scene;
 
 /// Largest leaf count at which the hierarchy is also compared with the dense solve of its leaves.
@@ -36,17 +36,6 @@ pub const LINK_BYTES: usize = 2 * (4 + 2);
 
 /// Bytes an entry of the flat 16-bit table takes (a 16-bit receiver index and a 16-bit code).
 pub const ENTRY_BYTES: usize = 2 + 2;
-
-/// Per-face errors against a reference: the worst face (its index) and the mean over faces.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FaceErrors {
-    /// Largest relative difference of a face's area-averaged radiosity (worst channel).
-    pub worst: f64,
-    /// The OBJ face where it is.
-    pub worst_face: usize,
-    /// Mean over the faces of the relative difference.
-    pub mean: f64,
-}
 
 /// One solve of one scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -98,53 +87,6 @@ pub struct HierarchySection {
     pub peak_rss: Option<u64>,
 }
 
-/// Area-averaged radiosity per OBJ face of `patches` carrying `b` (faces without patches are `None`), over the
-/// whole face as `reference` has it: area the patches do not cover (fragments mesh repair culled, which no point
-/// sees) counts with `B = E`, as in the continuous reference.
-pub(super) fn face_means(patches: &[Patch], b: &[Rgb], reference: &ContinuousReference) -> Vec<Option<Rgb>> {
-    let faces = reference.faces.iter().map(|f| f.face).max().map_or(0, |m| m + 1);
-    let mut sums = vec![(0.0, Rgb::ZERO); faces];
-    for (p, v) in patches.iter().zip(b) {
-        if let Some(s) = sums.get_mut(p.face) {
-            s.0 += p.area;
-            s.1 += p.area * *v;
-        }
-    }
-    for f in &reference.faces {
-        let s = &mut sums[f.face];
-        if s.0 > 0.0 {
-            let hidden = (f.area - s.0).max(0.0);
-            s.0 += hidden;
-            s.1 += hidden * f.emission;
-        }
-    }
-    sums.into_iter().map(|(a, s)| (a > 0.0).then(|| s / a)).collect()
-}
-
-/// Per-face errors of `got` against `want` over `faces` (the faces taken into account).
-pub(super) fn face_errors(got: &[Option<Rgb>], want: &[Option<Rgb>], faces: &[usize]) -> FaceErrors {
-    let mut out = FaceErrors { worst: 0.0, worst_face: 0, mean: 0.0 };
-    let mut n = 0;
-    for &f in faces {
-        let (Some(g), Some(w)) = (got.get(f).copied().flatten(), want.get(f).copied().flatten()) else {
-            continue;
-        };
-        let rel = ((g - w) / w).abs().max_element();
-        if rel.is_finite() {
-            if rel > out.worst {
-                out.worst = rel;
-                out.worst_face = f;
-            }
-            out.mean += rel;
-            n += 1;
-        }
-    }
-    if n > 0 {
-        out.mean /= n as f64;
-    }
-    out
-}
-
 /// The faces the errors are taken over: lit ones (reference radiosity above zero) not smaller than
 /// [`SMALL_FACE`] of the largest.
 fn judged_faces(reference: &ContinuousReference) -> Vec<usize> {
@@ -157,7 +99,6 @@ fn judged_faces(reference: &ContinuousReference) -> Vec<usize> {
         .collect()
 }
 
-/// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
 /// The refinement's name as the CLI spells it.
 fn refinement_label(refinement: Refinement) -> &'static str {
     match refinement {
@@ -166,6 +107,7 @@ fn refinement_label(refinement: Refinement) -> &'static str {
     }
 }
 
+/// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
 fn peak_rss() -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;

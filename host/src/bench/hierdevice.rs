@@ -13,7 +13,7 @@ use radiosity_core::{
 };
 
 use super::device::{radiosity, Owned};
-use super::hierarchy::{face_errors, face_means, FaceErrors};
+use super::faces::{face_errors, face_means, FaceErrors};
 use super::{bound_per_unit, log, BenchError, BenchOptions, COST_MD};
 use crate::bake::{bake, bake_hierarchy, BakeInput, BakeOptions};
 use crate::formfactor::FormFactorOptions;

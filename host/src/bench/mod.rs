@@ -26,6 +26,7 @@
 pub mod bakebench;
 mod curves;
 pub mod device;
+mod faces;
 pub mod fit;
 mod growth;
 pub mod hierarchy;
