@@ -21,9 +21,15 @@ pub(crate) fn static_radiosity_with<S: Scalar>(
     patch: u32,
     rho: [u16; 3],
 ) -> Option<[S; 3]> {
-    let e = table.base_emission(patch)?;
-    let g = table.base_irradiance(patch)?;
-    Some([0, 1, 2].map(|c| emission::<S>(e[c]).add(emission::<S>(g[c]).mul_frac(decode_reflectance(rho[c])))))
+    Some(static_from_codes(table.base_emission(patch)?, table.base_irradiance(patch)?, rho))
+}
+
+/// `E_s + rho G_s` (W/m^2, RGB) from the emission, irradiance and reflectance codes (flat patches and
+/// hierarchical leaves alike).
+#[must_use]
+#[inline]
+pub(crate) fn static_from_codes<S: Scalar>(e: [u16; 3], g: [u16; 3], rho: [u16; 3]) -> [S; 3] {
+    [0, 1, 2].map(|c| emission::<S>(e[c]).add(emission::<S>(g[c]).mul_frac(decode_reflectance(rho[c]))))
 }
 
 /// The static radiosity `B_static_i = E_s_i + rho_i G_s_i` (W/m^2, RGB) of `patch` from the table's static

@@ -241,4 +241,4 @@ pub use solver::{
     convergence_floor, selection_len, BufferSizes, Buffers, Config, NoProgressReason, Outcome, Solver,
     SolverError, StaticBuffers,
 };
-pub use transfer::{relight_transfer, transfer_cost, TransferError};
+pub use transfer::{relight_transfer, transfer_cost, TransferError, TransferTable, MAX_TRANSFER_GROUPS};

@@ -12,6 +12,7 @@
 //! tolerances `>= 6 * L * 2^-32 / (1 - rho_max)` power units, `L` the longest row: above that every shot
 //! removes at least `tolerance * (1 - rho_max) - 3 L` units of unshot magnitude, at least `3 L` units.
 
+use crate::codec::transfer::decode_transfer_dyadic;
 use crate::codec::{decode_reflectance, pow2_f32, Frac};
 
 /// The solver's per-entry internals of a [`Scalar`]. Public in a private module, so no other crate can name it,
@@ -36,6 +37,16 @@ pub(crate) mod sealed {
         /// The rank of magnitude `self` held by `slot` (see `Rank`).
         #[must_use]
         fn rank(self, slot: u32) -> Self::Rank;
+        /// A light group's intensity (one channel) prepared for the transfer relight's products with response
+        /// codes under scale exponent `k` ([`crate::transfer`]).
+        type TransferScale: Copy + core::fmt::Debug;
+        /// Prepares `intensity` for codes under scale exponent `k`.
+        #[must_use]
+        fn transfer_scale(intensity: Self, k: i8) -> Self::TransferScale;
+        /// `intensity * T`, `T` the response code `code` decoded under the scale's exponent: bit for bit
+        /// `intensity.mul(from_dyadic(decode_transfer_dyadic(code, k)))`.
+        #[must_use]
+        fn transfer_term(code: u16, scale: Self::TransferScale) -> Self;
     }
 }
 
@@ -137,7 +148,36 @@ impl sealed::Internal for f32 {
     fn rank(self, slot: u32) -> u64 {
         (u64::from(self.to_bits() & 0x7fff_ffff) << 32) | u64::from(!slot)
     }
+    /// The response code's bits shifted into an f32's exponent and mantissa fields read as that f32 are the
+    /// code's value times `2^-TRANSFER_RAW_SHIFT` exactly (its subnormal codes land on f32 subnormals with the
+    /// same step), so a product with `intensity 2^(k + TRANSFER_RAW_SHIFT)` (exact when that is a normal f32)
+    /// is the product with the decoded response, rounded once: one shift, one move and one multiply per
+    /// channel. Intensities whose scaled value is not a normal f32 (huge or tiny) take the decode.
+    type TransferScale = (Option<f32>, f32, i8);
+    fn transfer_scale(intensity: f32, k: i8) -> (Option<f32>, f32, i8) {
+        let e = i32::from(k) + TRANSFER_RAW_SHIFT;
+        let (a, b) = if e > 127 { (127, e - 127) } else { (e, 0) };
+        let first = intensity * pow2_f32(a);
+        let scaled = first * pow2_f32(b);
+        let exact = |v: f32| v == 0.0 || v.is_normal();
+        let fast = (exact(first) && exact(scaled) && (intensity == 0.0) == (scaled == 0.0)).then_some(scaled);
+        (fast, intensity, k)
+    }
+    #[inline(always)]
+    fn transfer_term(code: u16, scale: (Option<f32>, f32, i8)) -> f32 {
+        match scale.0 {
+            Some(s) => f32::from_bits(u32::from(code) << 11) * s,
+            None => {
+                let (m, e) = decode_transfer_dyadic(code, scale.2);
+                scale.1 * f32::from_dyadic(m, e)
+            }
+        }
+    }
 }
+
+/// `log2` of the factor between a FLOAT16 transfer code's value (row exponent 0: subnormal step `2^-26`) and the
+/// f32 its bits make when shifted left by 11 (subnormal step `2^-138`).
+const TRANSFER_RAW_SHIFT: i32 = 112;
 
 /// Q32.32 fixed point in an `i64`: value = `raw / 2^32`. Saturating, integer only.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -289,6 +329,15 @@ impl sealed::Internal for Fixed {
     fn rank(self, slot: u32) -> u128 {
         (u128::from(self.0.unsigned_abs().min(i64::MAX as u64)) << 32) | u128::from(!slot)
     }
+    /// Fixed point decodes the response exactly and rounds the one product.
+    type TransferScale = (Fixed, i8);
+    fn transfer_scale(intensity: Fixed, k: i8) -> (Fixed, i8) {
+        (intensity, k)
+    }
+    fn transfer_term(code: u16, scale: (Fixed, i8)) -> Fixed {
+        let (m, e) = decode_transfer_dyadic(code, scale.1);
+        scale.0.mul(Fixed::from_dyadic(m, e))
+    }
 }
 
 #[cfg(test)]
@@ -369,6 +418,30 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn f32_transfer_terms_are_the_products_with_the_decoded_responses() {
+        use crate::codec::transfer::{TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPONENT};
+        let intensities = [1.0f32, -0.3, 7.77e5, 1.3e-30, 1e-44, 3.0e38, 0.0, 2.5e-3];
+        for k in [TRANSFER_MIN_EXPONENT, -40, -1, 0, 5, 15, 16, TRANSFER_MAX_EXPONENT] {
+            for &i in &intensities {
+                let scale = f32::transfer_scale(i, k);
+                for code in (0..=u16::MAX).step_by(37).chain([0, 1, 0x0fff, 0x1000, u16::MAX]) {
+                    let (m, e) = decode_transfer_dyadic(code, k);
+                    let want = i * f32::from_dyadic(m, e);
+                    let got = f32::transfer_term(code, scale);
+                    assert_eq!(got.to_bits(), want.to_bits(), "k {k} intensity {i} code {code:#x}");
+                }
+            }
+        }
+        // The fast form is taken wherever the scaled intensity is a normal f32, and only there.
+        assert!(f32::transfer_scale(1.0, 0).0.is_some());
+        // 2^(15 + 112) is the largest power of two below f32's top.
+        assert!(f32::transfer_scale(1.0, 15).0.is_some());
+        assert!(f32::transfer_scale(1.0, TRANSFER_MAX_EXPONENT).0.is_none());
+        assert!(f32::transfer_scale(3.0e38, 0).0.is_none());
+        assert!(f32::transfer_scale(1e-44, TRANSFER_MIN_EXPONENT).0.is_none());
     }
 
     #[test]

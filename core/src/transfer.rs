@@ -29,9 +29,8 @@
 
 use core::fmt;
 
-use crate::base::static_radiosity;
-use crate::codec::transfer::decode_transfer_dyadic;
-use crate::format::Table;
+use crate::base::{static_from_codes, static_radiosity};
+use crate::format::{HierTable, Table};
 use crate::scalar::Scalar;
 
 /// Why a transfer relight cannot run.
@@ -49,10 +48,17 @@ pub enum TransferError {
     },
     /// The output slice has fewer entries than the table has patches.
     OutputTooSmall {
-        /// Patches in the table.
+        /// Elements (patches or leaves) in the table.
         needed: u32,
         /// Entries given.
         got: usize,
+    },
+    /// The table has more light groups than a transfer relight takes ([`MAX_TRANSFER_GROUPS`]).
+    TooManyGroups {
+        /// Light groups in the table.
+        groups: u32,
+        /// The most a relight takes.
+        max: u32,
     },
     /// An intensity is not usable (not finite in f32, saturated in fixed point).
     BadIntensity {
@@ -71,7 +77,13 @@ impl fmt::Display for TransferError {
                 write!(f, "transfer relight: {got} intensities for {needed} light groups")
             }
             TransferError::OutputTooSmall { needed, got } => {
-                write!(f, "transfer relight: output holds {got} patches, the table has {needed}")
+                write!(f, "transfer relight: output holds {got} elements, the table has {needed}")
+            }
+            TransferError::TooManyGroups { groups, max } => {
+                write!(
+                    f,
+                    "transfer relight: the table has {groups} light groups, at most {max} are supported"
+                )
             }
             TransferError::BadIntensity { group, channel } => {
                 write!(f, "transfer relight: intensity of light group {group} channel {channel} not finite")
@@ -82,54 +94,128 @@ impl fmt::Display for TransferError {
 
 impl core::error::Error for TransferError {}
 
-/// Work units of one [`relight_transfer`] of `table`: `patches x (groups + 1)` (saturating).
-#[must_use]
-pub fn transfer_cost(table: &Table<'_>) -> u32 {
-    table.patch_count().saturating_mul(table.group_count().saturating_add(1))
+/// A table whose elements can carry a transfer basis: flat tables ([`Table`], one element per patch) and
+/// hierarchical tables ([`HierTable`], one per leaf). The section's layout is the same in both
+/// (`docs/format.md`): per light group three scale exponents, per element and group three response codes,
+/// element-major.
+pub trait TransferTable {
+    /// Elements relit: patches of a flat table, leaves of a hierarchical one.
+    fn element_count(&self) -> u32;
+    /// Light groups.
+    fn groups(&self) -> u32;
+    /// Whether the table carries the transfer section.
+    fn carries_transfer(&self) -> bool;
+    /// Scale exponents `K` (RGB) of light `group`, `None` without the section or out of range.
+    fn scale_exponents(&self, group: u32) -> Option<[i8; 3]>;
+    /// The response codes of `element` (3 x `u16` little-endian per group), `None` without the section or out
+    /// of range.
+    fn element_codes(&self, element: u32) -> Option<&[u8]>;
+    /// The static radiosity `E_s + rho G_s` of `element` (crate docs, "Static base"), `None` out of range.
+    fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]>;
 }
 
+impl TransferTable for Table<'_> {
+    fn element_count(&self) -> u32 {
+        self.patch_count()
+    }
+    fn groups(&self) -> u32 {
+        self.group_count()
+    }
+    fn carries_transfer(&self) -> bool {
+        self.has_transfer()
+    }
+    fn scale_exponents(&self, group: u32) -> Option<[i8; 3]> {
+        self.transfer_exponent(group)
+    }
+    fn element_codes(&self, element: u32) -> Option<&[u8]> {
+        self.transfer_codes_of(element)
+    }
+    fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]> {
+        static_radiosity(self, element)
+    }
+}
+
+impl TransferTable for HierTable<'_> {
+    fn element_count(&self) -> u32 {
+        self.leaf_count()
+    }
+    fn groups(&self) -> u32 {
+        self.group_count()
+    }
+    fn carries_transfer(&self) -> bool {
+        self.has_transfer()
+    }
+    fn scale_exponents(&self, group: u32) -> Option<[i8; 3]> {
+        self.transfer_exponent(group)
+    }
+    fn element_codes(&self, element: u32) -> Option<&[u8]> {
+        self.transfer_codes_of(element)
+    }
+    fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]> {
+        let rho = self.reflectance(self.material(element)?)?;
+        Some(static_from_codes(self.base_emission(element)?, self.base_irradiance(element)?, rho))
+    }
+}
+
+/// Work units of one [`relight_transfer`] of `table`: `elements x (groups + 1)` (saturating).
+#[must_use]
+pub fn transfer_cost<T: TransferTable>(table: &T) -> u32 {
+    table.element_count().saturating_mul(table.groups().saturating_add(1))
+}
+
+/// Most light groups a transfer relight takes: the per-group scales live on the stack.
+pub const MAX_TRANSFER_GROUPS: u32 = 64;
+
 /// Relights the whole table from its transfer basis: `out[i] = B_static_i + sum_g intensity[g] T_g,i`
-/// (W/m^2, RGB, per channel), for every patch `i`. Returns the work units spent, [`transfer_cost`].
+/// (W/m^2, RGB, per channel), for every element `i` (patch of a flat table, leaf of a hierarchical one).
+/// Returns the work units spent, [`transfer_cost`].
 ///
 /// `intensity[g]` is light group `g`'s RGB intensity (the same multiplier as [`crate::Solver::set_light`]);
 /// extra entries of `intensity` and `out` are ignored. The answer is for the table's reflectances: after
 /// [`crate::Solver::set_reflectance`] use shooting. Never allocates; bounded work; see the module docs for
-/// the error bound.
+/// the error bound. In f32 each product is the response code's bits moved into an f32 times the intensity
+/// scaled by the group's exponent (bit for bit the product with the decoded response).
 ///
 /// # Errors
-/// [`TransferError::NoTransferSection`], [`TransferError::IntensityTooShort`],
-/// [`TransferError::OutputTooSmall`], [`TransferError::BadIntensity`]; `out` is untouched on error.
-pub fn relight_transfer<S: Scalar>(
-    table: &Table<'_>,
+/// [`TransferError::NoTransferSection`], [`TransferError::TooManyGroups`],
+/// [`TransferError::IntensityTooShort`], [`TransferError::OutputTooSmall`], [`TransferError::BadIntensity`];
+/// `out` is untouched on error.
+pub fn relight_transfer<S: Scalar, T: TransferTable>(
+    table: &T,
     intensity: &[[S; 3]],
     out: &mut [[S; 3]],
 ) -> Result<u32, TransferError> {
-    if !table.has_transfer() {
+    if !table.carries_transfer() {
         return Err(TransferError::NoTransferSection);
     }
-    let (n, groups) = (table.patch_count(), table.group_count());
+    let (n, groups) = (table.element_count(), table.groups());
+    if groups > MAX_TRANSFER_GROUPS {
+        return Err(TransferError::TooManyGroups { groups, max: MAX_TRANSFER_GROUPS });
+    }
     if intensity.len() < groups as usize {
         return Err(TransferError::IntensityTooShort { needed: groups, got: intensity.len() });
     }
     if out.len() < n as usize {
         return Err(TransferError::OutputTooSmall { needed: n, got: out.len() });
     }
-    for (g, rgb) in intensity.iter().take(groups as usize).enumerate() {
+    let mut scales = [[S::transfer_scale(S::ZERO, 0); 3]; MAX_TRANSFER_GROUPS as usize];
+    for (g, (rgb, scale)) in intensity.iter().take(groups as usize).zip(scales.iter_mut()).enumerate() {
+        let k = table.scale_exponents(g as u32).unwrap_or([0; 3]);
         for (c, v) in rgb.iter().enumerate() {
             if !v.is_usable() {
                 return Err(TransferError::BadIntensity { group: g as u32, channel: c as u8 });
             }
+            scale[c] = S::transfer_scale(*v, k[c]);
         }
     }
+    let scales = scales.get(..groups as usize).unwrap_or(&[]);
     for (i, o) in (0..n).zip(out.iter_mut()) {
-        let mut b = static_radiosity::<S>(table, i).unwrap_or([S::ZERO; 3]);
-        for (g, rgb) in (0..groups).zip(intensity) {
-            let (Some(code), Some(k)) = (table.transfer_code(i, g), table.transfer_exponent(g)) else {
-                continue;
-            };
+        let mut b = table.element_static::<S>(i).unwrap_or([S::ZERO; 3]);
+        let codes = table.element_codes(i).unwrap_or(&[]);
+        for (code, scale) in codes.chunks_exact(6).zip(scales) {
             for c in 0..3 {
-                let (m, e) = decode_transfer_dyadic(code[c], k[c]);
-                b[c] = b[c].add(rgb[c].mul(S::from_dyadic(m, e)));
+                let q = u16::from_le_bytes([code[2 * c], code[2 * c + 1]]);
+                b[c] = b[c].add(S::transfer_term(q, scale[c]));
             }
         }
         *o = b;

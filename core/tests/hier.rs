@@ -31,6 +31,8 @@ struct Hier {
     links: Vec<Vec<(u32, f32)>>,
     codec: FfCodec,
     base_solved: bool,
+    /// Transfer responses, leaf-major (leaves x groups), if any.
+    transfer: Option<Vec<[f32; 3]>>,
 }
 
 fn leaf(area: f32, material: u32) -> PatchSpec {
@@ -51,6 +53,7 @@ impl Hier {
             links: vec![Vec::new(); n],
             codec: FfCodec::FLOAT16,
             base_solved: false,
+            transfer: None,
         }
     }
 
@@ -79,6 +82,7 @@ impl Hier {
             codec: self.codec,
             base_solved: self.base_solved,
             fingerprint: 7,
+            transfer: self.transfer.as_deref(),
         };
         let mut out = vec![0xa5u8; hier_required_len(&spec)?];
         let written = write_hier_table(&spec, &mut out)?;
@@ -753,14 +757,14 @@ fn tiny() -> Hier {
     h
 }
 
-const HEADER: usize = 16;
+const HEADER: usize = 17;
 const TOTAL: usize = HEADER + 149 + 4;
 
 #[rustfmt::skip]
 const GOLDEN: [u8; TOTAL] = [
     // header (postcard): magic, version 4, 2 leaves, 3 nodes, 1 material, 1 group, 1 member, 2 links,
-    // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved, fingerprint 7
-    0x52, 0x46, 0x54, 0x1a, 0x04, 0x02, 0x03, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00, 0x07,
+    // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved, fingerprint 7, no transfer basis
+    0x52, 0x46, 0x54, 0x1a, 0x04, 0x02, 0x03, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00, 0x07, 0x00,
     // leaf materials: 0, 0
     0x00, 0x00, 0x00, 0x00,
     // static emission codes (2 leaves x 3): zero
@@ -822,6 +826,106 @@ fn golden_bytes_pin_the_layout() {
     assert_eq!(t.node_area(3), None);
     assert_eq!(t.leaf_node(2), None);
     assert!(t.run_view(1).unwrap().entries().map(|(r, _)| r).eq([2]));
+}
+
+/// The golden table with a solved base and a transfer basis: leaf 0's response (0.75, 0.5, 0) and leaf 1's
+/// (0.375, 0.25, 2^-20) to the one group.
+fn tiny_with_transfer() -> Hier {
+    let mut h = tiny();
+    h.base_solved = true;
+    h.transfer = Some(vec![[0.75, 0.5, 0.0], [0.375, 0.25, 1.0 / 1_048_576.0]]);
+    h
+}
+
+#[test]
+fn golden_transfer_section_follows_the_link_codes() {
+    let plain = tiny().write();
+    let bytes = tiny_with_transfer().write();
+    // The header's base-solved and transfer flags, then the same payload up to the link codes.
+    assert_eq!((bytes[HEADER - 3], bytes[HEADER - 1]), (1, 1));
+    assert_eq!(&bytes[HEADER..TOTAL - 4], &plain[HEADER..TOTAL - 4]);
+    #[rustfmt::skip]
+    let section: [u8; 3 + 12] = [
+        // scale exponents K per channel: floor(log2 max): 0.75 -> -1, 0.5 -> -1, 2^-20 -> -20
+        0xff, 0xff, 0xec,
+        // leaf 0: 0.75 = 1.5 * 2^-1 -> x 15, m 2048 = 0xf800; 0.5 = 1.0 * 2^-1 -> 0xf000; 0 -> 0
+        0x00, 0xf8, 0x00, 0xf0, 0x00, 0x00,
+        // leaf 1: 0.375 = 1.5 * 2^-2 -> x 14, m 2048 = 0xe800; 0.25 -> 0xe000; 2^-20 = 1.0 * 2^0 under K -> 0xf000
+        0x00, 0xe8, 0x00, 0xe0, 0x00, 0xf0,
+    ];
+    assert_eq!(bytes.len(), TOTAL + section.len());
+    assert_eq!(&bytes[TOTAL - 4..TOTAL - 4 + section.len()], &section);
+    let t = HierTable::parse(&bytes).unwrap();
+    assert!(t.has_transfer() && !HierTable::parse(&plain).unwrap().has_transfer());
+    assert_eq!(t.transfer_exponent(0), Some([-1, -1, -20]));
+    assert_eq!(t.transfer_response(1, 0), Some([0.375, 0.25, 1.0 / 1_048_576.0]));
+    assert_eq!(t.transfer_code(0, 0), Some([0xf800, 0xf000, 0]));
+    assert_eq!(t.transfer_codes_of(1), Some(&section[9..15]));
+    assert_eq!((t.transfer_code(2, 0), t.transfer_code(0, 1), t.transfer_codes_of(2)), (None, None, None));
+    assert_eq!(t.section_sizes().transfer_code, 12);
+}
+
+#[test]
+fn transfer_relight_of_a_hierarchical_table_is_static_plus_intensity_times_response() {
+    use radiosity_core::{relight_transfer, transfer_cost, Fixed, TransferError};
+    let mut h = tiny_with_transfer();
+    // A static base on leaf 1: emission 0.25, irradiance 1.0 (reflectance 0.5): B_static = 0.75.
+    h.leaves[1].base_emission = [0.25; 3];
+    h.leaves[1].base_irradiance = [1.0; 3];
+    let bytes = h.write();
+    let t = HierTable::parse(&bytes).unwrap();
+    let mut out = [[0.0f32; 3]; 2];
+    // Every value is dyadic with few bits: the sums are exact in f32 and in fixed point.
+    assert_eq!(relight_transfer(&t, &[[2.0, -1.0, 0.5]], &mut out), Ok(transfer_cost(&t)));
+    assert_eq!(transfer_cost(&t), 4);
+    assert_eq!(out, [[1.5, -0.5, 0.0], [1.5, 0.5, 0.75 + 0.5 / 1_048_576.0]]);
+    let mut fixed = [[Fixed::ZERO; 3]; 2];
+    let i = [[2.0f32, -1.0, 0.5].map(Fixed::from_f32)];
+    relight_transfer(&t, &i, &mut fixed).unwrap();
+    assert_eq!(fixed.map(|b| b.map(Fixed::to_f32)), out);
+    let plain = tiny().write();
+    let plain = HierTable::parse(&plain).unwrap();
+    assert_eq!(relight_transfer(&plain, &[[1.0f32; 3]], &mut out), Err(TransferError::NoTransferSection));
+    assert_eq!(
+        relight_transfer(&t, &[[f32::NAN, 1.0, 1.0]], &mut out),
+        Err(TransferError::BadIntensity { group: 0, channel: 0 })
+    );
+    assert_eq!(
+        relight_transfer(&t, &[[1.0f32; 3]], &mut out[..1]),
+        Err(TransferError::OutputTooSmall { needed: 2, got: 1 })
+    );
+}
+
+#[test]
+fn transfer_sections_are_checked() {
+    use TableError as E;
+    let good = tiny_with_transfer().write();
+    // Truncated inside the section, and a bad scale exponent (with the CRC fixed).
+    assert_eq!(
+        HierTable::parse(&good[..good.len() - 3]).err(),
+        Some(E::Truncated { expected: good.len(), actual: good.len() - 3 })
+    );
+    let mut b = good.clone();
+    b[TOTAL - 4 + 2] = 100;
+    fix_crc(&mut b);
+    assert_eq!(
+        HierTable::parse(&b).err(),
+        Some(E::BadQuantParams { param: radiosity_core::format::QuantParam::TransferExponent, value: 0 })
+    );
+    // A flipped response code is caught by the CRC.
+    let mut b = good.clone();
+    b[TOTAL + 4] ^= 1;
+    assert!(matches!(HierTable::parse(&b), Err(E::CrcMismatch { .. })));
+    // The writer refuses a basis without a solved base, of the wrong length, or with a bad response.
+    let mut h = tiny_with_transfer();
+    h.base_solved = false;
+    assert_eq!(h.try_write().err(), Some(WriteError::TransferNeedsSolvedBase));
+    let mut h = tiny_with_transfer();
+    h.transfer = Some(vec![[0.5; 3]]);
+    assert_eq!(h.try_write().err(), Some(WriteError::TransferLength { expected: 2, got: 1 }));
+    let mut h = tiny_with_transfer();
+    h.transfer = Some(vec![[0.5; 3], [f32::NAN, 0.0, 0.0]]);
+    assert!(matches!(h.try_write(), Err(WriteError::BadValue { .. })));
 }
 
 #[test]

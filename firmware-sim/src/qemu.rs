@@ -582,6 +582,7 @@ mod tests {
             codec: FfCodec::FLOAT16,
             base_solved: false,
             fingerprint: 0,
+            transfer: None,
         };
         let mut blob = vec![0u8; hier_required_len(&spec).unwrap()];
         let len = write_hier_table(&spec, &mut blob).unwrap();

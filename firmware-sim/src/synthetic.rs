@@ -205,6 +205,7 @@ pub fn hierarchical_enclosure(leaf_area: f32, codec: FfCodec) -> Result<Vec<u8>,
         codec,
         base_solved: false,
         fingerprint: 0,
+        transfer: None,
     };
     let mut blob = vec![0u8; hier_required_len(&spec)?];
     let len = write_hier_table(&spec, &mut blob)?;

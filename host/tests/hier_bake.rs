@@ -20,7 +20,7 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
         &HierarchyOptions { epsilon: 0.1, solve_tolerance: 1e-12, ..HierarchyOptions::default() },
     )
     .unwrap();
-    let baked = bake_hierarchy(&scene, &solution, 16).unwrap();
+    let baked = bake_hierarchy(&scene, &solution, 16, false).unwrap();
     let table = HierTable::parse(&baked.table).unwrap();
     let (nodes, leaves, links) = baked.counts;
     assert_eq!((table.node_count() as usize, table.leaf_count() as usize), (nodes, leaves));
@@ -115,4 +115,60 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
     );
     assert!(error <= allowed, "device power error {error:.3e} above the allowed {allowed:.3e}");
     assert!(allowed < 0.01 * p_total, "an allowance this large would say nothing");
+}
+
+/// The transfer basis of a hierarchical table: core's one-pass relight at intensities other than the defaults
+/// matches the f64 answer of the table's system for those intensities within the bound of core's `transfer`
+/// module, leaf by leaf and channel by channel: static base codes relative `2^-11` (emission, irradiance) and
+/// the reflectance code's `2^-17`, each response within `max(2^-13 T, 2^(K - 27))`, and `2 (groups + 1)` f32
+/// roundings of the magnitude.
+#[test]
+fn hierarchical_transfer_relight_is_within_its_quantization_bound() {
+    use radiosity_core::codec::decode_emission;
+    use radiosity_core::{relight_transfer, transfer_cost};
+    use radiosity_host::rgb::Rgb;
+    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let solution = solve_hierarchical(
+        &scene,
+        &HierarchyOptions { epsilon: 0.1, solve_tolerance: 1e-12, ..HierarchyOptions::default() },
+    )
+    .unwrap();
+    let baked = bake_hierarchy(&scene, &solution, 16, true).unwrap();
+    let table = HierTable::parse(&baked.table).unwrap();
+    let groups = table.group_count() as usize;
+    assert!(table.has_transfer() && groups >= 1);
+    // Away from the defaults: a coloured, brighter light.
+    let intensity: Vec<[f32; 3]> = (0..groups).map(|g| [1.7, 0.4, 2.5].map(|v| v * (g + 1) as f32)).collect();
+    let mut out = vec![[0.0f32; 3]; table.leaf_count() as usize];
+    assert_eq!(relight_transfer(&table, &intensity, &mut out), Ok(transfer_cost(&table)));
+    assert_eq!(transfer_cost(&table), table.leaf_count() * (groups as u32 + 1));
+    let rgb: Vec<Rgb> = intensity.iter().map(|i| Rgb::new(i[0].into(), i[1].into(), i[2].into())).collect();
+    let exact = baked.exact(&rgb).unwrap();
+    let code = |c: u16| {
+        let (m, e) = decode_emission(c);
+        f64::from(m) * 2f64.powi(e)
+    };
+    let mut worst = 0.0f64;
+    for (l, (got, want)) in out.iter().zip(&exact).enumerate() {
+        let l32 = l as u32;
+        let (e, g) = (table.base_emission(l32).unwrap(), table.base_irradiance(l32).unwrap());
+        for c in 0..3 {
+            let (es, gs) = (code(e[c]), code(g[c]));
+            let mut bound = 2f64.powi(-11) * (es + gs) * (1.0 + 2f64.powi(-10)) + 2f64.powi(-17) * gs;
+            let mut magnitude = es + gs;
+            for (gi, i) in intensity.iter().enumerate() {
+                let t = baked.responses[gi][l][c];
+                let k = table.transfer_exponent(gi as u32).unwrap()[c];
+                let i = f64::from(i[c]).abs();
+                bound += i * (2f64.powi(-13) * t).max(2f64.powi(i32::from(k) - 27));
+                magnitude += i * t;
+            }
+            bound += 2.0 * (groups as f64 + 1.0) * 2f64.powi(-24) * magnitude * (1.0 + 1e-3);
+            let err = (f64::from(got[c]) - want[c]).abs();
+            assert!(err <= bound, "leaf {l} channel {c}: {} vs f64 {} (bound {bound:e})", got[c], want[c]);
+            worst = worst.max(err / bound);
+        }
+    }
+    println!("transfer relight of {} leaves: worst error {worst:.3} of its bound", out.len());
+    assert!(worst > 0.0, "the relight must differ from f64 somewhere (codes round)");
 }

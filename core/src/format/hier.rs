@@ -9,9 +9,12 @@ use serde::{Deserialize, Serialize};
 
 use super::error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
 use super::layout::{le_f32, le_u16, le_u32, rgb16};
-use super::parse::{check_codec, check_offsets, check_prefix, header_error, in_range};
+use super::parse::{
+    check_codec, check_offsets, check_prefix, check_transfer_exponents, header_error, in_range,
+};
 use super::view::Row;
 use super::HIER_FORMAT_VERSION;
+use crate::codec::transfer::decode_transfer;
 use crate::codec::{FfCodec, Frac, EMISSION_MAX, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
 
@@ -31,10 +34,11 @@ pub(crate) struct HierHeader {
     pub index_bytes: u8,
     pub base_solved: bool,
     pub fingerprint: u64,
+    pub transfer: bool,
 }
 
 /// Largest postcard header, in bytes (4 magic + varints: 3 for u16, 5 per u32, 1 per u8/bool, 10 for u64).
-pub(crate) const MAX_HIER_HEADER_LEN: usize = 4 + 3 + 6 * 5 + 4 + 10;
+pub(crate) const MAX_HIER_HEADER_LEN: usize = 4 + 3 + 6 * 5 + 4 + 10 + 1;
 
 /// Bytes of each part of a hierarchical table blob, in blob order (`docs/format.md`, "Hierarchical tables").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -77,6 +81,10 @@ pub struct HierSectionSizes {
     pub link_receiver: usize,
     /// Link form-factor codes.
     pub link_code: usize,
+    /// Transfer scale exponents (3 x `i8` per group; 0 without the transfer basis).
+    pub transfer_exponent: usize,
+    /// Transfer response codes (3 x `u16` per leaf and group, leaf-major; 0 without the transfer basis).
+    pub transfer_code: usize,
     /// The CRC-32.
     pub crc: usize,
 }
@@ -88,6 +96,8 @@ impl HierSectionSizes {
         let nn = h.node_count as usize;
         let g = h.group_count as usize;
         let ib = usize::from(h.index_bytes);
+        // The optional transfer basis: per group 3 exponents, per (leaf, group) 3 codes of 2 bytes.
+        let (tg, tn) = if h.transfer { (g, n) } else { (0, 0) };
         let sizes = HierSectionSizes {
             header: header_len,
             leaf_material: n.checked_mul(2)?,
@@ -108,13 +118,15 @@ impl HierSectionSizes {
             run_exponent: nn,
             link_receiver: (h.link_count as usize).checked_mul(ib)?,
             link_code: (h.link_count as usize).checked_mul(usize::from(h.ff_bits / 8))?,
+            transfer_exponent: tg.checked_mul(3)?,
+            transfer_code: tn.checked_mul(tg)?.checked_mul(6)?,
             crc: 4,
         };
         sizes.parts().into_iter().try_fold(0usize, usize::checked_add)?;
         Some(sizes)
     }
 
-    fn parts(&self) -> [usize; 20] {
+    fn parts(&self) -> [usize; 22] {
         [
             self.header,
             self.leaf_material,
@@ -135,6 +147,8 @@ impl HierSectionSizes {
             self.run_exponent,
             self.link_receiver,
             self.link_code,
+            self.transfer_exponent,
+            self.transfer_code,
             self.crc,
         ]
     }
@@ -175,6 +189,8 @@ pub struct HierTable<'a> {
     run_exponent: &'a [u8],
     link_receiver: &'a [u8],
     link_code: &'a [u8],
+    transfer_exponent: &'a [u8],
+    transfer_code: &'a [u8],
 }
 
 /// Reads index `k` of an index section of `width` bytes (0 past its end).
@@ -312,6 +328,8 @@ impl<'a> HierTable<'a> {
             run_exponent: take(sizes.run_exponent),
             link_receiver: take(sizes.link_receiver),
             link_code: take(sizes.link_code),
+            transfer_exponent: take(sizes.transfer_exponent),
+            transfer_code: take(sizes.transfer_code),
         };
         table.validate()?;
         Ok(table)
@@ -374,6 +392,12 @@ impl<'a> HierTable<'a> {
         }
         self.max_depth = max_depth;
         self.longest_run = longest;
+        if self.header.transfer {
+            if !self.header.base_solved {
+                return Err(TableError::TransferWithoutSolvedBase);
+            }
+            check_transfer_exponents(self.transfer_exponent, self.header.group_count)?;
+        }
         Ok(())
     }
 
@@ -748,6 +772,53 @@ impl<'a> HierTable<'a> {
     pub fn run_sum(&self, node: u32) -> Option<f32> {
         let range = self.run(node)?;
         Some(range.filter_map(|k| self.link(node, k)).map(|(_, f)| f.to_f32()).sum())
+    }
+
+    /// Whether the table carries the optional transfer basis (see [`crate::transfer`]).
+    #[must_use]
+    pub fn has_transfer(&self) -> bool {
+        self.header.transfer
+    }
+
+    /// Transfer-basis scale exponents `K` (RGB) of light `group` (see [`crate::codec::transfer`]). `None`
+    /// without a transfer section or out of range.
+    #[must_use]
+    pub fn transfer_exponent(&self, group: u32) -> Option<[i8; 3]> {
+        (self.has_transfer() && group < self.group_count()).then(|| {
+            let at = group as usize * 3;
+            [0, 1, 2].map(|c| self.transfer_exponent.get(at + c).map_or(0, |&b| b as i8))
+        })
+    }
+
+    /// Transfer-basis response codes (RGB) of `leaf` to light `group` at unit intensity. `None` without a
+    /// transfer section or out of range.
+    #[must_use]
+    pub fn transfer_code(&self, leaf: u32, group: u32) -> Option<[u16; 3]> {
+        if !self.has_transfer() || leaf >= self.leaf_count() || group >= self.group_count() {
+            return None;
+        }
+        // leaf < n, group < g and n * g * 6 bytes fit (checked by the layout), so no overflow.
+        Some(rgb16(self.transfer_code, leaf as usize * self.group_count() as usize + group as usize))
+    }
+
+    /// The decoded transfer response `T_g` (W/m^2 at unit intensity, RGB) of `leaf` to light `group`.
+    #[must_use]
+    pub fn transfer_response(&self, leaf: u32, group: u32) -> Option<[f32; 3]> {
+        let code = self.transfer_code(leaf, group)?;
+        let k = self.transfer_exponent(group)?;
+        Some([0, 1, 2].map(|c| decode_transfer(code[c], k[c])))
+    }
+
+    /// Every response code of `leaf` (3 x `u16` little-endian per light group, groups in order): one slice
+    /// for the transfer relight's inner loop. `None` without a transfer section or out of range.
+    #[must_use]
+    pub fn transfer_codes_of(&self, leaf: u32) -> Option<&'a [u8]> {
+        if !self.has_transfer() || leaf >= self.leaf_count() {
+            return None;
+        }
+        let per = self.group_count() as usize * 6;
+        let at = leaf as usize * per;
+        self.transfer_code.get(at..at + per)
     }
 
     /// Sender `node`'s run as a [`Row`] whose entries (receiver node, decoded factor) need no further checks.

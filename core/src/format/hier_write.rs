@@ -7,8 +7,8 @@
 use super::hier::{check_tree, read_index, HierHeader, HierSectionSizes, PathSum, MAX_HIER_HEADER_LEN};
 use super::layout::{le_f32, le_u32};
 use super::write::{
-    check_groups, check_patches, check_row_offsets, check_value, count, emission_codes, quantize_row_into,
-    GroupSpec, Out, PatchSpec, RowsSpec, WriteError, ROW_SUM_SLACK,
+    check_groups, check_patches, check_row_offsets, check_transfer, check_value, count, emission_codes,
+    quantize_row_into, write_transfer, GroupSpec, Out, PatchSpec, RowsSpec, WriteError, ROW_SUM_SLACK,
 };
 use super::{TableError, HIER_FORMAT_VERSION, MAGIC};
 use crate::codec::{self, f32_to_exact, FfCodec, EXACT_SHIFT};
@@ -44,6 +44,10 @@ pub struct HierSpec<'a> {
     pub base_solved: bool,
     /// Scene fingerprint stored in the header (not interpreted by core).
     pub fingerprint: u64,
+    /// Optional transfer basis (see [`crate::transfer`]): the response `T_g` (W/m^2 at unit intensity, RGB,
+    /// finite and `>= 0`) of every leaf to every light group, leaf-major: `transfer[leaf * groups + g]`.
+    /// Needs `base_solved`.
+    pub transfer: Option<&'a [[f32; 3]]>,
 }
 
 fn header_of(spec: &HierSpec<'_>) -> Result<HierHeader, WriteError> {
@@ -70,6 +74,7 @@ fn header_of(spec: &HierSpec<'_>) -> Result<HierHeader, WriteError> {
         index_bytes: if node_count <= 0x1_0000 { 2 } else { 4 },
         base_solved: spec.base_solved,
         fingerprint: spec.fingerprint,
+        transfer: spec.transfer.is_some(),
     })
 }
 
@@ -135,6 +140,7 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
     check_row_offsets(&links, nn)?;
     check_patches(spec.leaves, spec.materials, true)?;
     check_groups(spec.groups, n, |_, _| Ok(()))?;
+    check_transfer(spec.transfer, n, spec.groups.len(), spec.base_solved)?;
     for j in 0..nn {
         let (s, e) = (links.row_start[j] as usize, links.row_start[j + 1] as usize);
         for k in s..e {
@@ -333,6 +339,9 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
         path.push(k, decoded(o.buf, k)?);
     }
     o.at = codes_at + links.receiver.len() * codec.code_bytes();
+    if let Some(t) = spec.transfer {
+        write_transfer(t, spec.groups.len(), &mut o);
+    }
     let crc = crc32(o.buf.get(..o.at).unwrap_or(&[]));
     o.u32(crc);
     Ok(o.at)

@@ -237,20 +237,24 @@ impl<'a> Table<'a> {
             if !self.header.base_solved {
                 return Err(TableError::TransferWithoutSolvedBase);
             }
-            for g in 0..self.header.group_count {
-                for c in 0..3 {
-                    let k = self.transfer_exponent.get(g as usize * 3 + c).map_or(0, |&b| b as i8);
-                    if !(TRANSFER_MIN_EXPONENT..=TRANSFER_MAX_EXPONENT).contains(&k) {
-                        return Err(TableError::BadQuantParams {
-                            param: QuantParam::TransferExponent,
-                            value: g,
-                        });
-                    }
-                }
-            }
+            check_transfer_exponents(self.transfer_exponent, self.header.group_count)?;
         }
         Ok(())
     }
+}
+
+/// Every transfer scale exponent (3 per group) in `TRANSFER_MIN_EXPONENT..=TRANSFER_MAX_EXPONENT`, or the
+/// error naming the first group that is not (flat and hierarchical tables share the section's layout).
+pub(super) fn check_transfer_exponents(s: &[u8], groups: u32) -> Result<(), TableError> {
+    for g in 0..groups {
+        for c in 0..3 {
+            let k = s.get(g as usize * 3 + c).map_or(0, |&b| b as i8);
+            if !(TRANSFER_MIN_EXPONENT..=TRANSFER_MAX_EXPONENT).contains(&k) {
+                return Err(TableError::BadQuantParams { param: QuantParam::TransferExponent, value: g });
+            }
+        }
+    }
+    Ok(())
 }
 
 pub(super) fn header_error(e: postcard::Error) -> TableError {

@@ -167,6 +167,18 @@ impl<'a> Table<'a> {
         Some(rgb16(self.transfer_code, patch as usize * self.group_count() as usize + group as usize))
     }
 
+    /// Every response code of `patch` (3 x `u16` little-endian per light group, groups in order): one slice
+    /// for the transfer relight's inner loop. `None` without a transfer section or out of range.
+    #[must_use]
+    pub fn transfer_codes_of(&self, patch: u32) -> Option<&'a [u8]> {
+        if !self.has_transfer() || patch >= self.patch_count() {
+            return None;
+        }
+        let per = self.group_count() as usize * 6;
+        let at = patch as usize * per;
+        self.transfer_code.get(at..at + per)
+    }
+
     /// The decoded transfer response `T_g` (W/m^2 at unit intensity, RGB) of `patch` to light `group`.
     #[must_use]
     pub fn transfer_response(&self, patch: u32, group: u32) -> Option<[f32; 3]> {

@@ -450,21 +450,7 @@ pub fn write_table(spec: &TableSpec<'_>, out: &mut [u8]) -> Result<usize, WriteE
         }
         Ok(())
     })?;
-    if let Some(t) = spec.transfer {
-        if !spec.base_solved {
-            return Err(WriteError::TransferNeedsSolvedBase);
-        }
-        let expected =
-            n.checked_mul(spec.groups.len()).ok_or(WriteError::TooMany { what: "transfer responses" })?;
-        if t.len() != expected {
-            return Err(WriteError::TransferLength { expected, got: t.len() });
-        }
-        for (k, rgb) in t.iter().enumerate() {
-            for &v in rgb {
-                check_value("transfer response", k, v, v.is_finite() && (0.0..=TRANSFER_MAX).contains(&v))?;
-            }
-        }
-    }
+    check_transfer(spec.transfer, n, spec.groups.len(), spec.base_solved)?;
     for j in 0..slots {
         let (s, e) = (rows.row_start[j] as usize, rows.row_start[j + 1] as usize);
         let mut sum = 0u128;
@@ -612,9 +598,33 @@ pub(super) fn quantize_row_into(
     e
 }
 
+/// Checks an optional transfer basis of `elements x groups` responses (element-major): a solved base, the
+/// length, every response finite and in `0..=TRANSFER_MAX`. Shared by the flat and hierarchical writers.
+pub(super) fn check_transfer(
+    transfer: Option<&[[f32; 3]]>,
+    elements: usize,
+    groups: usize,
+    base_solved: bool,
+) -> Result<(), WriteError> {
+    let Some(t) = transfer else { return Ok(()) };
+    if !base_solved {
+        return Err(WriteError::TransferNeedsSolvedBase);
+    }
+    let expected = elements.checked_mul(groups).ok_or(WriteError::TooMany { what: "transfer responses" })?;
+    if t.len() != expected {
+        return Err(WriteError::TransferLength { expected, got: t.len() });
+    }
+    for (k, rgb) in t.iter().enumerate() {
+        for &v in rgb {
+            check_value("transfer response", k, v, v.is_finite() && (0.0..=TRANSFER_MAX).contains(&v))?;
+        }
+    }
+    Ok(())
+}
+
 /// Writes the transfer section: per group and channel the step exponent of its largest response, then the
 /// codes, patch-major (validated by the caller: `t.len() = patches x groups`, values in `[0, TRANSFER_MAX]`).
-fn write_transfer(t: &[[f32; 3]], groups: usize, o: &mut Out<'_>) {
+pub(super) fn write_transfer(t: &[[f32; 3]], groups: usize, o: &mut Out<'_>) {
     let exps_at = o.at;
     for g in 0..groups {
         for c in 0..3 {

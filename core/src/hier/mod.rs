@@ -116,6 +116,7 @@
 //!     codec: FfCodec::FLOAT16,
 //!     base_solved: false,
 //!     fingerprint: 0,
+//!     transfer: None,
 //! };
 //! let mut blob = vec![0u8; hier_required_len(&spec)?];
 //! write_hier_table(&spec, &mut blob)?;

@@ -212,7 +212,8 @@ impl Runs<'_> {
 }
 
 /// Bakes `solution` (of `scene`, from [`crate::hierarchy::solve_hierarchical`]) into a hierarchical table with
-/// `bits`-wide form-factor codes.
+/// `bits`-wide form-factor codes; with `transfer`, the table also carries the transfer basis (core's
+/// `transfer` module): every leaf's f64 response to each dynamic light group at unit intensity, quantized.
 ///
 /// # Errors
 /// [`BakeError::Input`] if the network and the leaves disagree or the table's system does not converge;
@@ -222,6 +223,7 @@ pub fn bake_hierarchy(
     scene: &Scene,
     solution: &HierarchicalSolution,
     bits: u32,
+    transfer: bool,
 ) -> Result<BakedHierarchy, BakeError> {
     let codec: FfCodec = codec_for_bits(bits)?;
     let net = &solution.network;
@@ -340,6 +342,11 @@ pub fn bake_hierarchy(
     }
     let materials: Vec<[f32; 3]> =
         scene.materials.iter().map(|m| m.reflectance.as_vec3().to_array()).collect();
+    let leaf_nodes: Vec<usize> = (0..net.nodes.len()).filter(|&k| net.nodes[k].leaf.is_some()).collect();
+    // The transfer basis, leaf-major: each leaf's response to every group at unit intensity.
+    let responses: Option<Vec<[f32; 3]>> = transfer.then(|| {
+        leaf_nodes.iter().flat_map(|&k| b_groups.iter().map(move |b| b[k].as_vec3().to_array())).collect()
+    });
     let spec = HierSpec {
         nodes: &nodes,
         leaves: &leaves,
@@ -349,12 +356,12 @@ pub fn bake_hierarchy(
         codec,
         base_solved: true,
         fingerprint: scene_fingerprint(&solution.leaves),
+        transfer: responses.as_deref(),
     };
     let mut table = vec![0u8; hier_required_len(&spec).map_err(BakeError::Write)?];
     let written = write_hier_table(&spec, &mut table).map_err(BakeError::Write)?;
     table.truncate(written);
     HierTable::parse(&table).map_err(BakeError::Parse)?;
-    let leaf_nodes: Vec<usize> = (0..net.nodes.len()).filter(|&k| net.nodes[k].leaf.is_some()).collect();
     Ok(BakedHierarchy {
         radiosity: leaf_nodes.iter().map(|&k| b_default[k]).collect(),
         static_radiosity: leaf_nodes.iter().map(|&k| b_static[k]).collect(),
@@ -413,6 +420,9 @@ pub struct HierBakeSummary {
     pub shots: u32,
     /// See `shots`.
     pub links_walked: u64,
+    /// With a transfer basis: core's f32 transfer relight at the default intensities, its work units
+    /// (`leaves x (groups + 1)`) and its error (same measure) against the table system's f64 answer.
+    pub transfer: Option<(u32, f64)>,
 }
 
 /// Area-weighted relative L1 difference (largest channel) of `got` against `want`.
@@ -469,7 +479,19 @@ impl HierBakeSummary {
                 break;
             }
         }
+        let transfer = if table.has_transfer() {
+            let intensity: Vec<[f32; 3]> =
+                (0..table.group_count()).map(|g| table.default_intensity(g).unwrap_or([0.0; 3])).collect();
+            let mut b = vec![[0.0f32; 3]; baked.radiosity.len()];
+            let units = radiosity_core::relight_transfer(&table, &intensity, &mut b)
+                .map_err(|e| BakeError::Input(format!("core's transfer relight refuses the table: {e}")))?;
+            let got = b.iter().map(|b| Rgb::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2])));
+            Some((units, relative_l1(&area, got, &baked.radiosity)))
+        } else {
+            None
+        };
         Ok(HierBakeSummary {
+            transfer,
             nodes: baked.counts.0,
             leaves: baked.counts.1,
             links: baked.counts.2,
@@ -518,6 +540,10 @@ impl std::fmt::Display for HierBakeSummary {
             self.error_floor.map_or_else(|| "not converged".to_owned(), |e| format!("{e:.2e}")),
             self.shots,
             self.links_walked
-        )
+        )?;
+        if let Some((units, error)) = self.transfer {
+            write!(f, "\ntransfer relight   {units} units (leaves x (groups + 1)), error {error:.2e} (f32)")?;
+        }
+        Ok(())
     }
 }

@@ -209,7 +209,7 @@ fn hierarchical(
         },
     )
     .map_err(|e| BenchError::Options(format!("hierarchical solve at epsilon {HIER_EPSILON}: {e}")))?;
-    let baked = bake_hierarchy(scene, &sol, 16)?;
+    let baked = bake_hierarchy(scene, &sol, 16, false)?;
     let table = HierTable::parse(&baked.table)
         .map_err(|e| BenchError::Solver(format!("hierarchical table: {e:?}")))?;
     let leaves: Vec<Patch> = baked.solution_leaf.iter().map(|&k| sol.leaves[k].clone()).collect();

@@ -343,17 +343,16 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         } => {
             check_scene_args(&scene)?;
             codec_for_bits(bits)?;
-            if threshold.is_some() || transfer {
+            if threshold.is_some() {
                 return Err(
-                    "--threshold and --transfer apply to --method flat only (a hierarchical table keeps \
-                            every link and has no transfer section yet)"
+                    "--threshold applies to --method flat only (a hierarchical table keeps every link)"
                         .into(),
                 );
             }
             check_outputs([output.clone()])?;
             let (loaded, solution, _) =
                 hierarchical_solution(&scene, &hierarchy, Refinement::Brightness, None)?;
-            let baked = bake_hierarchy(&loaded, &solution, bits)?;
+            let baked = bake_hierarchy(&loaded, &solution, bits, transfer)?;
             let summary = HierBakeSummary::measure(&baked, &solution)?;
             files::write_atomic(&output, &baked.table)?;
             match format {
@@ -1093,7 +1092,7 @@ fn demo_hierarchical(
     };
     let solution = solve_hierarchical(scene, &options)?;
     writeln!(out, "{}", solution.stats)?;
-    let baked = bake_hierarchy(scene, &solution, 16)?;
+    let baked = bake_hierarchy(scene, &solution, 16, false)?;
     let summary = HierBakeSummary::measure(&baked, &solution)?;
     files::write_atomic(table, &baked.table)?;
     writeln!(out, "{summary}\nwrote {}", table.display())?;
