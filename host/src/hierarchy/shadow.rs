@@ -224,8 +224,8 @@ mod tests {
     /// The floor's link to the ceiling, estimated with rays that all passed (as an ancestor's few rays can miss
     /// an occluder: here the plate is left out of its caster), spreads no further than the kernel's range. At
     /// the largest bound that brightness refinement keeps it under, the shadowed half's leaves gather the
-    /// floor's whole average from the ceiling; once their own estimates contradict the link, it is pushed down
-    /// and they gather nothing, within one ray's resolution of their own unoccluded factor.
+    /// floor's whole average from the ceiling; once their own estimates contradict the link (by either rule),
+    /// it is pushed down and they gather nothing, within one ray's resolution of their own unoccluded factor.
     #[test]
     fn a_shadowed_leaf_stops_gathering_its_ancestors_transfer() {
         let (roots, lighting) = roots();
@@ -242,13 +242,18 @@ mod tests {
         let n = rules.rays_per_pair() as f64;
 
         let mut gathered = Vec::new();
-        for check in [false, true] {
+        // Without the check; with it, the leaves' reflected radiosity unknown (zero: the relative rule holds
+        // them to any deviation); with it, their reflected radiosity unbounded (only the oracle's rule applies).
+        for (check, reflected) in [(false, 0.0), (true, 0.0), (true, f64::INFINITY)] {
             let mut tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
             let (floor, ceiling) = (top(&tree, 0).unwrap(), top(&tree, 1).unwrap());
             tree.split(&rules, floor).unwrap();
             let link = open.estimate(&tree, floor, ceiling).link;
             assert_eq!(link.visible, 1.0, "the floor's rays to the ceiling, with nothing between");
             let mut spans = emission_bound(&tree);
+            for span in &mut spans {
+                span.reflected = crate::rgb::Rgb::splat(reflected);
+            }
             let threshold = link_error(&tree, &spans, &link);
             let limits = Limits { threshold, min_area: 0.0, max_nodes: 10_000, max_links: 10_000 };
             let mut links = vec![link];
