@@ -60,7 +60,7 @@ pub(super) struct Estimate {
     /// whatever its brightness.
     trusted: bool,
     /// Occlusion rays cast.
-    rays: u64,
+    pub(super) rays: u64,
 }
 
 /// What the estimates need besides the tree.
@@ -162,7 +162,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
     /// times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a shadow edge
     /// can cross the receiver) and the fraction's standard error; where it is not, the fraction's resolution
     /// (one ray in `rays_per_pair`) times the unoccluded factor. `None` if the two cannot exchange light.
-    fn surface_pair(&self, a: u32, ea: &Element, b: u32, eb: &Element) -> Option<Estimate> {
+    pub(super) fn surface_pair(&self, a: u32, ea: &Element, b: u32, eb: &Element) -> Option<Estimate> {
         // Integrated over the smaller of the two (the kernel is exact over the other), the other direction by
         // reciprocity: the quadrature then never has to resolve a small neighbour's peak on a large element.
         let (aa, ab) = (ea.patch().area, eb.patch().area);
@@ -390,7 +390,8 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
 /// iterated as in their paper): every link whose power error `link_error` under the current `spans` exceeds the
 /// bound is replaced by the pairs of its larger splittable end, which are estimated and refined like the first
 /// pass's; the others stay as they are (not estimated again). The links of `overstated` (`(index, end)`, sorted
-/// by index: `excess::overstated`) are split at that end whatever their error. Returns the links split.
+/// by index, one per link: `excess::overstated`, `shadow::contradicted`) are split at that end whatever their
+/// error. Returns the links split.
 ///
 /// # Errors
 /// [`HierarchyError::Mesh`] if a surface cannot be split.

@@ -27,7 +27,11 @@
 //!      reflected radiosity are refined at their largest charges (`budget` has the terms and why both matter).
 //!      Or, with [`Refinement::Brightness`] (device tables), pass 1's rule again with the solved radiosity
 //!      (`link::refine_brightness`), plus the links on the chain of every leaf that gathers more than 1 in all,
-//!      where an ancestor's average overstates the leaf's own point form factor most (`excess`).
+//!      where an ancestor's average overstates the leaf's own point form factor most (`excess`), and the
+//!      surface links held at an ancestor that a leaf below sees much less of (`shadow`): the leaf's own
+//!      estimate (its own occlusion rays) witnesses a deviation, split for if it contradicts the link's spread
+//!      beyond the bound per link, or if what the leaf reflects wrongly through it exceeds `epsilon` times the
+//!      leaf's reflected radiosity (dim leaves beside an occluder, which the absolute bound leaves coarse).
 //!
 //!   A link whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) or the node
 //!   limit is kept and counted.
@@ -50,7 +54,8 @@
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
-//! node) -> `excess` (chains that gather more than 1) -> `link` (estimates, the per-link oracle, pair refinement) -> `solve` (push-pull iteration, error
+//! node) -> `excess` (chains that gather more than 1) -> `link` (estimates, the per-link oracle, pair refinement)
+//! -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
 //! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
 //! results).
@@ -59,6 +64,7 @@ mod budget;
 mod excess;
 mod link;
 mod network;
+mod shadow;
 mod shoot;
 mod solve;
 mod span;
@@ -561,20 +567,15 @@ fn solve_checked<C: RayCaster + ?Sized>(
                     &mut links,
                     &mut counts,
                 ),
-                Refinement::Brightness => {
-                    // Every leaf whose chain gathers more than 1 in all (no tolerance: the device's table must
-                    // cap whatever excess is left).
-                    let overstated = excess::overstated(&tree, &links, 0.0);
-                    refine_brightness(
-                        &mut tree,
-                        &estimator,
-                        &mut spans,
-                        &limits,
-                        &overstated,
-                        &mut links,
-                        &mut counts,
-                    )
-                }
+                Refinement::Brightness => refine_brightness_pass(
+                    &mut tree,
+                    &estimator,
+                    &mut spans,
+                    &limits,
+                    options.epsilon,
+                    &mut links,
+                    &mut counts,
+                ),
             }
             .map_err(in_pass)?;
         }
@@ -635,6 +636,32 @@ fn solve_checked<C: RayCaster + ?Sized>(
         out.transfer = Some(TransferVectors { b_static, t: per_source, residual, sweeps });
     }
     Ok(out)
+}
+
+/// One pass of brightness refinement after a solve: `link::refine_brightness` with the links on the chain of
+/// every leaf that gathers more than 1 in all (no tolerance: the device's table must cap whatever excess is left,
+/// `excess`) and the links a leaf below them contradicts (`shadow`), split whatever their error. Returns the
+/// links split.
+///
+/// # Errors
+/// As `link::refine_brightness`.
+fn refine_brightness_pass<C: RayCaster + ?Sized>(
+    tree: &mut Tree,
+    estimator: &Estimator<'_, C>,
+    spans: &mut Vec<span::Span>,
+    limits: &Limits,
+    epsilon: f64,
+    links: &mut Vec<link::Link>,
+    counts: &mut RefineCounts,
+) -> Result<u64, HierarchyError> {
+    let mut split_at = excess::overstated(tree, links, 0.0);
+    let shadowed = shadow::contradicted(tree, estimator, spans, limits.threshold, epsilon, links);
+    counts.estimated += shadowed.estimated;
+    counts.rays += shadowed.rays;
+    split_at.extend(shadowed.links);
+    split_at.sort_unstable();
+    split_at.dedup_by_key(|o| o.0);
+    refine_brightness(tree, estimator, spans, limits, &split_at, links, counts)
 }
 
 /// The system on `links` solved with emission `e` per node by the chosen solver.
