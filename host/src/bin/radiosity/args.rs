@@ -329,9 +329,9 @@ pub enum Command {
         /// Settings of `--method hierarchical` (its default refinement here: `brightness`).
         #[command(flatten)]
         hierarchy: HierarchyArgs,
-        /// Also store the transfer basis (the response of every patch to every dynamic light group), so the
-        /// device can relight as B = B_static + sum_g I_g T_g in one pass; the summary reports its bytes and
-        /// relight error.
+        /// Also store the transfer basis (the response of every patch, or every leaf of a hierarchical table, to
+        /// every dynamic light group), so the device can relight as B = B_static + sum_g I_g T_g in one pass;
+        /// the summary reports its bytes and relight error.
         #[arg(long)]
         transfer: bool,
         /// Output format of the summary (`text` or `json`; JSON adds the paths written as `files`).
