@@ -30,7 +30,7 @@
 use core::fmt;
 
 use crate::base::{static_from_codes, static_radiosity};
-use crate::format::{HierTable, Table};
+use crate::format::{HierTable, Table, TransferSection};
 use crate::scalar::Scalar;
 
 /// Why a transfer relight cannot run.
@@ -95,40 +95,17 @@ impl fmt::Display for TransferError {
 impl core::error::Error for TransferError {}
 
 /// A table whose elements can carry a transfer basis: flat tables ([`Table`], one element per patch) and
-/// hierarchical tables ([`HierTable`], one per leaf). The section's layout is the same in both
-/// (`docs/format.md`): per light group three scale exponents, per element and group three response codes,
-/// element-major.
+/// hierarchical tables ([`HierTable`], one per leaf). Both lay the section out alike ([`TransferSection`]).
 pub trait TransferTable {
-    /// Elements relit: patches of a flat table, leaves of a hierarchical one.
-    fn element_count(&self) -> u32;
-    /// Light groups.
-    fn groups(&self) -> u32;
-    /// Whether the table carries the transfer section.
-    fn carries_transfer(&self) -> bool;
-    /// Scale exponents `K` (RGB) of light `group`, `None` without the section or out of range.
-    fn scale_exponents(&self, group: u32) -> Option<[i8; 3]>;
-    /// The response codes of `element` (3 x `u16` little-endian per group), `None` without the section or out
-    /// of range.
-    fn element_codes(&self, element: u32) -> Option<&[u8]>;
+    /// The transfer basis section, `None` without one.
+    fn transfer_section(&self) -> Option<TransferSection<'_>>;
     /// The static radiosity `E_s + rho G_s` of `element` (crate docs, "Static base"), `None` out of range.
     fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]>;
 }
 
 impl TransferTable for Table<'_> {
-    fn element_count(&self) -> u32 {
-        self.patch_count()
-    }
-    fn groups(&self) -> u32 {
-        self.group_count()
-    }
-    fn carries_transfer(&self) -> bool {
-        self.has_transfer()
-    }
-    fn scale_exponents(&self, group: u32) -> Option<[i8; 3]> {
-        self.transfer_exponent(group)
-    }
-    fn element_codes(&self, element: u32) -> Option<&[u8]> {
-        self.transfer_codes_of(element)
+    fn transfer_section(&self) -> Option<TransferSection<'_>> {
+        self.transfer()
     }
     fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]> {
         static_radiosity(self, element)
@@ -136,20 +113,8 @@ impl TransferTable for Table<'_> {
 }
 
 impl TransferTable for HierTable<'_> {
-    fn element_count(&self) -> u32 {
-        self.leaf_count()
-    }
-    fn groups(&self) -> u32 {
-        self.group_count()
-    }
-    fn carries_transfer(&self) -> bool {
-        self.has_transfer()
-    }
-    fn scale_exponents(&self, group: u32) -> Option<[i8; 3]> {
-        self.transfer_exponent(group)
-    }
-    fn element_codes(&self, element: u32) -> Option<&[u8]> {
-        self.transfer_codes_of(element)
+    fn transfer_section(&self) -> Option<TransferSection<'_>> {
+        self.transfer()
     }
     fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]> {
         let rho = self.reflectance(self.material(element)?)?;
@@ -157,10 +122,11 @@ impl TransferTable for HierTable<'_> {
     }
 }
 
-/// Work units of one [`relight_transfer`] of `table`: `elements x (groups + 1)` (saturating).
+/// Work units of one [`relight_transfer`] of `table`: `elements x (groups + 1)` (saturating; 0 without a
+/// transfer section).
 #[must_use]
 pub fn transfer_cost<T: TransferTable>(table: &T) -> u32 {
-    table.element_count().saturating_mul(table.groups().saturating_add(1))
+    table.transfer_section().map_or(0, |t| t.elements().saturating_mul(t.groups().saturating_add(1)))
 }
 
 /// Most light groups a transfer relight takes: the per-group scales live on the stack.
@@ -185,10 +151,10 @@ pub fn relight_transfer<S: Scalar, T: TransferTable>(
     intensity: &[[S; 3]],
     out: &mut [[S; 3]],
 ) -> Result<u32, TransferError> {
-    if !table.carries_transfer() {
+    let Some(section) = table.transfer_section() else {
         return Err(TransferError::NoTransferSection);
-    }
-    let (n, groups) = (table.element_count(), table.groups());
+    };
+    let (n, groups) = (section.elements(), section.groups());
     if groups > MAX_TRANSFER_GROUPS {
         return Err(TransferError::TooManyGroups { groups, max: MAX_TRANSFER_GROUPS });
     }
@@ -200,7 +166,7 @@ pub fn relight_transfer<S: Scalar, T: TransferTable>(
     }
     let mut scales = [[S::transfer_scale(S::ZERO, 0); 3]; MAX_TRANSFER_GROUPS as usize];
     for (g, (rgb, scale)) in intensity.iter().take(groups as usize).zip(scales.iter_mut()).enumerate() {
-        let k = table.scale_exponents(g as u32).unwrap_or([0; 3]);
+        let k = section.exponent(g as u32).unwrap_or([0; 3]);
         for (c, v) in rgb.iter().enumerate() {
             if !v.is_usable() {
                 return Err(TransferError::BadIntensity { group: g as u32, channel: c as u8 });
@@ -211,7 +177,7 @@ pub fn relight_transfer<S: Scalar, T: TransferTable>(
     let scales = scales.get(..groups as usize).unwrap_or(&[]);
     for (i, o) in (0..n).zip(out.iter_mut()) {
         let mut b = table.element_static::<S>(i).unwrap_or([S::ZERO; 3]);
-        let codes = table.element_codes(i).unwrap_or(&[]);
+        let codes = section.codes_of(i).unwrap_or(&[]);
         for (code, scale) in codes.chunks_exact(6).zip(scales) {
             for c in 0..3 {
                 let q = u16::from_le_bytes([code[2 * c], code[2 * c + 1]]);

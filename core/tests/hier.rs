@@ -857,11 +857,13 @@ fn golden_transfer_section_follows_the_link_codes() {
     assert_eq!(&bytes[TOTAL - 4..TOTAL - 4 + section.len()], &section);
     let t = HierTable::parse(&bytes).unwrap();
     assert!(t.has_transfer() && !HierTable::parse(&plain).unwrap().has_transfer());
-    assert_eq!(t.transfer_exponent(0), Some([-1, -1, -20]));
-    assert_eq!(t.transfer_response(1, 0), Some([0.375, 0.25, 1.0 / 1_048_576.0]));
-    assert_eq!(t.transfer_code(0, 0), Some([0xf800, 0xf000, 0]));
-    assert_eq!(t.transfer_codes_of(1), Some(&section[9..15]));
-    assert_eq!((t.transfer_code(2, 0), t.transfer_code(0, 1), t.transfer_codes_of(2)), (None, None, None));
+    let x = t.transfer().unwrap();
+    assert_eq!((x.elements(), x.groups()), (2, 1));
+    assert_eq!(x.exponent(0), Some([-1, -1, -20]));
+    assert_eq!(x.response(1, 0), Some([0.375, 0.25, 1.0 / 1_048_576.0]));
+    assert_eq!(x.code(0, 0), Some([0xf800, 0xf000, 0]));
+    assert_eq!(x.codes_of(1), Some(&section[9..15]));
+    assert_eq!((x.code(2, 0), x.code(0, 1), x.codes_of(2), x.exponent(1)), (None, None, None, None));
     assert_eq!(t.section_sizes().transfer_code, 12);
 }
 

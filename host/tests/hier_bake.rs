@@ -9,17 +9,23 @@
 
 use radiosity_core::{Config, HierOwnedBuffers, HierSolver, HierTable, Outcome};
 use radiosity_host::bake::bake_hierarchy;
-use radiosity_host::hierarchy::{solve_hierarchical, HierarchyOptions};
+use radiosity_host::hierarchy::{solve_hierarchical, HierarchicalSolution, HierarchyOptions};
 use radiosity_host::scene::Scene;
 
-#[test]
-fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
+/// The Cornell box and its hierarchical solve at epsilon 0.1 (a few hundred leaves), solved tightly.
+fn cornell_box_at_epsilon_0_1() -> (Scene, HierarchicalSolution) {
     let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
     let solution = solve_hierarchical(
         &scene,
         &HierarchyOptions { epsilon: 0.1, solve_tolerance: 1e-12, ..HierarchyOptions::default() },
     )
     .unwrap();
+    (scene, solution)
+}
+
+#[test]
+fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
+    let (scene, solution) = cornell_box_at_epsilon_0_1();
     let baked = bake_hierarchy(&scene, &solution, 16, false).unwrap();
     let table = HierTable::parse(&baked.table).unwrap();
     let (nodes, leaves, links) = baked.counts;
@@ -127,12 +133,7 @@ fn hierarchical_transfer_relight_is_within_its_quantization_bound() {
     use radiosity_core::codec::decode_emission;
     use radiosity_core::{relight_transfer, transfer_cost};
     use radiosity_host::rgb::Rgb;
-    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
-    let solution = solve_hierarchical(
-        &scene,
-        &HierarchyOptions { epsilon: 0.1, solve_tolerance: 1e-12, ..HierarchyOptions::default() },
-    )
-    .unwrap();
+    let (scene, solution) = cornell_box_at_epsilon_0_1();
     let baked = bake_hierarchy(&scene, &solution, 16, true).unwrap();
     let table = HierTable::parse(&baked.table).unwrap();
     let groups = table.group_count() as usize;
@@ -158,7 +159,7 @@ fn hierarchical_transfer_relight_is_within_its_quantization_bound() {
             let mut magnitude = es + gs;
             for (gi, i) in intensity.iter().enumerate() {
                 let t = baked.responses[gi][l][c];
-                let k = table.transfer_exponent(gi as u32).unwrap()[c];
+                let k = table.transfer().unwrap().exponent(gi as u32).unwrap()[c];
                 let i = f64::from(i[c]).abs();
                 bound += i * (2f64.powi(-13) * t).max(2f64.powi(i32::from(k) - 27));
                 magnitude += i * t;

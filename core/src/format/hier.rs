@@ -8,13 +8,12 @@
 use serde::{Deserialize, Serialize};
 
 use super::error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
-use super::layout::{le_f32, le_u16, le_u32, rgb16};
+use super::layout::{le_f32, le_u16, le_u32, rgb16, TransferSection};
 use super::parse::{
     check_codec, check_offsets, check_prefix, check_transfer_exponents, header_error, in_range,
 };
 use super::view::Row;
 use super::HIER_FORMAT_VERSION;
-use crate::codec::transfer::decode_transfer;
 use crate::codec::{FfCodec, Frac, EMISSION_MAX, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
 
@@ -780,45 +779,17 @@ impl<'a> HierTable<'a> {
         self.header.transfer
     }
 
-    /// Transfer-basis scale exponents `K` (RGB) of light `group` (see [`crate::codec::transfer`]). `None`
-    /// without a transfer section or out of range.
+    /// The transfer basis section (per leaf), `None` without one.
     #[must_use]
-    pub fn transfer_exponent(&self, group: u32) -> Option<[i8; 3]> {
-        (self.has_transfer() && group < self.group_count()).then(|| {
-            let at = group as usize * 3;
-            [0, 1, 2].map(|c| self.transfer_exponent.get(at + c).map_or(0, |&b| b as i8))
+    pub fn transfer(&self) -> Option<TransferSection<'a>> {
+        self.has_transfer().then(|| {
+            TransferSection::new(
+                self.transfer_exponent,
+                self.transfer_code,
+                self.leaf_count(),
+                self.group_count(),
+            )
         })
-    }
-
-    /// Transfer-basis response codes (RGB) of `leaf` to light `group` at unit intensity. `None` without a
-    /// transfer section or out of range.
-    #[must_use]
-    pub fn transfer_code(&self, leaf: u32, group: u32) -> Option<[u16; 3]> {
-        if !self.has_transfer() || leaf >= self.leaf_count() || group >= self.group_count() {
-            return None;
-        }
-        // leaf < n, group < g and n * g * 6 bytes fit (checked by the layout), so no overflow.
-        Some(rgb16(self.transfer_code, leaf as usize * self.group_count() as usize + group as usize))
-    }
-
-    /// The decoded transfer response `T_g` (W/m^2 at unit intensity, RGB) of `leaf` to light `group`.
-    #[must_use]
-    pub fn transfer_response(&self, leaf: u32, group: u32) -> Option<[f32; 3]> {
-        let code = self.transfer_code(leaf, group)?;
-        let k = self.transfer_exponent(group)?;
-        Some([0, 1, 2].map(|c| decode_transfer(code[c], k[c])))
-    }
-
-    /// Every response code of `leaf` (3 x `u16` little-endian per light group, groups in order): one slice
-    /// for the transfer relight's inner loop. `None` without a transfer section or out of range.
-    #[must_use]
-    pub fn transfer_codes_of(&self, leaf: u32) -> Option<&'a [u8]> {
-        if !self.has_transfer() || leaf >= self.leaf_count() {
-            return None;
-        }
-        let per = self.group_count() as usize * 6;
-        let at = leaf as usize * per;
-        self.transfer_code.get(at..at + per)
     }
 
     /// Sender `node`'s run as a [`Row`] whose entries (receiver node, decoded factor) need no further checks.

@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::codec::transfer::decode_transfer;
+
 /// The postcard-encoded header (the part before the payload).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub(crate) struct Header {
@@ -193,4 +195,72 @@ pub(super) fn le_f32(s: &[u8], i: usize) -> f32 {
 pub(super) fn rgb16(s: &[u8], i: usize) -> [u16; 3] {
     let at = i.saturating_mul(3);
     [le_u16(s, at), le_u16(s, at.saturating_add(1)), le_u16(s, at.saturating_add(2))]
+}
+
+/// A table's transfer basis section (`docs/format.md`): per light group three scale exponents, per element
+/// (a flat table's patch, a hierarchical table's leaf) and group three response codes, element-major. Flat and
+/// hierarchical tables lay it out alike; both hand out this view once parsed.
+#[derive(Clone, Copy, Debug)]
+pub struct TransferSection<'a> {
+    exponents: &'a [u8],
+    codes: &'a [u8],
+    elements: u32,
+    groups: u32,
+}
+
+impl<'a> TransferSection<'a> {
+    /// The view over a parsed table's sections (sizes checked by the parser).
+    pub(super) fn new(exponents: &'a [u8], codes: &'a [u8], elements: u32, groups: u32) -> Self {
+        TransferSection { exponents, codes, elements, groups }
+    }
+
+    /// Elements (patches or leaves) the section has responses for.
+    #[must_use]
+    pub fn elements(&self) -> u32 {
+        self.elements
+    }
+
+    /// Light groups.
+    #[must_use]
+    pub fn groups(&self) -> u32 {
+        self.groups
+    }
+
+    /// Scale exponents `K` (RGB) of light `group`: its codes decode to `f(q) 2^K` W/m^2 at unit intensity
+    /// ([`crate::codec::transfer`]); `None` out of range.
+    #[must_use]
+    pub fn exponent(&self, group: u32) -> Option<[i8; 3]> {
+        (group < self.groups).then(|| {
+            let at = group as usize * 3;
+            [0, 1, 2].map(|c| self.exponents.get(at + c).map_or(0, |&b| b as i8))
+        })
+    }
+
+    /// Response codes (RGB) of `element` to light `group`; `None` out of range.
+    #[must_use]
+    pub fn code(&self, element: u32, group: u32) -> Option<[u16; 3]> {
+        // element < n, group < g and n * g * 6 bytes fit (checked by the layout), so no overflow.
+        (element < self.elements && group < self.groups)
+            .then(|| rgb16(self.codes, element as usize * self.groups as usize + group as usize))
+    }
+
+    /// Every response code of `element` (3 x `u16` little-endian per group, groups in order): one slice for
+    /// the transfer relight's inner loop; `None` out of range.
+    #[must_use]
+    pub fn codes_of(&self, element: u32) -> Option<&'a [u8]> {
+        if element >= self.elements {
+            return None;
+        }
+        let per = self.groups as usize * 6;
+        let at = element as usize * per;
+        self.codes.get(at..at + per)
+    }
+
+    /// The decoded response `T_g` (W/m^2 at unit intensity, RGB) of `element` to light `group`.
+    #[must_use]
+    pub fn response(&self, element: u32, group: u32) -> Option<[f32; 3]> {
+        let code = self.code(element, group)?;
+        let k = self.exponent(group)?;
+        Some([0, 1, 2].map(|c| decode_transfer(code[c], k[c])))
+    }
 }

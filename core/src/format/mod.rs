@@ -20,7 +20,7 @@ pub mod write;
 pub use error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
 pub use hier::{HierMember, HierSectionSizes, HierTable};
 pub use hier_write::{hier_required_len, write_hier_table, HierSpec, NodeSpec};
-pub use layout::SectionSizes;
+pub use layout::{SectionSizes, TransferSection};
 pub use parse::Table;
 pub use view::{Entries, Member, Row};
 pub use write::{

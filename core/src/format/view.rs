@@ -2,9 +2,8 @@
 //! entries. Accessors that take an index from the caller return `Option`; a [`Row`] is proven in bounds by
 //! [`Table::parse`], so iterating its entries checks nothing per entry.
 
-use super::layout::{le_f32, le_u16, le_u32, rgb16, SectionSizes};
+use super::layout::{le_f32, le_u16, le_u32, rgb16, SectionSizes, TransferSection};
 use super::parse::Table;
-use crate::codec::transfer::decode_transfer;
 use crate::codec::{FfCodec, Frac, RowDecoder};
 
 /// One light-group member: a patch and its emission at unit intensity.
@@ -146,45 +145,37 @@ impl<'a> Table<'a> {
         self.header.transfer
     }
 
-    /// Transfer-basis step exponents `k` (RGB) of light `group`: its response codes decode to `code * 2^k`
+    /// The transfer basis section, `None` without one.
+    #[must_use]
+    pub fn transfer(&self) -> Option<TransferSection<'a>> {
+        self.has_transfer().then(|| {
+            TransferSection::new(
+                self.transfer_exponent,
+                self.transfer_code,
+                self.patch_count(),
+                self.group_count(),
+            )
+        })
+    }
+
+    /// Transfer-basis scale exponents `k` (RGB) of light `group`: its response codes decode to `f(q) 2^k`
     /// W/m^2 at unit intensity. `None` without a transfer section or out of range.
     #[must_use]
     pub fn transfer_exponent(&self, group: u32) -> Option<[i8; 3]> {
-        (self.has_transfer() && group < self.group_count()).then(|| {
-            let at = group as usize * 3;
-            [0, 1, 2].map(|c| self.transfer_exponent.get(at + c).map_or(0, |&b| b as i8))
-        })
+        self.transfer()?.exponent(group)
     }
 
     /// Transfer-basis response codes (RGB) of `patch` to light `group` at unit intensity (see
     /// [`crate::transfer`]). `None` without a transfer section or out of range.
     #[must_use]
     pub fn transfer_code(&self, patch: u32, group: u32) -> Option<[u16; 3]> {
-        if !self.has_transfer() || patch >= self.patch_count() || group >= self.group_count() {
-            return None;
-        }
-        // patch < n, group < g and n * g * 6 bytes fit (checked by the layout), so no overflow.
-        Some(rgb16(self.transfer_code, patch as usize * self.group_count() as usize + group as usize))
-    }
-
-    /// Every response code of `patch` (3 x `u16` little-endian per light group, groups in order): one slice
-    /// for the transfer relight's inner loop. `None` without a transfer section or out of range.
-    #[must_use]
-    pub fn transfer_codes_of(&self, patch: u32) -> Option<&'a [u8]> {
-        if !self.has_transfer() || patch >= self.patch_count() {
-            return None;
-        }
-        let per = self.group_count() as usize * 6;
-        let at = patch as usize * per;
-        self.transfer_code.get(at..at + per)
+        self.transfer()?.code(patch, group)
     }
 
     /// The decoded transfer response `T_g` (W/m^2 at unit intensity, RGB) of `patch` to light `group`.
     #[must_use]
     pub fn transfer_response(&self, patch: u32, group: u32) -> Option<[f32; 3]> {
-        let code = self.transfer_code(patch, group)?;
-        let k = self.transfer_exponent(group)?;
-        Some([0, 1, 2].map(|c| decode_transfer(code[c], k[c])))
+        self.transfer()?.response(patch, group)
     }
 
     /// The CRC-32 of the blob (identifies the table; solver state remembers it).

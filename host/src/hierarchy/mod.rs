@@ -557,27 +557,12 @@ fn solve_checked<C: RayCaster + ?Sized>(
             )
             .map_err(in_pass)?;
         } else {
-            match options.refinement {
-                Refinement::Budgets => budget::refine_budgets(
-                    &mut tree,
-                    &estimator,
-                    &mut spans,
-                    &limits,
-                    options.epsilon,
-                    &mut links,
-                    &mut counts,
-                ),
-                Refinement::Brightness => refine_brightness_pass(
-                    &mut tree,
-                    &estimator,
-                    &mut spans,
-                    &limits,
-                    options.epsilon,
-                    &mut links,
-                    &mut counts,
-                ),
-            }
-            .map_err(in_pass)?;
+            let pass = match options.refinement {
+                Refinement::Budgets => budget::refine_budgets,
+                Refinement::Brightness => refine_brightness_pass,
+            };
+            pass(&mut tree, &estimator, &mut spans, &limits, options.epsilon, &mut links, &mut counts)
+                .map_err(in_pass)?;
         }
         solution = solve_with(&tree, &links, &solve::emission(&tree), options)?;
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
