@@ -8,7 +8,9 @@
 # Table and scripts: RADIOSITY_TABLE / RADIOSITY_SCRIPTS (default: the committed synthetic table and
 # scenes/cornell-box.relight.toml). The committed hierarchical (format version 4) table,
 # firmware-sim/tables/hierarchical-enclosure.rft, is run on all builds as well, and its cost model and
-# instructions per link and per node visit are appended to the report.
+# instructions per link and per node visit are appended to the report. Tables with a transfer basis (all three
+# committed ones) are also relit from it; the four-light enclosure (firmware-sim/tables/four-lights.rft, its
+# scripts beside it) runs on the Cortex-M4 builds for the transfer relight's cost per light group.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,7 +30,16 @@ for target in m4-f32 m4-fixed m0-fixed; do
     echo "--- $target"
     "$sim" qemu "${args[@]}" --target "$target" --timeout 120 --log "$out/$target.log" | tee "$out/$target.txt"
 done
-"$sim" cost --log "$out/m4-f32.log" --log "$out/m4-fixed.log" --log "$out/m0-fixed.log" --out "$out/COST.md"
+# The four-light enclosure (transfer relight with four groups against one: the cost per light group).
+lights=(--table firmware-sim/tables/four-lights.rft --scripts firmware-sim/tables/four-lights.relight.toml)
+for target in m4-f32 m4-fixed; do
+    echo "--- $target (four light groups)"
+    "$sim" qemu "${lights[@]}" --target "$target" --timeout 120 --log "$out/four-lights-$target.log" \
+        | tee "$out/four-lights-$target.txt"
+done
+"$sim" cost --log "$out/m4-f32.log" --log "$out/m4-fixed.log" --log "$out/m0-fixed.log" \
+    --transfer-log "$out/four-lights-m4-f32.log" --transfer-log "$out/four-lights-m4-fixed.log" \
+    --out "$out/COST.md"
 {
     printf '\n## Sizes (arm-none-eabi-size) and stack high-water mark (painted stack, scanned under QEMU)\n\n'
     for target in m4-f32 m4-fixed m0-fixed; do

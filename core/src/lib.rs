@@ -74,6 +74,8 @@
 //!   writes `B` of every patch into the caller's `out` (f32 or [`Fixed`], no allocation) and returns the work
 //!   units spent, [`transfer_cost`]`(table) = patches x (groups + 1)` (one unit per patch for the static base,
 //!   one per patch and group: an RGB code triple decoded and three multiply-adds, like one form-factor entry).
+//!   [`relight_transfer_range`] relights a run of elements into a smaller buffer (a light map streamed in
+//!   chunks), bit for bit the same values.
 //! - [`Table::has_transfer`], [`Table::transfer_exponent`], [`Table::transfer_code`],
 //!   [`Table::transfer_response`] to read the section; the writer takes it as [`TableSpec::transfer`].
 //!
@@ -100,7 +102,8 @@
 //! gathered at `a` per unit radiosity of `b`, averaged over `a`) writes sender `b`, receiver `a`,
 //! `F = f_ab A_a / A_b`, and sender `a`, receiver `b`, `F = f_ba A_b / A_a` (reciprocity `A_r F_rs = A_s F_sr`):
 //! the table's system is then the host's gathering system exactly, whether or not the two estimates are
-//! reciprocal. Hierarchical tables have no state map and no transfer section yet: every leaf has state.
+//! reciprocal. Hierarchical tables have no state map (every leaf has state); they may carry a transfer basis
+//! per leaf, laid out as the flat table's ([`HierTable::transfer`]).
 //!
 //! # Cost model: work units
 //! A work unit is one of: one form-factor entry applied (decode, three multiply-adds into power, unshot and
@@ -241,4 +244,7 @@ pub use solver::{
     convergence_floor, selection_len, BufferSizes, Buffers, Config, NoProgressReason, Outcome, Solver,
     SolverError, StaticBuffers,
 };
-pub use transfer::{relight_transfer, transfer_cost, TransferError, TransferTable, MAX_TRANSFER_GROUPS};
+pub use transfer::{
+    relight_transfer, relight_transfer_range, transfer_cost, TransferError, TransferTable,
+    TRANSFER_GROUP_BLOCK,
+};

@@ -47,6 +47,13 @@ pub(crate) mod sealed {
         /// `intensity.mul(from_dyadic(decode_transfer_dyadic(code, k)))`.
         #[must_use]
         fn transfer_term(code: u16, scale: Self::TransferScale) -> Self;
+        /// Whether [`Internal::transfer_term_fast`] gives `transfer_term`'s bits for this scale.
+        #[must_use]
+        fn transfer_fast(scale: &Self::TransferScale) -> bool;
+        /// `transfer_term` without the per-term choice of path, for scales where [`Internal::transfer_fast`]
+        /// holds (for others any value).
+        #[must_use]
+        fn transfer_term_fast(code: u16, scale: Self::TransferScale) -> Self;
     }
 }
 
@@ -153,26 +160,46 @@ impl sealed::Internal for f32 {
     /// same step), so a product with `intensity 2^(k + TRANSFER_RAW_SHIFT)` (exact when that is a normal f32)
     /// is the product with the decoded response, rounded once: one shift, one move and one multiply per
     /// channel. Intensities whose scaled value is not a normal f32 (huge or tiny) take the decode.
-    type TransferScale = (Option<f32>, f32, i8);
-    fn transfer_scale(intensity: f32, k: i8) -> (Option<f32>, f32, i8) {
+    type TransferScale = F32TransferScale;
+    fn transfer_scale(intensity: f32, k: i8) -> F32TransferScale {
         let e = i32::from(k) + TRANSFER_RAW_SHIFT;
         let (a, b) = if e > 127 { (127, e - 127) } else { (e, 0) };
         let first = intensity * pow2_f32(a);
         let scaled = first * pow2_f32(b);
         let exact = |v: f32| v == 0.0 || v.is_normal();
-        let fast = (exact(first) && exact(scaled) && (intensity == 0.0) == (scaled == 0.0)).then_some(scaled);
-        (fast, intensity, k)
+        let fast = exact(first) && exact(scaled) && (intensity == 0.0) == (scaled == 0.0);
+        F32TransferScale { scaled, fast, intensity, k }
     }
     #[inline(always)]
-    fn transfer_term(code: u16, scale: (Option<f32>, f32, i8)) -> f32 {
-        match scale.0 {
-            Some(s) => f32::from_bits(u32::from(code) << 11) * s,
-            None => {
-                let (m, e) = decode_transfer_dyadic(code, scale.2);
-                scale.1 * f32::from_dyadic(m, e)
-            }
+    fn transfer_term(code: u16, scale: F32TransferScale) -> f32 {
+        if scale.fast {
+            f32::transfer_term_fast(code, scale)
+        } else {
+            let (m, e) = decode_transfer_dyadic(code, scale.k);
+            scale.intensity * f32::from_dyadic(m, e)
         }
     }
+    fn transfer_fast(scale: &F32TransferScale) -> bool {
+        scale.fast
+    }
+    #[inline(always)]
+    fn transfer_term_fast(code: u16, scale: F32TransferScale) -> f32 {
+        f32::from_bits(u32::from(code) << 11) * scale.scaled
+    }
+}
+
+/// An f32 intensity prepared for the transfer relight's products (`transfer_scale`).
+#[derive(Clone, Copy, Debug)]
+pub struct F32TransferScale {
+    /// `intensity 2^(k + TRANSFER_RAW_SHIFT)`: exact when `fast`.
+    scaled: f32,
+    /// Whether `scaled` is exact and a normal f32 or zero (with the intensity), so the one-multiply product
+    /// is the product with the decoded response.
+    fast: bool,
+    /// The intensity, for the decode path.
+    intensity: f32,
+    /// The group's scale exponent, for the decode path.
+    k: i8,
 }
 
 /// `log2` of the factor between a FLOAT16 transfer code's value (row exponent 0: subnormal step `2^-26`) and the
@@ -338,6 +365,12 @@ impl sealed::Internal for Fixed {
         let (m, e) = decode_transfer_dyadic(code, scale.1);
         scale.0.mul(Fixed::from_dyadic(m, e))
     }
+    fn transfer_fast(_: &(Fixed, i8)) -> bool {
+        false
+    }
+    fn transfer_term_fast(code: u16, scale: (Fixed, i8)) -> Fixed {
+        Fixed::transfer_term(code, scale)
+    }
 }
 
 #[cfg(test)]
@@ -432,16 +465,24 @@ mod tests {
                     let want = i * f32::from_dyadic(m, e);
                     let got = f32::transfer_term(code, scale);
                     assert_eq!(got.to_bits(), want.to_bits(), "k {k} intensity {i} code {code:#x}");
+                    if f32::transfer_fast(&scale) {
+                        let fast = f32::transfer_term_fast(code, scale);
+                        assert_eq!(
+                            fast.to_bits(),
+                            want.to_bits(),
+                            "fast: k {k} intensity {i} code {code:#x}"
+                        );
+                    }
                 }
             }
         }
         // The fast form is taken wherever the scaled intensity is a normal f32, and only there.
-        assert!(f32::transfer_scale(1.0, 0).0.is_some());
+        assert!(f32::transfer_scale(1.0, 0).fast);
         // 2^(15 + 112) is the largest power of two below f32's top.
-        assert!(f32::transfer_scale(1.0, 15).0.is_some());
-        assert!(f32::transfer_scale(1.0, TRANSFER_MAX_EXPONENT).0.is_none());
-        assert!(f32::transfer_scale(3.0e38, 0).0.is_none());
-        assert!(f32::transfer_scale(1e-44, TRANSFER_MIN_EXPONENT).0.is_none());
+        assert!(f32::transfer_scale(1.0, 15).fast);
+        assert!(!f32::transfer_scale(1.0, TRANSFER_MAX_EXPONENT).fast);
+        assert!(!f32::transfer_scale(3.0e38, 0).fast);
+        assert!(!f32::transfer_scale(1e-44, TRANSFER_MIN_EXPONENT).fast);
     }
 
     #[test]

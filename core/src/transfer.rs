@@ -22,14 +22,16 @@
 //! and per product, and per group `(1 + |I_gc|) 2^-32` (the response's decode is multiplied by the intensity).
 //!
 //! # Cost
-//! One work unit per patch for the static base (decode `E_s`, `G_s`, `rho`: three multiply-adds) plus one per
+//! One work unit per patch for the static base (decode `E_s`, `G_s`, `rho`: three multiply-adds; in a table
+//! without static light, [`Table::has_static_base`] false, nothing is read and the base is 0) plus one per
 //! patch and light group (decode an RGB code triple, three multiply-adds): [`transfer_cost`] `= patches x
 //! (groups + 1)`, the same kind of unit as a form-factor entry applied by a shot (crate docs, "Cost model").
-//! The pass runs outside any step budget and is not resumable: its cost is known from the counts up front.
+//! The pass runs outside any step budget; [`relight_transfer_range`] splits it into runs of elements (each
+//! call's units are its elements x (groups + 1)), so a device can relight in chunks through a small buffer.
 
 use core::fmt;
 
-use crate::base::{static_from_codes, static_radiosity};
+use crate::base::{static_or_zero, static_radiosity};
 use crate::format::{HierTable, Table, TransferSection};
 use crate::scalar::Scalar;
 
@@ -53,12 +55,12 @@ pub enum TransferError {
         /// Entries given.
         got: usize,
     },
-    /// The table has more light groups than a transfer relight takes ([`MAX_TRANSFER_GROUPS`]).
-    TooManyGroups {
-        /// Light groups in the table.
-        groups: u32,
-        /// The most a relight takes.
-        max: u32,
+    /// The first element of a range relight is past the table's last element.
+    RangeOutOfTable {
+        /// The range's first element.
+        first: u32,
+        /// Elements (patches or leaves) in the table.
+        elements: u32,
     },
     /// An intensity is not usable (not finite in f32, saturated in fixed point).
     BadIntensity {
@@ -79,11 +81,8 @@ impl fmt::Display for TransferError {
             TransferError::OutputTooSmall { needed, got } => {
                 write!(f, "transfer relight: output holds {got} elements, the table has {needed}")
             }
-            TransferError::TooManyGroups { groups, max } => {
-                write!(
-                    f,
-                    "transfer relight: the table has {groups} light groups, at most {max} are supported"
-                )
+            TransferError::RangeOutOfTable { first, elements } => {
+                write!(f, "transfer relight: range starts at element {first}, the table has {elements}")
             }
             TransferError::BadIntensity { group, channel } => {
                 write!(f, "transfer relight: intensity of light group {group} channel {channel} not finite")
@@ -101,6 +100,8 @@ pub trait TransferTable {
     fn transfer_section(&self) -> Option<TransferSection<'_>>;
     /// The static radiosity `E_s + rho G_s` of `element` (crate docs, "Static base"), `None` out of range.
     fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]>;
+    /// Whether any element has a static base; without one every [`TransferTable::element_static`] is 0.
+    fn has_static_base(&self) -> bool;
 }
 
 impl TransferTable for Table<'_> {
@@ -110,6 +111,9 @@ impl TransferTable for Table<'_> {
     fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]> {
         static_radiosity(self, element)
     }
+    fn has_static_base(&self) -> bool {
+        Table::has_static_base(self)
+    }
 }
 
 impl TransferTable for HierTable<'_> {
@@ -117,8 +121,11 @@ impl TransferTable for HierTable<'_> {
         self.transfer()
     }
     fn element_static<S: Scalar>(&self, element: u32) -> Option<[S; 3]> {
-        let rho = self.reflectance(self.material(element)?)?;
-        Some(static_from_codes(self.base_emission(element)?, self.base_irradiance(element)?, rho))
+        let rho = || self.reflectance(self.material(element)?);
+        static_or_zero(self.base_emission(element)?, self.base_irradiance(element)?, rho)
+    }
+    fn has_static_base(&self) -> bool {
+        HierTable::has_static_base(self)
     }
 }
 
@@ -129,8 +136,9 @@ pub fn transfer_cost<T: TransferTable>(table: &T) -> u32 {
     table.transfer_section().map_or(0, |t| t.elements().saturating_mul(t.groups().saturating_add(1)))
 }
 
-/// Most light groups a transfer relight takes: the per-group scales live on the stack.
-pub const MAX_TRANSFER_GROUPS: u32 = 64;
+/// Light groups whose scales a transfer relight prepares at a time, on the stack: a table with more groups
+/// takes one pass over the elements per block of this many (the sums' order, and so their bits, unchanged).
+pub const TRANSFER_GROUP_BLOCK: usize = 8;
 
 /// Relights the whole table from its transfer basis: `out[i] = B_static_i + sum_g intensity[g] T_g,i`
 /// (W/m^2, RGB, per channel), for every element `i` (patch of a flat table, leaf of a hierarchical one).
@@ -143,48 +151,135 @@ pub const MAX_TRANSFER_GROUPS: u32 = 64;
 /// scaled by the group's exponent (bit for bit the product with the decoded response).
 ///
 /// # Errors
-/// [`TransferError::NoTransferSection`], [`TransferError::TooManyGroups`],
-/// [`TransferError::IntensityTooShort`], [`TransferError::OutputTooSmall`], [`TransferError::BadIntensity`];
+/// [`TransferError::NoTransferSection`], [`TransferError::IntensityTooShort`], [`TransferError::OutputTooSmall`], [`TransferError::BadIntensity`];
 /// `out` is untouched on error.
 pub fn relight_transfer<S: Scalar, T: TransferTable>(
     table: &T,
     intensity: &[[S; 3]],
     out: &mut [[S; 3]],
 ) -> Result<u32, TransferError> {
+    if let Some(n) = table.transfer_section().map(|t| t.elements()) {
+        if out.len() < n as usize {
+            return Err(TransferError::OutputTooSmall { needed: n, got: out.len() });
+        }
+    }
+    relight_transfer_range(table, intensity, 0, out)
+}
+
+/// [`relight_transfer`] of the elements `first .. first + out.len()` only (clipped at the table's last
+/// element): `out[k]` gets element `first + k`, bit for bit what [`relight_transfer`] writes for it. For a
+/// device that streams its light map in chunks through a small buffer instead of holding every element's
+/// radiosity at once. Returns the work units spent: `count x (groups + 1)` for the `count` elements relit.
+///
+/// # Errors
+/// [`TransferError::RangeOutOfTable`] if `first` is past the last element, and as [`relight_transfer`]
+/// (except [`TransferError::OutputTooSmall`]); `out` is untouched on error.
+// Not inlined: its scales then sit near the top of its own small stack frame, where every load of one is a
+// single instruction (deep in a large caller's frame each takes an extra address computation).
+#[inline(never)]
+pub fn relight_transfer_range<S: Scalar, T: TransferTable>(
+    table: &T,
+    intensity: &[[S; 3]],
+    first: u32,
+    out: &mut [[S; 3]],
+) -> Result<u32, TransferError> {
     let Some(section) = table.transfer_section() else {
         return Err(TransferError::NoTransferSection);
     };
     let (n, groups) = (section.elements(), section.groups());
-    if groups > MAX_TRANSFER_GROUPS {
-        return Err(TransferError::TooManyGroups { groups, max: MAX_TRANSFER_GROUPS });
-    }
     if intensity.len() < groups as usize {
         return Err(TransferError::IntensityTooShort { needed: groups, got: intensity.len() });
     }
-    if out.len() < n as usize {
-        return Err(TransferError::OutputTooSmall { needed: n, got: out.len() });
+    if first > n {
+        return Err(TransferError::RangeOutOfTable { first, elements: n });
     }
-    let mut scales = [[S::transfer_scale(S::ZERO, 0); 3]; MAX_TRANSFER_GROUPS as usize];
-    for (g, (rgb, scale)) in intensity.iter().take(groups as usize).zip(scales.iter_mut()).enumerate() {
-        let k = section.exponent(g as u32).unwrap_or([0; 3]);
-        for (c, v) in rgb.iter().enumerate() {
-            if !v.is_usable() {
-                return Err(TransferError::BadIntensity { group: g as u32, channel: c as u8 });
-            }
-            scale[c] = S::transfer_scale(*v, k[c]);
+    let intensity = intensity.get(..groups as usize).unwrap_or(&[]);
+    for (g, rgb) in intensity.iter().enumerate() {
+        if let Some(c) = rgb.iter().position(|v| !v.is_usable()) {
+            return Err(TransferError::BadIntensity { group: g as u32, channel: c as u8 });
         }
     }
-    let scales = scales.get(..groups as usize).unwrap_or(&[]);
-    for (i, o) in (0..n).zip(out.iter_mut()) {
-        let mut b = table.element_static::<S>(i).unwrap_or([S::ZERO; 3]);
-        let codes = section.codes_of(i).unwrap_or(&[]);
-        for (code, scale) in codes.chunks_exact(6).zip(scales) {
-            for c in 0..3 {
-                let q = u16::from_le_bytes([code[2 * c], code[2 * c + 1]]);
-                b[c] = b[c].add(S::transfer_term(q, scale[c]));
-            }
+    let count = out.len().min((n - first) as usize);
+    let out = out.get_mut(..count).unwrap_or(&mut []);
+    // The first block starts every element from its static base (alone when there are no groups); each block
+    // adds its groups' terms in group order.
+    let mut g0 = 0usize;
+    loop {
+        let block = intensity.get(g0..).unwrap_or(&[]);
+        let block = block.get(..TRANSFER_GROUP_BLOCK).unwrap_or(block);
+        let mut scales = [[S::transfer_scale(S::ZERO, 0); 3]; TRANSFER_GROUP_BLOCK];
+        for (k, (rgb, scale)) in block.iter().zip(scales.iter_mut()).enumerate() {
+            let e = section.exponent((g0 + k) as u32).unwrap_or([0; 3]);
+            *scale = [0, 1, 2].map(|c| S::transfer_scale(rgb[c], e[c]));
         }
-        *o = b;
+        let scales = scales.get(..block.len()).unwrap_or(&[]);
+        let pass = Pass { table, section, first, g0, init: g0 == 0 };
+        // One loop per path, chosen once per block: every product on the one-multiply path (the usual
+        // intensities), or each product choosing its own.
+        if scales.iter().flatten().all(S::transfer_fast) {
+            pass.run(out, scales, S::transfer_term_fast);
+        } else {
+            pass.run(out, scales, S::transfer_term);
+        }
+        g0 += block.len();
+        if g0 >= intensity.len() {
+            break;
+        }
     }
-    Ok(transfer_cost(table))
+    Ok((count as u32).saturating_mul(groups.saturating_add(1)))
+}
+
+/// One pass of [`relight_transfer_range`] over its elements for the block of groups from `g0`.
+struct Pass<'t, 's, T> {
+    table: &'t T,
+    section: TransferSection<'s>,
+    first: u32,
+    /// The block's first group.
+    g0: usize,
+    /// The first block: start from the static base (read only if the table has one), not from `out`.
+    init: bool,
+}
+
+impl<T: TransferTable> Pass<'_, '_, T> {
+    /// `out[k] = (init ? B_static : out[k]) + sum over the block's groups of term(code, the group's scale)`
+    /// per channel, for element `first + k`.
+    #[inline(always)]
+    fn run<S: Scalar>(
+        &self,
+        out: &mut [[S; 3]],
+        scales: &[[S::TransferScale; 3]],
+        term: impl Fn(u16, S::TransferScale) -> S,
+    ) {
+        let statics = self.init && self.table.has_static_base();
+        let start = |k: usize, o: &[S; 3]| {
+            if statics {
+                self.table.element_static::<S>(self.first + k as u32).unwrap_or([S::ZERO; 3])
+            } else if self.init {
+                [S::ZERO; 3]
+            } else {
+                *o
+            }
+        };
+        let per = self.section.groups() as usize * 6;
+        if per == 0 {
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = start(k, o);
+            }
+            return;
+        }
+        let at = self.g0 * 6;
+        let codes = self.section.codes_from(self.first).chunks_exact(per);
+        for (k, (o, element)) in out.iter_mut().zip(codes).enumerate() {
+            let mut b = start(k, o);
+            let block = element.get(at..at + 6 * scales.len()).unwrap_or(&[]);
+            for (code, scale) in block.chunks_exact(6).zip(scales) {
+                for (c, pair) in code.chunks_exact(2).enumerate() {
+                    // A two-byte array copied whole: one 16-bit load where the target allows unaligned ones.
+                    let q = u16::from_le_bytes(pair.try_into().unwrap_or([0; 2]));
+                    b[c] = b[c].add(term(q, scale[c]));
+                }
+            }
+            *o = b;
+        }
+    }
 }

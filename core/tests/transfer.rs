@@ -230,6 +230,41 @@ fn relight_errors_are_named() {
 }
 
 #[test]
+fn range_relights_are_the_whole_relight_in_pieces() {
+    use radiosity_core::relight_transfer_range;
+    let blob = three(known_responses()).write();
+    let t = Table::parse(&blob).unwrap();
+    let intensity = [[1.5f32, 0.25, 3.0], [0.5, 2.0, 0.0]];
+    let mut whole = [[0.0f32; 3]; 3];
+    relight_transfer(&t, &intensity, &mut whole).unwrap();
+    // Every split of the 3 patches into runs, through a buffer of each length: the same bits; units are the
+    // elements relit times (groups + 1), clipped at the last element.
+    for len in 1..=4usize {
+        let mut pieces = Vec::new();
+        let mut units = 0;
+        let mut first = 0u32;
+        while first < 3 {
+            let mut buf = vec![[f32::NAN; 3]; len];
+            units += relight_transfer_range(&t, &intensity, first, &mut buf).unwrap();
+            let count = len.min(3 - first as usize);
+            pieces.extend_from_slice(&buf[..count]);
+            assert!(buf[count..].iter().all(|b| b.iter().all(|v| v.is_nan())), "past the end untouched");
+            first += count as u32;
+        }
+        assert_eq!(units, 3 * 3, "chunks of {len}");
+        let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&pieces), bits(&whole), "chunks of {len}");
+    }
+    let mut buf = [[0.0f32; 3]; 2];
+    assert_eq!(relight_transfer_range(&t, &intensity, 3, &mut buf), Ok(0));
+    assert_eq!(
+        relight_transfer_range(&t, &intensity, 4, &mut buf),
+        Err(TransferError::RangeOutOfTable { first: 4, elements: 3 })
+    );
+    assert_eq!(buf, [[0.0f32; 3]; 2], "untouched on error");
+}
+
+#[test]
 fn writer_rejects_bad_transfer_bases() {
     let mut s = three(known_responses());
     s.transfer.as_mut().unwrap().pop();
@@ -331,4 +366,47 @@ fn decode_is_exact() {
     assert_eq!(decode_transfer(0xf000, -3), 0.125);
     assert_eq!(decode_transfer(1, 0), 2f32.powi(-26));
     assert_eq!(decode_transfer(0xffff, 0), 2.0 - 2f32.powi(-12));
+}
+
+#[test]
+fn tables_with_more_groups_than_a_block_sum_in_group_order() {
+    use radiosity_core::{relight_transfer_range, TRANSFER_GROUP_BLOCK};
+    // Three patches (one with a static base) and 2 blocks and 3 groups of light groups, responses spread over
+    // magnitudes so that the f32 sums depend on their order.
+    let groups = 2 * TRANSFER_GROUP_BLOCK + 3;
+    let mut s = three(Vec::new());
+    s.groups = (0..groups)
+        .map(|g| (g as u32 + 1, [1.0; 3], vec![MemberSpec { patch: (g % 3) as u32, emission: [1.0; 3] }]))
+        .collect();
+    let response = |i: usize, g: usize| {
+        let v = (1.0 + (i * 7 + g * 13) as f32 * 0.37) * 10f32.powi((g % 5) as i32 - 2);
+        [v, 0.5 * v, if g % 4 == 0 { 0.0 } else { 3.0 * v }]
+    };
+    s.transfer = Some((0..3).flat_map(|i| (0..groups).map(move |g| response(i, g))).collect());
+    let blob = s.write();
+    let t = Table::parse(&blob).unwrap();
+    let intensity: Vec<[f32; 3]> = (0..groups).map(|g| [0.3 + g as f32, 1.7, 0.01 * g as f32]).collect();
+    // The naive sum: static base, then every group in order, each term the product with the decoded response.
+    let want: Vec<[f32; 3]> = (0..3u32)
+        .map(|i| {
+            let mut b: [f32; 3] = radiosity_core::static_radiosity(&t, i).unwrap();
+            for (g, rgb) in intensity.iter().enumerate() {
+                let r = t.transfer_response(i, g as u32).unwrap();
+                for c in 0..3 {
+                    b[c] += rgb[c] * r[c];
+                }
+            }
+            b
+        })
+        .collect();
+    let mut out = [[0.0f32; 3]; 3];
+    assert_eq!(relight_transfer(&t, &intensity, &mut out), Ok(3 * (groups as u32 + 1)));
+    let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&out), bits(&want));
+    // The same through a one-element buffer.
+    for i in 0..3u32 {
+        let mut one = [[0.0f32; 3]; 1];
+        relight_transfer_range(&t, &intensity, i, &mut one).unwrap();
+        assert_eq!(bits(&one), bits(&want[i as usize..=i as usize]), "element {i}");
+    }
 }

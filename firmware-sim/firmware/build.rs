@@ -60,6 +60,10 @@ fn run() -> Result<(), String> {
         table_path.display().to_string()
     ));
     code.push_str(&scripts.to_rust());
+    code.push_str(&format!(
+        "/// Light groups of the table (the transfer pass's intensities).\npub const LIGHT_GROUPS: usize = {};\n",
+        table.groups().len()
+    ));
     // SysTick's clock under QEMU: mps2-an386 25 MHz, microbit (nRF51) 16 MHz. With `-icount shift=0` an
     // instruction takes 1 ns, so a tick is 40 (resp. 62.5 = 125 / 2) instructions.
     let target = std::env::var("TARGET").unwrap_or_default();

@@ -138,11 +138,17 @@ pub struct CostReport {
 }
 
 /// Fits and checks every log (`(name, log)`), and writes the markdown report at a clock of `clock_mhz`
-/// (one instruction per cycle, an assumption stated in the report).
+/// (one instruction per cycle, an assumption stated in the report); the transfer relights of `logs` and of
+/// `transfer_logs` (runs of other tables, not calibrated) make its transfer section ([`transfer_report`]).
 ///
 /// # Errors
 /// As [`calibrate`].
-pub fn report(logs: &[(String, QemuLog)], calibrate_on: &str, clock_mhz: f64) -> Result<CostReport, String> {
+pub fn report(
+    logs: &[(String, QemuLog)],
+    transfer_logs: &[(String, QemuLog)],
+    calibrate_on: &str,
+    clock_mhz: f64,
+) -> Result<CostReport, String> {
     let mut models = Vec::new();
     for (name, log) in logs {
         models.push(calibrate(name, log, calibrate_on)?);
@@ -196,7 +202,130 @@ pub fn report(logs: &[(String, QemuLog)], calibrate_on: &str, clock_mhz: f64) ->
             m.build, m.bound_overhead, m.bound_per_unit
         );
     }
+    let all: Vec<(String, QemuLog)> = logs.iter().chain(transfer_logs).cloned().collect();
+    md.push_str(&transfer_report(&all));
     Ok(CostReport { models, violations, markdown: md })
+}
+
+/// The markdown section on the transfer relights of `logs` (`X` lines; empty if no log has any): per build the
+/// relights' work units, instructions, and instructions per unit and per element.
+#[must_use]
+pub fn transfer_report(logs: &[(String, QemuLog)]) -> String {
+    let mut md = String::new();
+    if logs.iter().all(|(_, log)| log.transfers.is_empty()) {
+        return md;
+    }
+    let _ = writeln!(
+        md,
+        "\n## Transfer relight (`relight_transfer_range`)\n\n\
+         The table's transfer basis relit at the initial intensities of every script and at every frame that \
+         changes them (`firmware-sim/src/device.rs`, `run_transfer`), {} elements per call into one buffer, every \
+         relight bit-exact with the host simulator. A relight's work units are `elements x (groups + 1)`: one \
+         per element for its static base (emission, irradiance and reflectance codes decoded, `E + rho G`) and one \
+         per element and light group (an RGB response code triple, three multiply-adds). Instructions are the \
+         relight calls' (SysTick around each call, the output's hashing between calls not counted), so they \
+         include each call's setup (per-group scales); per unit and per element are the largest ratio over the \
+         relights of a build.\n",
+        crate::device::TRANSFER_CHUNK
+    );
+    let _ = writeln!(
+        md,
+        "| build | relights | elements | groups | units each | instructions (min - max) | instr. per unit | \
+         instr. per element |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|");
+    for (name, log) in logs {
+        let t = &log.transfers;
+        let Some(first) = t.first() else { continue };
+        let min = t.iter().map(|x| x.instructions).min().unwrap_or(0);
+        let max = t.iter().map(|x| x.instructions).max().unwrap_or(0);
+        let per = |x: &crate::qemu::QemuTransfer, d: u32| x.instructions as f64 / f64::from(d.max(1));
+        let per_unit = t.iter().map(|x| per(x, x.units)).fold(0.0, f64::max);
+        let per_element = t.iter().map(|x| per(x, x.elements)).fold(0.0, f64::max);
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {} | {} | {} | {min} - {max} | {per_unit:.1} | {per_element:.1} |",
+            t.len(),
+            first.elements,
+            first.groups,
+            first.units
+        );
+    }
+    let marginal = transfer_marginal(logs);
+    if !marginal.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nPer element and light group: least squares `instructions / elements = per element + per group * \
+             groups` over the relights of one build on tables of the same element count and different \
+             group counts (the one-group and the four-group enclosures of 96 patches, no static light): the \
+             marginal cost of a light group, and what every element costs besides (the loop, the output, each \
+             call's share of the per-group scales).\n"
+        );
+        let _ = writeln!(md, "| build | elements | group counts | relights | instr. per element and group | instr. per element |");
+        let _ = writeln!(md, "|---|---|---|---|---|---|");
+        for m in &marginal {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {:.1} | {:.1} |",
+                m.build, m.elements, m.group_counts, m.relights, m.per_group, m.per_element
+            );
+        }
+    }
+    md
+}
+
+/// The marginal cost of a light group in the transfer relight ([`transfer_marginal`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransferMarginal {
+    /// The firmware build (`m4-f32`, ...).
+    pub build: String,
+    /// Elements of the tables compared.
+    pub elements: u32,
+    /// The distinct group counts, comma-separated.
+    pub group_counts: String,
+    /// Relights fitted.
+    pub relights: usize,
+    /// Instructions per element and light group (the fit's slope).
+    pub per_group: f64,
+    /// Instructions per element besides (the fit's intercept).
+    pub per_element: f64,
+}
+
+/// For every build (a log's name ends in it: `m4-f32` of `four-lights-m4-f32`) and element count with relights
+/// at two or more group counts in `logs`: the least-squares line `instructions / elements = per_element +
+/// per_group * groups`.
+#[must_use]
+pub fn transfer_marginal(logs: &[(String, QemuLog)]) -> Vec<TransferMarginal> {
+    let mut by: std::collections::BTreeMap<(String, u32), Vec<(f64, f64)>> = Default::default();
+    for (name, log) in logs {
+        // The build: the log name's last two dash-separated words (`four-lights-m4-f32` ran `m4-f32`).
+        let words: Vec<&str> = name.rsplitn(3, '-').collect();
+        let build = match words.as_slice() {
+            [arith, cpu, ..] => format!("{cpu}-{arith}"),
+            _ => name.clone(),
+        };
+        for x in &log.transfers {
+            let y = x.instructions as f64 / f64::from(x.elements.max(1));
+            by.entry((build.clone(), x.elements)).or_default().push((f64::from(x.groups), y));
+        }
+    }
+    by.into_iter()
+        .filter_map(|((build, elements), points)| {
+            let mut counts: Vec<u32> = points.iter().map(|p| p.0 as u32).collect();
+            counts.sort_unstable();
+            counts.dedup();
+            let (per_element, per_group) = fit(&points)?;
+            let group_counts = counts.iter().map(u32::to_string).collect::<Vec<_>>().join(", ");
+            Some(TransferMarginal {
+                build,
+                elements,
+                group_counts,
+                relights: points.len(),
+                per_group,
+                per_element,
+            })
+        })
+        .collect()
 }
 
 /// The work of one frame on a hierarchical table, by kind, as the host simulator counts it (the firmware runs
@@ -506,6 +635,27 @@ mod tests {
         // Exact data: the only error is f64 rounding of sums of 10 terms of size <= 30.
         assert!((a - 3.0).abs() < 1e-12 && (b - 2.5).abs() < 1e-12, "a {a} b {b}");
         assert!(fit(&[(1.0, 1.0), (1.0, 2.0)]).is_none());
+    }
+
+    #[test]
+    fn transfer_marginal_separates_per_group_from_per_element_per_build() {
+        // 96 elements: 20 instructions per element plus 30 per element and group, exactly.
+        let line = |groups: u32| {
+            let instr = 96 * (20 + 30 * groups);
+            format!("X,f32,s,-1,{},96,{groups},00,{instr}\n", 96 * (groups + 1))
+        };
+        let one = QemuLog::parse(&format!("{}{}", line(1), line(1))).unwrap();
+        let four = QemuLog::parse(&line(4)).unwrap();
+        assert_eq!(one.transfers.len(), 2);
+        assert_eq!((one.transfers[0].frame, one.transfers[0].units, one.transfers[0].groups), (None, 192, 1));
+        // A build of another CPU with other costs, at one group count only: no fit of its own, and not mixed in.
+        let m0 = QemuLog::parse("X,f32,s,3,192,96,1,00,99999\n").unwrap();
+        let logs = [("m4-f32".into(), one), ("four-lights-m4-f32".into(), four), ("m0-f32".into(), m0)];
+        let m = transfer_marginal(&logs);
+        assert_eq!(m.len(), 1, "{m:?}");
+        assert_eq!((m[0].build.as_str(), m[0].elements, m[0].relights), ("m4-f32", 96, 3));
+        assert!((m[0].per_group - 30.0).abs() < 1e-9 && (m[0].per_element - 20.0).abs() < 1e-9, "{m:?}");
+        assert!(transfer_report(&logs).contains("| m4-f32 | 96 | 1, 4 | 3 | 30.0 | 20.0 |"));
     }
 
     #[test]

@@ -25,7 +25,8 @@ use core::fmt;
 
 use radiosity_core::codec::decode_emission_f32;
 use radiosity_core::{
-    Buffers, Config, Fixed, HierBuffers, HierSolver, HierTable, Outcome, Scalar, Solver, SolverError, Table,
+    relight_transfer_range, Buffers, Config, Fixed, HierBuffers, HierSolver, HierTable, Outcome, Scalar,
+    Solver, SolverError, Table, TransferError, TransferTable,
 };
 
 /// One frame of a relight script.
@@ -352,6 +353,13 @@ pub enum RunError {
         /// The step's last outcome.
         outcome: Outcome,
     },
+    /// A transfer relight ([`run_transfer`]) was refused.
+    Transfer {
+        /// Frame (`None`: the initial intensities).
+        frame: Option<u32>,
+        /// Core's error.
+        error: TransferError,
+    },
 }
 
 impl fmt::Display for RunError {
@@ -368,6 +376,7 @@ impl fmt::Display for RunError {
             RunError::BootNotConverged { outcome } => {
                 write!(f, "boot solve of the initial intensities did not converge: {outcome:?}")
             }
+            RunError::Transfer { frame, error } => write!(f, "frame {}: {error}", at(frame)),
         }
     }
 }
@@ -536,6 +545,124 @@ pub fn write_trace<S: Bits, W: fmt::Write>(w: &mut W, script: &str, r: &FrameRec
         r.unshot[0].bits(),
         r.unshot[1].bits(),
         r.unshot[2].bits(),
+        r.hash,
+        r.instructions
+    )
+}
+
+/// Elements one call of the transfer pass relights ([`relight_transfer_range`]): the size of the firmware's
+/// chunk buffer, so its RAM does not grow with the table (a device streams its light map the same way).
+pub const TRANSFER_CHUNK: usize = 64;
+
+/// What the device loop reports for one transfer relight of the whole table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TransferRecord {
+    /// The intensities relit: `None` the script's initial ones, `Some(k)` those of frame `k`.
+    pub frame: Option<u32>,
+    /// Work units of the relight (core's `transfer_cost`: elements x (groups + 1)).
+    pub units: u32,
+    /// Elements relit.
+    pub elements: u32,
+    /// Light groups.
+    pub groups: u32,
+    /// FNV-1a of every element's radiosity bits (element order, then R, G, B), as [`radiosity_hash`].
+    pub hash: u64,
+    /// Instructions of the relight calls, as the [`Meter`] measured (the hashing between calls excluded).
+    pub instructions: u64,
+}
+
+/// The transfer pass of a script: relights `table` from its transfer basis ([`relight_transfer_range`],
+/// through `chunk`, [`TRANSFER_CHUNK`] elements at a time on the firmware) at the script's initial
+/// intensities and at every frame's whose intensities differ from the previous state's
+/// ([`transfer_states`]), timing the relight calls with `meter` and handing each relight's
+/// [`TransferRecord`] to `on_relight`. `intensity` holds the state's intensities in `S` (one entry per light
+/// group). The peer of [`run_script`] for tables baked with the transfer basis: no solver state, every relight
+/// exact up to quantization in one bounded pass.
+///
+/// # Errors
+/// [`RunError::GroupCount`] if a state does not have one intensity per light group, [`RunError::Transfer`]
+/// for core's refusal (no transfer section, a bad intensity) or an empty `chunk` or short `intensity`.
+pub fn run_transfer<T: TransferTable, S: Bits, M: Meter>(
+    table: &T,
+    script: &Script<'_>,
+    (chunk, intensity): (&mut [[S; 3]], &mut [[S; 3]]),
+    meter: &mut M,
+    mut on_relight: impl FnMut(&TransferRecord),
+) -> Result<(), RunError> {
+    let Some(section) = table.transfer_section() else {
+        return Err(RunError::Transfer { frame: None, error: TransferError::NoTransferSection });
+    };
+    let (elements, groups) = (section.elements(), section.groups());
+    if chunk.is_empty() {
+        return Err(RunError::Transfer {
+            frame: None,
+            error: TransferError::OutputTooSmall { needed: elements.min(1), got: 0 },
+        });
+    }
+    let Some(intensity) = intensity.get_mut(..groups as usize) else {
+        return Err(RunError::Transfer {
+            frame: None,
+            error: TransferError::IntensityTooShort { needed: groups, got: intensity.len() },
+        });
+    };
+    for (frame, rgb) in transfer_states(script) {
+        if rgb.len() != groups as usize {
+            return Err(RunError::GroupCount { frame, table: groups, script: rgb.len() });
+        }
+        for (dst, src) in intensity.iter_mut().zip(rgb) {
+            *dst = src.map(S::from_f32);
+        }
+        let (mut units, mut instructions, mut hash) = (0u32, 0u64, Fnv1a::NEW);
+        let mut first = 0u32;
+        while first < elements {
+            meter.start();
+            let result = relight_transfer_range(table, intensity, first, chunk);
+            instructions += meter.stop();
+            units = units.saturating_add(result.map_err(|error| RunError::Transfer { frame, error })?);
+            let count = chunk.len().min((elements - first) as usize);
+            for v in chunk.iter().take(count).flatten() {
+                hash.write(v.bits(), S::BYTES);
+            }
+            first += count as u32;
+        }
+        on_relight(&TransferRecord { frame, units, elements, groups, hash: hash.0, instructions });
+    }
+    Ok(())
+}
+
+/// The states [`run_transfer`] relights, in order: `(None, initial intensities)`, then `(Some(k), frame k's
+/// intensities)` for every frame whose intensities differ from the state before it.
+pub fn transfer_states<'s>(
+    script: &'s Script<'_>,
+) -> impl Iterator<Item = (Option<u32>, &'s [[f32; 3]])> + 's {
+    let frames = (0u32..).zip(script.frames).map(|(k, f)| (Some(k), f.intensity));
+    let mut previous: Option<&[[f32; 3]]> = None;
+    core::iter::once((None, script.initial)).chain(frames).filter(move |&(_, rgb)| {
+        let changed = previous != Some(rgb);
+        previous = Some(rgb);
+        changed
+    })
+}
+
+/// Writes the trace line of a transfer relight (no newline):
+/// `X,<arith>,<script>,<frame or -1>,<units>,<elements>,<groups>,<hash hex>,<instructions>`. As with
+/// [`write_trace`], everything before the last field must agree bit for bit between host and firmware.
+///
+/// # Errors
+/// Those of `w`.
+pub fn write_transfer_trace<S: Bits, W: fmt::Write>(
+    w: &mut W,
+    script: &str,
+    r: &TransferRecord,
+) -> fmt::Result {
+    write!(
+        w,
+        "X,{},{script},{},{},{},{},{:016x},{}",
+        S::NAME,
+        r.frame.map_or(-1, i64::from),
+        r.units,
+        r.elements,
+        r.groups,
         r.hash,
         r.instructions
     )

@@ -39,8 +39,12 @@ enum Command {
         out: PathBuf,
         /// Write the hierarchical (format version 4) enclosure instead
         /// (firmware-sim/tables/hierarchical-enclosure.rft).
-        #[arg(long)]
+        #[arg(long, conflicts_with = "four_lights")]
         hierarchical: bool,
+        /// Write the enclosure with four light groups of one patch each instead
+        /// (firmware-sim/tables/four-lights.rft).
+        #[arg(long)]
+        four_lights: bool,
     },
     /// Run relight scripts on the host simulator (summary on stdout, per-frame CSV with --csv).
     Run {
@@ -75,6 +79,10 @@ enum Command {
         /// A QEMU log (`qemu --log`); repeat for every build. The build is named after the file's stem.
         #[arg(long = "log", value_name = "LOG", required = true)]
         logs: Vec<PathBuf>,
+        /// A QEMU log of another table whose transfer relights join the report's transfer section (e.g. the
+        /// four-light enclosure, for the cost per light group); not calibrated. Repeatable.
+        #[arg(long = "transfer-log", value_name = "LOG")]
+        transfer_logs: Vec<PathBuf>,
         /// The script whose frames calibrate the model.
         #[arg(long, value_name = "SCRIPT", default_value = "budget-sweep")]
         calibrate: String,
@@ -204,9 +212,11 @@ fn file_err(path: &Path) -> impl Fn(std::io::Error) -> String + '_ {
 
 fn run(command: Command) -> Result<(), String> {
     match command {
-        Command::GenTable { out, hierarchical } => {
+        Command::GenTable { out, hierarchical, four_lights } => {
             let blob = if hierarchical {
                 firmware_sim::synthetic::default_hierarchical_table()
+            } else if four_lights {
+                firmware_sim::synthetic::four_lights_table()
             } else {
                 firmware_sim::synthetic::default_table()
             }
@@ -237,16 +247,21 @@ fn run(command: Command) -> Result<(), String> {
         Command::Qemu { input, target, timeout, log } => {
             qemu_run(target.target(), &input.load()?, timeout, log.as_deref())
         }
-        Command::Cost { logs, calibrate, clock_mhz, out, table, scripts } => {
-            let mut parsed = Vec::new();
-            for l in &logs {
-                let text = std::fs::read_to_string(l).map_err(file_err(l))?;
-                let name = l
-                    .file_stem()
-                    .map_or_else(|| l.display().to_string(), |s| s.to_string_lossy().into_owned());
-                parsed.push((name, QemuLog::parse(&text).map_err(|e| format!("{}: {e}", l.display()))?));
-            }
-            let report = cost::report(&parsed, &calibrate, clock_mhz)?;
+        Command::Cost { logs, transfer_logs, calibrate, clock_mhz, out, table, scripts } => {
+            let parse = |paths: &[PathBuf]| -> Result<Vec<(String, QemuLog)>, String> {
+                paths
+                    .iter()
+                    .map(|l| {
+                        let text = std::fs::read_to_string(l).map_err(file_err(l))?;
+                        let name = l
+                            .file_stem()
+                            .map_or_else(|| l.display().to_string(), |s| s.to_string_lossy().into_owned());
+                        Ok((name, QemuLog::parse(&text).map_err(|e| format!("{}: {e}", l.display()))?))
+                    })
+                    .collect()
+            };
+            let parsed = parse(&logs)?;
+            let report = cost::report(&parsed, &parse(&transfer_logs)?, &calibrate, clock_mhz)?;
             let mut markdown = report.markdown.clone();
             let mut violations = report.violations;
             if table.is_some() {
@@ -300,5 +315,15 @@ fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -
     }
     let n = checked.frames_bit_exact;
     println!("bit-exact: host simulator and QEMU agree on all {n} frames ({:?})", target.arith);
+    if checked.transfers_bit_exact > 0 {
+        let t = &checked.log.transfers;
+        let worst = t.iter().map(|x| x.instructions as f64 / f64::from(x.units.max(1))).fold(0.0, f64::max);
+        println!(
+            "transfer relights: {} bit-exact, {} units each, at most {worst:.1} instructions per unit (elements x \
+             (groups + 1))",
+            checked.transfers_bit_exact,
+            t.first().map_or(0, |x| x.units)
+        );
+    }
     Ok(())
 }

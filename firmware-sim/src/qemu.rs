@@ -4,6 +4,9 @@
 //! - `CAL,<instructions expected>,<instructions measured>`: the SysTick calibration loop at boot;
 //! - `B,<arith>,<script>,<boot units>`: a script's boot solve;
 //! - `F,...`: a frame, as [`crate::device::write_trace`] formats it (the last field is instructions);
+//! - `X,...`: a transfer relight (tables with a transfer basis: after the scripts, each script's states
+//!   relit from the basis), as [`crate::device::write_transfer_trace`] formats it (the last field is
+//!   instructions);
 //! - `E,<script>,<message>`: a script failed; `E,panic,<message>` and `E,hardfault,<registers>` (the
 //!   registers stacked by the fault: `pc=0x... lr=0x... xpsr=0x... r0=...`) end the run with a failure status;
 //! - `STACK,<high-water bytes>,<stack region bytes>`: after the last script, the stack's high-water mark (the
@@ -251,6 +254,25 @@ pub struct QemuFrame {
     pub instructions: u64,
 }
 
+/// A transfer-relight line of the firmware's output, split.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct QemuTransfer {
+    /// The line without its last field (what must match the host).
+    pub key: String,
+    /// Script name.
+    pub script: String,
+    /// The state relit: `None` the script's initial intensities, `Some(k)` frame `k`'s.
+    pub frame: Option<u32>,
+    /// Work units of the relight.
+    pub units: u32,
+    /// Elements relit.
+    pub elements: u32,
+    /// Light groups.
+    pub groups: u32,
+    /// Instructions measured.
+    pub instructions: u64,
+}
+
 /// The firmware's output, parsed.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct QemuLog {
@@ -258,6 +280,8 @@ pub struct QemuLog {
     pub calibration: Option<(u64, u64)>,
     /// Frame lines in order.
     pub frames: Vec<QemuFrame>,
+    /// Transfer-relight lines in order.
+    pub transfers: Vec<QemuTransfer>,
     /// `E` lines.
     pub errors: Vec<String>,
     /// Whether `DONE,0` was seen.
@@ -309,6 +333,23 @@ impl QemuLog {
                         instructions: field(&parts, 12, line)?,
                     });
                 }
+                "X" => {
+                    if parts.len() != 9 {
+                        return Err(format!(
+                            "firmware output: transfer line has {} fields: {line:?}",
+                            parts.len()
+                        ));
+                    }
+                    log.transfers.push(QemuTransfer {
+                        key: parts[..8].join(","),
+                        script: parts[2].to_string(),
+                        frame: u32::try_from(field::<i64>(&parts, 3, line)?).ok(),
+                        units: field(&parts, 4, line)?,
+                        elements: field(&parts, 5, line)?,
+                        groups: field(&parts, 6, line)?,
+                        instructions: field(&parts, 8, line)?,
+                    });
+                }
                 "E" => log.errors.push(line.to_string()),
                 "STACK" => {
                     log.stack =
@@ -322,28 +363,40 @@ impl QemuLog {
     }
 }
 
-/// Compares the host simulator's trace with the firmware's, frame by frame, every field but instructions.
-/// Returns the number of frames compared.
+/// Compares the host simulator's trace with the firmware's, frame by frame and transfer relight by transfer
+/// relight, every field but instructions. Returns the numbers of frames and of transfer relights compared.
 ///
 /// # Errors
-/// The first difference (script, frame, both lines), or a differing frame count.
-pub fn compare(host: &[ScriptSummary], qemu: &QemuLog) -> Result<usize, String> {
-    let host_lines: Vec<&str> = host.iter().flat_map(|s| s.trace.iter().map(String::as_str)).collect();
-    for (k, (h, q)) in host_lines.iter().zip(&qemu.frames).enumerate() {
-        let h_key = h.rsplit_once(',').map_or(*h, |(a, _)| a);
-        if h_key != q.key {
-            return Err(format!("frame line {k} differs:\n  host: {h_key}\n  qemu: {}", q.key));
-        }
+/// The first difference (both lines), or a differing count.
+pub fn compare(host: &[ScriptSummary], qemu: &QemuLog) -> Result<(usize, usize), String> {
+    let frames = host.iter().flat_map(|s| s.trace.iter().map(String::as_str));
+    let frames = compare_lines("frame", frames, qemu.frames.iter().map(|f| f.key.as_str()), &qemu.errors)?;
+    let transfers = host.iter().flat_map(|s| s.transfer.iter().map(String::as_str));
+    let qemu_transfers = qemu.transfers.iter().map(|t| t.key.as_str());
+    let transfers = compare_lines("transfer relight", transfers, qemu_transfers, &qemu.errors)?;
+    Ok((frames, transfers))
+}
+
+/// Compares host trace lines (with their last field, instructions, which is dropped) with the firmware's keys.
+fn compare_lines<'h, 'q>(
+    what: &str,
+    host: impl Iterator<Item = &'h str>,
+    qemu: impl Iterator<Item = &'q str>,
+    errors: &[String],
+) -> Result<usize, String> {
+    let host: Vec<&str> = host.map(|h| h.rsplit_once(',').map_or(h, |(a, _)| a)).collect();
+    let qemu: Vec<&str> = qemu.collect();
+    if let Some(k) = host.iter().zip(&qemu).position(|(h, q)| h != q) {
+        return Err(format!("{what} line {k} differs:\n  host: {}\n  qemu: {}", host[k], qemu[k]));
     }
-    if host_lines.len() != qemu.frames.len() {
+    if host.len() != qemu.len() {
         return Err(format!(
-            "host simulated {} frames, the firmware reported {} (errors: {:?})",
-            host_lines.len(),
-            qemu.frames.len(),
-            qemu.errors
+            "host simulated {} {what}s, the firmware reported {} (errors: {errors:?})",
+            host.len(),
+            qemu.len()
         ));
     }
-    Ok(host_lines.len())
+    Ok(host.len())
 }
 
 /// Flash and RAM use of a firmware ELF, from `arm-none-eabi-size -A`.
@@ -462,6 +515,8 @@ pub struct Checked {
     pub board_ram: u64,
     /// Frames compared (all of them agreed: a disagreement is an error).
     pub frames_bit_exact: usize,
+    /// Transfer relights compared (0 for a table without a transfer basis; all agreed).
+    pub transfers_bit_exact: usize,
 }
 
 /// Refuses a table whose solver buffers alone (`table.buffer_bytes`, what the firmware's statics hold) exceed
@@ -523,8 +578,8 @@ pub fn check_firmware<'t>(
         .map_err(|e| format!("{} ({:?}): {e}", target.triple, target.arith))?;
     let host =
         crate::sim::simulate_file(target.arith, table, scripts, None, None).map_err(|e| e.to_string())?;
-    let frames_bit_exact = compare(&host, &log)?;
-    Ok(Checked { log, sizes, stack, board_ram, frames_bit_exact })
+    let (frames_bit_exact, transfers_bit_exact) = compare(&host, &log)?;
+    Ok(Checked { log, sizes, stack, board_ram, frames_bit_exact, transfers_bit_exact })
 }
 
 #[cfg(test)]

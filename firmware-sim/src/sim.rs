@@ -10,6 +10,7 @@ use std::io::Write;
 
 use radiosity_core::{
     BufferSizes, Fixed, HierBufferSizes, HierOwnedBuffers, HierTable, OwnedBuffers, Table, TableError,
+    TransferTable,
 };
 
 use crate::device::{
@@ -115,6 +116,15 @@ impl<'a> AnyTable<'a> {
         }
     }
 
+    /// Whether the table carries a transfer basis (then the device loop also relights from it).
+    #[must_use]
+    pub fn has_transfer(&self) -> bool {
+        match self {
+            AnyTable::Flat(t) => t.transfer_section().is_some(),
+            AnyTable::Hier(t) => t.transfer_section().is_some(),
+        }
+    }
+
     /// The table's light groups, for resolving relight scripts.
     #[must_use]
     pub fn groups(&self) -> crate::script::TableGroups {
@@ -183,6 +193,9 @@ pub struct ScriptSummary {
     pub max_fill: f64,
     /// Trace lines, one per frame (without the instruction field's meaning: 0 on the host).
     pub trace: Vec<String>,
+    /// Trace lines of the transfer pass ([`device::run_transfer`]), one per relight; empty when the table has
+    /// no transfer basis.
+    pub transfer: Vec<String>,
 }
 
 /// Header of the per-frame, per-element CSV (`patch`: the flat table's patch, the hierarchical table's leaf).
@@ -255,7 +268,7 @@ impl std::fmt::Display for SimError {
 impl std::error::Error for SimError {}
 
 /// Runs one script on `buffers` (the device loop), collecting its summary and CSV rows.
-fn simulate_script<'a, T: DeviceTable<'a>, S: Bits + 'a>(
+fn simulate_script<'a, T: DeviceTable<'a> + TransferTable, S: Bits + 'a>(
     table: &T,
     buffers: T::Buffers<S>,
     script: &Script<'_>,
@@ -270,6 +283,7 @@ fn simulate_script<'a, T: DeviceTable<'a>, S: Bits + 'a>(
         units_budgeted: 0,
         max_fill: 0.0,
         trace: Vec::with_capacity(script.frames.len()),
+        transfer: Vec::new(),
     };
     let mut io_error = None;
     let result = device::run_script(table, buffers, script, &mut NoMeter, |r, solver| {
@@ -290,6 +304,16 @@ fn simulate_script<'a, T: DeviceTable<'a>, S: Bits + 'a>(
     summary.boot_units = result.map_err(|error| SimError::Run { script: script.name.to_string(), error })?;
     if let Some(e) = io_error {
         return Err(SimError::Io(e));
+    }
+    if table.transfer_section().is_some() {
+        let mut chunk = vec![[S::ZERO; 3]; device::TRANSFER_CHUNK];
+        let mut intensity = vec![[S::ZERO; 3]; script.initial.len()];
+        device::run_transfer(table, script, (&mut chunk, &mut intensity), &mut NoMeter, |r| {
+            let mut line = String::new();
+            let _ = device::write_transfer_trace::<S, _>(&mut line, script.name, r);
+            summary.transfer.push(line);
+        })
+        .map_err(|error| SimError::Run { script: script.name.to_string(), error })?;
     }
     Ok(summary)
 }

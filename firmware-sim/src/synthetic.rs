@@ -12,6 +12,9 @@
 //! `0..k^2`) is red, wall 1 green, the rest white (the Cornell box's published reflectances, rounded); the
 //! first `LIGHT_PATCHES` patches of wall 5 form the one light group, at unit intensity emitting the Cornell
 //! light's `Ke` (17, 11.8, 4 W/m^2), so the Cornell box's relight scripts (one light group) run on it unchanged.
+//!
+//! Both tables carry a transfer basis (the f64 answer at unit intensity, [`unit_response`]; no static light,
+//! so the static base is zero), so the firmware also measures the transfer relight on them.
 
 use radiosity_core::{
     hier_required_len, required_len, write_hier_table, write_table, FfCodec, GroupSpec, HierSpec, MemberSpec,
@@ -41,6 +44,28 @@ pub const LIGHT_EMISSION: [f32; 3] = [17.0, 11.8, 4.0];
 /// # Errors
 /// A [`WriteError`] from core's writer (e.g. a bad area).
 pub fn uniform_enclosure(k: u32, area: f32, codec: FfCodec) -> Result<Vec<u8>, WriteError> {
+    uniform_enclosure_lights(k, area, codec, 1)
+}
+
+/// Name of light group `g` of [`uniform_enclosure_lights`] with more than one group: `light-<g>`.
+#[must_use]
+pub fn light_name(g: u32) -> String {
+    format!("light-{g}")
+}
+
+/// [`uniform_enclosure`] with `groups` light groups: with one, the group [`LIGHT_NAME`] of the first
+/// [`LIGHT_PATCHES`] patches of wall 5 (the uniform enclosure itself); with more, group `g` is patch
+/// `5 k^2 + g` alone, named [`light_name`]`(g)`, each emitting [`LIGHT_EMISSION`] at unit intensity
+/// (`1 <= groups <= k^2`).
+///
+/// # Errors
+/// A [`WriteError`] from core's writer (e.g. a bad area, or more groups than wall 5 has patches).
+pub fn uniform_enclosure_lights(
+    k: u32,
+    area: f32,
+    codec: FfCodec,
+    groups: u32,
+) -> Result<Vec<u8>, WriteError> {
     let per_wall = k * k;
     let n = 6 * per_wall;
     let patches: Vec<PatchSpec> = (0..n)
@@ -55,10 +80,21 @@ pub fn uniform_enclosure(k: u32, area: f32, codec: FfCodec) -> Result<Vec<u8>, W
             base_irradiance: [0.0; 3],
         })
         .collect();
-    let members: Vec<MemberSpec> = (0..LIGHT_PATCHES.min(per_wall))
-        .map(|m| MemberSpec { patch: 5 * per_wall + m, emission: LIGHT_EMISSION })
-        .collect();
-    let groups = [GroupSpec { id: LIGHT_ID, default_intensity: [1.0; 3], members: &members }];
+    // Members of each group, and each group's id.
+    let lit: Vec<(u32, Vec<MemberSpec>)> = if groups == 1 {
+        let m = (0..LIGHT_PATCHES.min(per_wall))
+            .map(|m| MemberSpec { patch: 5 * per_wall + m, emission: LIGHT_EMISSION });
+        vec![(LIGHT_ID, m.collect())]
+    } else {
+        (0..groups)
+            .map(|g| {
+                let member = MemberSpec { patch: 5 * per_wall + g, emission: LIGHT_EMISSION };
+                (radiosity_core::group_id(&light_name(g)), vec![member])
+            })
+            .collect()
+    };
+    let group_specs: Vec<GroupSpec<'_>> =
+        lit.iter().map(|(id, members)| GroupSpec { id: *id, default_intensity: [1.0; 3], members }).collect();
     let f = if n > 1 { 1.0 / (n - 1) as f32 } else { 0.0 };
     let mut row_start = vec![0u32];
     let mut receiver = Vec::new();
@@ -67,21 +103,76 @@ pub fn uniform_enclosure(k: u32, area: f32, codec: FfCodec) -> Result<Vec<u8>, W
         row_start.push(receiver.len() as u32);
     }
     let form_factor = vec![f; receiver.len()];
+    // The transfer basis: the f64 answer of `B_i = E_i + rho_i f sum_{j != i} B_j` at unit intensity (no static
+    // light, so the static base is zero and solved).
+    let rho: Vec<[f64; 3]> = patches.iter().map(|p| MATERIALS[p.material as usize].map(f64::from)).collect();
+    let responses: Vec<Vec<[f32; 3]>> = lit
+        .iter()
+        .map(|(_, members)| {
+            let emission: Vec<[f64; 3]> = (0..n)
+                .map(|i| {
+                    let on = members.iter().any(|m| m.patch == i);
+                    if on {
+                        LIGHT_EMISSION.map(f64::from)
+                    } else {
+                        [0.0; 3]
+                    }
+                })
+                .collect();
+            unit_response(&emission, &rho, |b| {
+                let total = b.iter().fold([0.0; 3], |t, x| [t[0] + x[0], t[1] + x[1], t[2] + x[2]]);
+                b.iter().map(|x| [0, 1, 2].map(|c| f64::from(f) * (total[c] - x[c]))).collect()
+            })
+        })
+        .collect();
+    // Element-major: every group's response of patch 0, then of patch 1, ...
+    let transfer: Vec<[f32; 3]> = (0..n as usize).flat_map(|i| responses.iter().map(move |r| r[i])).collect();
     let spec = TableSpec {
         patches: &patches,
         materials: &MATERIALS,
-        groups: &groups,
+        groups: &group_specs,
         rows: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
         codec,
-        base_solved: false,
+        base_solved: true,
         fingerprint: 0,
-        transfer: None,
+        transfer: Some(&transfer),
         state: None,
     };
     let mut blob = vec![0u8; required_len(&spec)?];
     let len = write_table(&spec, &mut blob)?;
     blob.truncate(len);
     Ok(blob)
+}
+
+/// The response `T` of every element to the one light group at unit intensity, for the transfer basis: the
+/// solution of `T = E + rho * gather(T)` (per channel) by Jacobi iteration in f64, `gather` the irradiance each
+/// element receives from radiosities `T`. Both enclosures are closed with reflectances at most 0.73, so the
+/// iteration contracts by 0.73 per step: 200 steps leave an error below `1e-27` of the emission.
+fn unit_response(
+    emission: &[[f64; 3]],
+    rho: &[[f64; 3]],
+    gather: impl Fn(&[[f64; 3]]) -> Vec<[f64; 3]>,
+) -> Vec<[f32; 3]> {
+    let mut b = emission.to_vec();
+    for _ in 0..200 {
+        let g = gather(&b);
+        b = (0..b.len()).map(|i| [0, 1, 2].map(|c| emission[i][c] + rho[i][c] * g[i][c])).collect();
+    }
+    b.iter().map(|x| x.map(|v| v as f32)).collect()
+}
+
+/// Light groups of [`four_lights_table`].
+pub const FOUR_LIGHTS: u32 = 4;
+
+/// The committed test table `firmware-sim/tables/four-lights.rft`: [`default_table`]'s enclosure with
+/// [`FOUR_LIGHTS`] light groups of one patch each ([`uniform_enclosure_lights`]), for the transfer relight's
+/// cost per element and light group (against the one-group table) and the device loop with several groups;
+/// its scripts are `firmware-sim/tables/four-lights.relight.toml`.
+///
+/// # Errors
+/// As [`uniform_enclosure_lights`].
+pub fn four_lights_table() -> Result<Vec<u8>, WriteError> {
+    uniform_enclosure_lights(4, 0.01, FfCodec::FLOAT16, FOUR_LIGHTS)
 }
 
 /// The committed test table `firmware-sim/tables/uniform-enclosure.rft`: `k = 4` (96 patches, 9120 entries),
@@ -196,6 +287,41 @@ pub fn hierarchical_enclosure(leaf_area: f32, codec: FfCodec) -> Result<Vec<u8>,
     }
     let receiver: Vec<u32> = links.iter().map(|l| l.1).collect();
     let form_factor: Vec<f32> = links.iter().map(|l| l.2).collect();
+    // The transfer basis: the f64 answer of the links' system at unit intensity. Every node of a face level
+    // has the same area as the nodes it links to, so a link's irradiance at its receiver is `F` times the
+    // sender's mean radiosity; a leaf gathers through its own node and its two ancestors.
+    let emission: Vec<[f64; 3]> = (0..24u32)
+        .map(|l| if HIER_LIGHT_LEAVES.contains(&l) { LIGHT_EMISSION.map(f64::from) } else { [0.0; 3] })
+        .collect();
+    let rho: Vec<[f64; 3]> = leaves.iter().map(|p| MATERIALS[p.material as usize].map(f64::from)).collect();
+    let leaf_of = |n: u32| {
+        let offset = n % HIER_NODES_PER_FACE;
+        HIER_LEAVES.iter().position(|&o| o == offset).map(|k| 4 * (n / HIER_NODES_PER_FACE) + k as u32)
+    };
+    // The leaves below node `n`.
+    let below = |n: u32| -> Vec<u32> {
+        let face = n / HIER_NODES_PER_FACE;
+        match n % HIER_NODES_PER_FACE {
+            0 => (4 * face..4 * face + 4).collect(),
+            1 => vec![4 * face, 4 * face + 1],
+            4 => vec![4 * face + 2, 4 * face + 3],
+            _ => leaf_of(n).into_iter().collect(),
+        }
+    };
+    let transfer = unit_response(&emission, &rho, |b| {
+        let mut gathered = vec![[0.0f64; 3]; b.len()];
+        for &(s, r, f) in &links {
+            let from = below(s);
+            let mean =
+                [0, 1, 2].map(|c| from.iter().map(|&l| b[l as usize][c]).sum::<f64>() / from.len() as f64);
+            for l in below(r) {
+                for c in 0..3 {
+                    gathered[l as usize][c] += f64::from(f) * mean[c];
+                }
+            }
+        }
+        gathered
+    });
     let spec = HierSpec {
         nodes: &nodes,
         leaves: &leaves,
@@ -203,9 +329,9 @@ pub fn hierarchical_enclosure(leaf_area: f32, codec: FfCodec) -> Result<Vec<u8>,
         groups: &groups,
         links: RowsSpec { row_start: &row_start, receiver: &receiver, form_factor: &form_factor },
         codec,
-        base_solved: false,
+        base_solved: true,
         fingerprint: 0,
-        transfer: None,
+        transfer: Some(&transfer),
     };
     let mut blob = vec![0u8; hier_required_len(&spec)?];
     let len = write_hier_table(&spec, &mut blob)?;

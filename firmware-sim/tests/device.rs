@@ -258,6 +258,22 @@ fn hierarchical_frames_respect_their_budgets() {
 }
 
 #[test]
+fn committed_four_lights_table_is_the_generators_output() {
+    let committed = std::fs::read(root().join("firmware-sim/tables/four-lights.rft")).unwrap();
+    assert!(
+        committed == synthetic::four_lights_table().unwrap(),
+        "firmware-sim/tables/four-lights.rft is stale: regenerate it with \
+         `cargo run -p firmware-sim -- gen-table --four-lights firmware-sim/tables/four-lights.rft`"
+    );
+    // Its scripts resolve against it by the groups' names.
+    let table = Table::parse(&committed).unwrap();
+    assert_eq!(table.group_count(), synthetic::FOUR_LIGHTS);
+    ScriptFile::load(&root().join("firmware-sim/tables/four-lights.relight.toml"))
+        .and_then(|f| f.resolve(&TableGroups::of(&table)))
+        .unwrap();
+}
+
+#[test]
 fn committed_table_is_the_generators_output() {
     assert!(
         committed_table() == synthetic::default_table().unwrap(),
@@ -375,8 +391,20 @@ fn comparison_catches_one_flipped_bit_and_a_missing_frame() {
         .unwrap();
     let host = sim::simulate_file(Arith::Fixed, table, &file, Some("flicker"), None).unwrap();
     let text: String = host[0].trace.iter().map(|l| format!("{l}\nB,fixed,flicker,0\n")).collect();
-    let log = QemuLog::parse(&format!("{text}DONE,0\n")).unwrap();
-    assert_eq!(qemu::compare(&host, &log).unwrap(), host[0].trace.len());
+    let transfers: String = host[0].transfer.iter().map(|l| format!("{l}\n")).collect();
+    let log = QemuLog::parse(&format!("{text}{transfers}DONE,0\n")).unwrap();
+    assert!(!host[0].transfer.is_empty(), "the committed table carries a transfer basis");
+    assert_eq!(qemu::compare(&host, &log).unwrap(), (host[0].trace.len(), host[0].transfer.len()));
+
+    // A transfer relight's hash with one bit flipped, and a missing one.
+    let mut bad = log.clone();
+    let key = &mut bad.transfers[1].key;
+    let last = key.pop().unwrap();
+    key.push(if last == '0' { '1' } else { '0' });
+    assert!(qemu::compare(&host, &bad).unwrap_err().contains("transfer relight line 1 differs"));
+    let mut short = log.clone();
+    short.transfers.pop();
+    assert!(qemu::compare(&host, &short).unwrap_err().contains("transfer relight"));
 
     // Flip the lowest bit of the radiosity hash of frame 3.
     let mut bad = log.clone();
@@ -388,4 +416,45 @@ fn comparison_catches_one_flipped_bit_and_a_missing_frame() {
     let mut short = log.clone();
     short.frames.pop();
     assert!(qemu::compare(&host, &short).is_err());
+}
+
+/// Per channel, `|relit - exact| <= 2^-13 |exact| + 2^-27 T_max` (the transfer codes' rounding: half a step of
+/// a 12-bit significand, and the subnormal step under the scale `2^K <= T_max`) plus `ff` times the largest
+/// exact value (the form-factor codes' part, 0 where `exact` is the system of the decoded factors) and four f32
+/// roundings. Returns the worst ratio of error to bound.
+fn transfer_within(relit: &[[f32; 3]], exact: &[[f64; 3]], ff: f64) -> f64 {
+    let mut worst = 0.0f64;
+    for c in 0..3 {
+        let t_max = exact.iter().map(|b| b[c]).fold(0.0, f64::max);
+        for (r, e) in relit.iter().zip(exact) {
+            let bound = 2f64.powi(-13) * e[c]
+                + 2f64.powi(-27) * t_max
+                + ff * t_max
+                + 4.0 * f64::from(f32::EPSILON) * e[c];
+            worst = worst.max((f64::from(r[c]) - e[c]).abs() / bound);
+        }
+    }
+    worst
+}
+
+#[test]
+fn committed_tables_transfer_bases_relight_to_their_systems() {
+    use radiosity_core::relight_transfer;
+    // Flat: the analytic answer at unit intensity (the table's 1 / (n - 1) is its f32, relative 2^-24 off).
+    let bytes = committed_table();
+    let table = Table::parse(&bytes).unwrap();
+    let n = table.patch_count() as usize;
+    let mut out = vec![[0.0f32; 3]; n];
+    relight_transfer(&table, &[[1.0f32; 3]], &mut out).unwrap();
+    let worst = transfer_within(&out, &analytic(n, n / 6), 0.0);
+    assert!(worst <= 1.0, "flat: worst error at {worst} of the bound");
+    // Hierarchical: the system of the table's decoded link factors; the basis was solved with the unquantized
+    // factors, each within 2^-11 relative of its code, which moves the answer by at most
+    // rho / (1 - rho) 2^-11 of the largest value (rho <= 0.73).
+    let bytes = committed_hierarchical_table();
+    let table = HierTable::parse(&bytes).unwrap();
+    let mut out = vec![[0.0f32; 3]; table.leaf_count() as usize];
+    relight_transfer(&table, &[[1.0f32; 3]], &mut out).unwrap();
+    let worst = transfer_within(&out, &hierarchical_system(&table, 1.0), 0.73 / 0.27 * 2f64.powi(-11));
+    assert!(worst <= 1.0, "hierarchical: worst error at {worst} of the bound");
 }

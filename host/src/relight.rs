@@ -19,7 +19,7 @@ use firmware_sim::device::{self, Bits, DeviceSolver, DeviceTable, NoMeter};
 use firmware_sim::qemu::{self, QemuLog, Target};
 use firmware_sim::script::{OwnedScript, ScriptFile, TableGroups};
 use firmware_sim::sim::{self, Arith};
-use radiosity_core::{Fixed, HierTable, Table};
+use radiosity_core::{relight_transfer, Fixed, HierTable, Table, TransferTable};
 use serde::Serialize;
 use thiserror::Error;
 
@@ -129,6 +129,26 @@ pub struct FrameRow {
     pub instructions: Option<u64>,
 }
 
+/// One transfer relight ([`firmware_sim::device::run_transfer`]: the table's transfer basis relit at a script's
+/// initial intensities or at a frame that changes them) in one arithmetic.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TransferRow {
+    /// `f32` or `fixed`.
+    pub arith: Arith,
+    /// Script name.
+    pub script: String,
+    /// The state relit: `None` the script's initial intensities, `Some(k)` frame `k`'s.
+    pub frame: Option<u32>,
+    /// Work units of the relight (elements x (groups + 1)).
+    pub units: u32,
+    /// Against the exact f64 answer for the state's intensities (hierarchical: of the table's own system).
+    pub error: ErrorReport,
+    /// Hierarchical tables only: against the dense f64 answer of the same leaves.
+    pub dense_error: Option<ErrorReport>,
+    /// Instructions of the relight on the emulated Cortex-M4, when QEMU ran.
+    pub instructions: Option<u64>,
+}
+
 /// One firmware run under QEMU.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct QemuRun {
@@ -142,6 +162,8 @@ pub struct QemuRun {
     pub stack: u64,
     /// Frames whose trace (units, outcome, radiosity hash) matched the host simulator's bit for bit.
     pub frames_bit_exact: usize,
+    /// Transfer relights whose trace matched the host simulator's bit for bit (0 without a transfer basis).
+    pub transfers_bit_exact: usize,
 }
 
 /// Everything a relight run measured.
@@ -153,6 +175,8 @@ pub struct RelightReport {
     pub table_bytes: usize,
     /// Per-frame rows, script by script, f32 before fixed point.
     pub frames: Vec<FrameRow>,
+    /// Transfer relights, script by script, f32 before fixed point (empty without a transfer basis).
+    pub transfer: Vec<TransferRow>,
     /// The QEMU runs (empty without `--qemu`).
     pub qemu: Vec<QemuRun>,
     /// The f32 device radiosity of every frame of the first selected script (for pictures), scene patch order.
@@ -218,6 +242,91 @@ fn collect_frames<'a, T: DeviceTable<'a>, S: Bits + 'a>(
         })
         .map_err(|error| sim::SimError::Run { script: script.name.clone(), error })?;
     Ok(frames)
+}
+
+/// One transfer relight on the host: the state, every element's radiosity (f64, table order), the state's
+/// intensities and the work units.
+struct TransferRelit {
+    frame: Option<u32>,
+    b: Vec<Rgb>,
+    intensity: Vec<[f32; 3]>,
+    units: u32,
+}
+
+/// The transfer relights of `script` on `table` in arithmetic `S` (the states of
+/// [`device::transfer_states`]), each element's radiosity in f64 (table order), with the work units; empty
+/// without a transfer basis.
+fn transfer_relights<T: TransferTable, S: Bits>(
+    table: &T,
+    script: &OwnedScript,
+) -> Result<Vec<TransferRelit>, RelightError> {
+    let Some(n) = table.transfer_section().map(|t| t.elements()) else {
+        return Ok(Vec::new());
+    };
+    script.with_view(|view| {
+        device::transfer_states(view)
+            .map(|(frame, rgb)| {
+                let intensity: Vec<[S; 3]> = rgb.iter().map(|v| v.map(S::from_f32)).collect();
+                let mut out = vec![[S::ZERO; 3]; n as usize];
+                let units =
+                    relight_transfer(table, &intensity, &mut out).map_err(|error| sim::SimError::Run {
+                        script: script.name.clone(),
+                        error: device::RunError::Transfer { frame, error },
+                    })?;
+                let b = out.iter().map(|v| Rgb::from_array(v.map(|x| f64::from(x.to_f32())))).collect();
+                Ok(TransferRelit { frame, b, intensity: rgb.to_vec(), units })
+            })
+            .collect()
+    })
+}
+
+/// [`transfer_relights`] in both arithmetics for every script, each compared by `compare` (given the relit
+/// radiosity and the state's intensities; returns the error and, for hierarchical tables, the dense error).
+fn transfer_rows<T: TransferTable>(
+    table: &T,
+    scripts: &[&OwnedScript],
+    mut compare: impl FnMut(
+        &str,
+        Option<u32>,
+        &[Rgb],
+        &[[f32; 3]],
+    ) -> Result<(ErrorReport, Option<ErrorReport>), RelightError>,
+) -> Result<Vec<TransferRow>, RelightError> {
+    let mut rows = Vec::new();
+    for arith in Arith::ALL {
+        for script in scripts {
+            let relit = match arith {
+                Arith::F32 => transfer_relights::<T, f32>(table, script)?,
+                Arith::Fixed => transfer_relights::<T, Fixed>(table, script)?,
+            };
+            for TransferRelit { frame, b, intensity, units } in relit {
+                let (error, dense_error) = compare(&script.name, frame, &b, &intensity)?;
+                let script = script.name.clone();
+                rows.push(TransferRow {
+                    arith,
+                    script,
+                    frame,
+                    units,
+                    error,
+                    dense_error,
+                    instructions: None,
+                });
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// Pairs the transfer relights of a QEMU `log` with `rows` of arithmetic `arith` and records their
+/// instructions.
+fn attach_transfer_instructions(rows: &mut [TransferRow], arith: Arith, log: &QemuLog) {
+    for q in &log.transfers {
+        if let Some(row) =
+            rows.iter_mut().find(|r| r.arith == arith && r.script == q.script && r.frame == q.frame)
+        {
+            row.instructions = Some(q.instructions);
+        }
+    }
 }
 
 /// Checks that `table` holds the patches of `p` (count and areas, to the f32 the table stores).
@@ -310,12 +419,20 @@ pub fn relight(
             }
         }
     }
+    let mut transfer = transfer_rows(&table, &selected, |name, frame, b, rgb| {
+        let intensity: Vec<Rgb> = rgb.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
+        let exact = tv.relight(&intensity)?;
+        let error = metrics::compare(b, &exact, &area)
+            .map_err(|e| script_error(format!("script {name:?} transfer relight {frame:?}: {e}")))?;
+        Ok((error, None))
+    })?;
 
     let mut qemu_runs = Vec::new();
     if options.qemu {
         for (target, name) in [(qemu::M4_F32, "m4-f32"), (qemu::M4_FIXED, "m4-fixed")] {
             let (run, log) = run_firmware(target, name, table, &file, table_path, scripts_path, options)?;
             attach_instructions(&mut rows, target.arith, &log);
+            attach_transfer_instructions(&mut transfer, target.arith, &log);
             qemu_runs.push(run);
         }
     }
@@ -323,6 +440,7 @@ pub fn relight(
         patches: p.patches.len(),
         table_bytes: table_bytes.len(),
         frames: rows,
+        transfer,
         qemu: qemu_runs,
         first_script_frames,
         first_script: selected[0].name.clone(),
@@ -444,17 +562,30 @@ pub fn relight_hierarchical(
             }
         }
     }
+    let mut transfer = transfer_rows(&table, &selected, |name, frame, b, rgb| {
+        let intensity: Vec<Rgb> = rgb.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
+        let own = baked.exact(&intensity).map_err(|e| script_error(e.to_string()))?;
+        let dense_b = dense.relight(&intensity)?;
+        let dense_b: Vec<Rgb> = baked.solution_leaf.iter().map(|&l| dense_b[l]).collect();
+        let compare = |exact: &[Rgb]| {
+            metrics::compare(b, exact, &area)
+                .map_err(|e| script_error(format!("script {name:?} transfer relight {frame:?}: {e}")))
+        };
+        Ok((compare(&own)?, Some(compare(&dense_b)?)))
+    })?;
     let mut qemu_runs = Vec::new();
     if options.qemu {
         let (run, log) =
             run_firmware(qemu::M4_F32, "m4-f32", table, &file, table_path, scripts_path, options)?;
         attach_instructions(&mut rows, Arith::F32, &log);
+        attach_transfer_instructions(&mut transfer, Arith::F32, &log);
         qemu_runs.push(run);
     }
     Ok(RelightReport {
         patches: baked.solution_leaf.len(),
         table_bytes: baked.table.len(),
         frames: rows,
+        transfer,
         qemu: qemu_runs,
         first_script_frames,
         first_script: selected[0].name.clone(),
@@ -499,6 +630,7 @@ fn run_firmware<'t>(
         ram: c.sizes.ram,
         stack: c.stack.high_water,
         frames_bit_exact: c.frames_bit_exact,
+        transfers_bit_exact: c.transfers_bit_exact,
     };
     Ok((run, c.log))
 }
@@ -614,8 +746,17 @@ impl fmt::Display for RelightReport {
             writeln!(
                 f,
                 "QEMU {}: flash {} bytes, static RAM {} bytes, stack {} bytes (high-water mark), host and \
-                 firmware bit-exact on {} frames",
-                q.target, q.flash, q.ram, q.stack, q.frames_bit_exact
+                 firmware bit-exact on {} frames{}",
+                q.target,
+                q.flash,
+                q.ram,
+                q.stack,
+                q.frames_bit_exact,
+                if q.transfers_bit_exact > 0 {
+                    format!(" and {} transfer relights", q.transfers_bit_exact)
+                } else {
+                    String::new()
+                }
             )?;
         }
         let has_qemu = !self.qemu.is_empty();
@@ -654,6 +795,55 @@ impl fmt::Display for RelightReport {
                 r.budget,
                 r.used,
                 if r.converged { "yes" } else { "no" },
+                error_cell(&r.error),
+                fixed.map_or("-".into(), |x| error_cell(&x.error))
+            )?;
+            if has_dense {
+                write!(f, " {:>10}", r.dense_error.as_ref().map_or("-".into(), error_cell))?;
+            }
+            if has_qemu {
+                let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
+                write!(f, " {:>11} {:>11}", show(r.instructions), show(fixed.and_then(|x| x.instructions)))?;
+            }
+            writeln!(f)?;
+        }
+        self.fmt_transfer(f, has_dense, has_qemu)
+    }
+}
+
+impl RelightReport {
+    /// The transfer relights' table (nothing without them).
+    fn fmt_transfer(&self, f: &mut fmt::Formatter<'_>, has_dense: bool, has_qemu: bool) -> fmt::Result {
+        if self.transfer.is_empty() {
+            return Ok(());
+        }
+        writeln!(
+            f,
+            "transfer relights (the table's transfer basis, core's relight_transfer: every element in one pass, \
+             no iteration) at the initial intensities (frame -) and at every frame that changes them:"
+        )?;
+        writeln!(
+            f,
+            "{:<14} {:>5} {:>7} {:>10} {:>10}{}{}",
+            "script",
+            "frame",
+            "units",
+            "err f32",
+            "err fixed",
+            if has_dense { "  dense f32" } else { "" },
+            if has_qemu { "   instr f32 instr fixed" } else { "" }
+        )?;
+        for r in self.transfer.iter().filter(|r| r.arith == Arith::F32) {
+            let fixed = self
+                .transfer
+                .iter()
+                .find(|x| x.arith == Arith::Fixed && x.script == r.script && x.frame == r.frame);
+            write!(
+                f,
+                "{:<14} {:>5} {:>7} {:>10} {:>10}",
+                r.script,
+                r.frame.map_or("-".to_string(), |k| k.to_string()),
+                r.units,
                 error_cell(&r.error),
                 fixed.map_or("-".into(), |x| error_cell(&x.error))
             )?;

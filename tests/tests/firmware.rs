@@ -47,9 +47,11 @@ fn run_table(target: Target, table_path: &std::path::Path, scripts_path: &std::p
 
     // Bit-exact agreement on every frame of every script.
     let host = sim::simulate_file(target.arith, table, &scripts, None, None).unwrap();
-    let frames = qemu::compare(&host, &log).unwrap_or_else(|e| panic!("{e}"));
+    let (frames, transfers) = qemu::compare(&host, &log).unwrap_or_else(|e| panic!("{e}"));
     let expected_frames: usize = scripts.scripts.iter().map(|s| s.frames.len()).sum();
     assert_eq!(frames, expected_frames);
+    // A table with a transfer basis is also relit from it at every script's states, bit-exact as well.
+    assert_eq!(transfers > 0, table.has_transfer(), "transfer relights compared: {transfers}");
 
     // Static RAM plus the stack's high-water mark fit the board's RAM (the memory map the firmware links with).
     let stack = log.stack.expect("no STACK line");
@@ -102,6 +104,14 @@ fn cortex_m4_fixed_point_hierarchical_table_matches_host_bit_for_bit() {
 #[test]
 fn cortex_m0_fixed_point_hierarchical_table_matches_host_bit_for_bit() {
     run_hierarchical(qemu::M0_FIXED);
+}
+
+/// The enclosure with four light groups (`firmware-sim/tables/four-lights.rft` and its scripts): the device loop
+/// and the transfer relight with several groups agree with the host bit for bit.
+#[test]
+fn cortex_m4_f32_four_light_groups_match_host_bit_for_bit() {
+    let dir = root().join("firmware-sim/tables");
+    run_table(qemu::M4_F32, &dir.join("four-lights.rft"), &dir.join("four-lights.relight.toml"), false);
 }
 
 /// A table where only some patches carry run-time state (`scenes/two-rooms.obj`: 101 of 202): the firmware's

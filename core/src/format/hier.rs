@@ -170,6 +170,8 @@ pub struct HierTable<'a> {
     max_depth: u32,
     /// Longest link run.
     longest_run: u32,
+    /// Whether any leaf has a static base code other than 0 (found once, at parse).
+    static_base: bool,
     leaf_material: &'a [u8],
     base_emission: &'a [u8],
     base_irradiance: &'a [u8],
@@ -309,6 +311,7 @@ impl<'a> HierTable<'a> {
             crc: computed,
             max_depth: 0,
             longest_run: 0,
+            static_base: false,
             leaf_material: take(sizes.leaf_material),
             base_emission: take(sizes.base_emission),
             base_irradiance: take(sizes.base_irradiance),
@@ -330,6 +333,7 @@ impl<'a> HierTable<'a> {
             transfer_exponent: take(sizes.transfer_exponent),
             transfer_code: take(sizes.transfer_code),
         };
+        table.static_base = super::parse::any_nonzero(table.base_emission, table.base_irradiance);
         table.validate()?;
         Ok(table)
     }
@@ -771,6 +775,13 @@ impl<'a> HierTable<'a> {
     pub fn run_sum(&self, node: u32) -> Option<f32> {
         let range = self.run(node)?;
         Some(range.filter_map(|k| self.link(node, k)).map(|(_, f)| f.to_f32()).sum())
+    }
+
+    /// Whether any leaf has a static base (emission or irradiance code other than 0); without one every
+    /// leaf's static radiosity is 0 and the transfer relight skips it.
+    #[must_use]
+    pub fn has_static_base(&self) -> bool {
+        self.static_base
     }
 
     /// Whether the table carries the optional transfer basis (see [`crate::transfer`]).

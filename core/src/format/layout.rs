@@ -193,8 +193,14 @@ pub(super) fn le_f32(s: &[u8], i: usize) -> f32 {
 
 /// The RGB triple of `u16` codes at element `i` of a section of triples.
 pub(super) fn rgb16(s: &[u8], i: usize) -> [u16; 3] {
-    let at = i.saturating_mul(3);
-    [le_u16(s, at), le_u16(s, at.saturating_add(1)), le_u16(s, at.saturating_add(2))]
+    // One range check for the three values.
+    let at = i.saturating_mul(6);
+    match s.get(at..at.saturating_add(6)) {
+        Some(&[r0, r1, g0, g1, b0, b1]) => {
+            [u16::from_le_bytes([r0, r1]), u16::from_le_bytes([g0, g1]), u16::from_le_bytes([b0, b1])]
+        }
+        _ => [0; 3],
+    }
 }
 
 /// A table's transfer basis section (`docs/format.md`): per light group three scale exponents, per element
@@ -242,6 +248,14 @@ impl<'a> TransferSection<'a> {
         // element < n, group < g and n * g * 6 bytes fit (checked by the layout), so no overflow.
         (element < self.elements && group < self.groups)
             .then(|| rgb16(self.codes, element as usize * self.groups as usize + group as usize))
+    }
+
+    /// The response codes of every element from `element` on (element-major, as [`TransferSection::codes_of`]
+    /// of each in turn); empty from the last element on.
+    #[must_use]
+    pub fn codes_from(&self, element: u32) -> &'a [u8] {
+        let at = (element as usize).saturating_mul(self.groups as usize * 6);
+        self.codes.get(at..).unwrap_or(&[])
     }
 
     /// Every response code of `element` (3 x `u16` little-endian per group, groups in order): one slice for

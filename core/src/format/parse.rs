@@ -36,6 +36,13 @@ pub struct Table<'a> {
     pub(super) entry_code: &'a [u8],
     pub(super) transfer_exponent: &'a [u8],
     pub(super) transfer_code: &'a [u8],
+    /// Whether any patch has a static base code other than 0 (found once, at parse).
+    pub(super) static_base: bool,
+}
+
+/// Whether any byte of `a` or `b` is not 0 (a static base section with some light in it).
+pub(super) fn any_nonzero(a: &[u8], b: &[u8]) -> bool {
+    a.iter().chain(b).any(|&x| x != 0)
 }
 
 /// Checks the magic and that the version is `expected`; a table of the other layout (flat or hierarchical) is
@@ -156,7 +163,9 @@ impl<'a> Table<'a> {
             entry_code: take(sizes.entry_code),
             transfer_exponent: take(sizes.transfer_exponent),
             transfer_code: take(sizes.transfer_code),
+            static_base: false,
         };
+        let table = Table { static_base: any_nonzero(table.base_emission, table.base_irradiance), ..table };
         table.validate()?;
         Ok(table)
     }

@@ -139,6 +139,13 @@ impl<'a> Table<'a> {
         self.header.fingerprint
     }
 
+    /// Whether any patch has a static base (emission or irradiance code other than 0); without one every
+    /// patch's static radiosity is 0 and the transfer relight skips it.
+    #[must_use]
+    pub fn has_static_base(&self) -> bool {
+        self.static_base
+    }
+
     /// Whether the table carries the optional transfer basis (see [`crate::transfer`]).
     #[must_use]
     pub fn has_transfer(&self) -> bool {

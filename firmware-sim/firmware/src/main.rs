@@ -1,7 +1,8 @@
 //! The radiosity device as Cortex-M firmware: the table in flash (flat or hierarchical: the build script names
 //! its type, `FirmwareTable`), the solver in static buffers sized from the table's counts, every compiled-in
 //! relight script run through firmware-sim's device loop (the same for both formats), each frame timed
-//! with SysTick under QEMU's `-icount` (deterministic: instructions, not wall time). Output goes through
+//! with SysTick under QEMU's `-icount` (deterministic: instructions, not wall time); a table with a transfer
+//! basis is then relit from it at every script's states (`run_transfer`, timed the same way). Output goes through
 //! semihosting, one line per event (format: `firmware_sim::qemu` module docs); the exit status is 0 if every
 //! script ran.
 //!
@@ -31,11 +32,14 @@ use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::{entry, exception, ExceptionFrame, STACK_PAINT_VALUE};
 use cortex_m_semihosting::{debug, hio};
-use firmware_sim::device::{run_script, write_trace, Bits, Meter};
+use firmware_sim::device::{
+    run_script, run_transfer, write_trace, write_transfer_trace, Bits, Meter, TransferRecord, TRANSFER_CHUNK,
+};
+use radiosity_core::{Scalar, TransferTable};
 mod generated {
     include!(concat!(env!("OUT_DIR"), "/generated.rs"));
 }
-use generated::{DeviceBuffers, FirmwareTable, INSTRUCTIONS_PER_TICK, SCRIPTS, TABLE};
+use generated::{DeviceBuffers, FirmwareTable, INSTRUCTIONS_PER_TICK, LIGHT_GROUPS, SCRIPTS, TABLE};
 
 /// The solver's arithmetic.
 #[cfg(not(feature = "fixed"))]
@@ -126,9 +130,21 @@ impl fmt::Display for Trace<'_> {
     }
 }
 
+/// A transfer relight's trace line, for `emit`.
+struct TransferTrace<'a>(&'a str, &'a TransferRecord);
+
+impl fmt::Display for TransferTrace<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write_transfer_trace::<S, _>(f, self.0, self.1)
+    }
+}
+
 #[entry]
 fn main() -> ! {
     static mut BUFFERS: DeviceBuffers<S> = DeviceBuffers::<S>::new();
+    // The transfer pass's output, one chunk of elements at a time, and its intensities.
+    static mut CHUNK: [[S; 3]; TRANSFER_CHUNK] = [[<S as Scalar>::ZERO; 3]; TRANSFER_CHUNK];
+    static mut INTENSITY: [[S; 3]; LIGHT_GROUPS] = [[<S as Scalar>::ZERO; 3]; LIGHT_GROUPS];
 
     let Some(mut p) = cortex_m::Peripherals::take() else { fail("peripherals taken twice") };
     p.SYST.set_clock_source(SystClkSource::Core);
@@ -176,6 +192,18 @@ fn main() -> ! {
             Err(e) => {
                 failures += 1;
                 emit(format_args!("E,{},{e}", script.name));
+            }
+        }
+    }
+    // A table with a transfer basis: every script's states relit from it, in chunks.
+    if table.transfer_section().is_some() {
+        for script in SCRIPTS {
+            let result = run_transfer(&table, script, (&mut *CHUNK, &mut *INTENSITY), &mut meter, |record| {
+                emit(format_args!("{}", TransferTrace(script.name, record)));
+            });
+            if let Err(e) = result {
+                failures += 1;
+                emit(format_args!("E,{},transfer: {e}", script.name));
             }
         }
     }

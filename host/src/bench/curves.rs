@@ -117,7 +117,7 @@ impl SceneRun<'_> {
                 table_bytes: baked.table.len(),
                 points: vec![CurvePoint {
                     work: Some(u64::from(work)),
-                    instructions: Some(f64::from(work) * self.instr.of(arith)),
+                    instructions: Some(f64::from(work) * self.instr.transfer_of(arith)),
                     seconds,
                     rel_l2: e.rel_l2,
                     max_rel: e.max_rel,

@@ -407,13 +407,18 @@ pub struct BenchResults {
     pub total_seconds: f64,
 }
 
-/// Model instructions per work unit of each arithmetic: the firmware cost model's bound.
+/// Model instructions per work unit of each arithmetic: the firmware cost model's bound for solver units, and
+/// the measured rate of the transfer relight's units.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InstructionsPerUnit {
     /// The `m4-f32` build's bound.
     pub f32: f64,
     /// The `m4-fixed` build's bound.
     pub fixed: f64,
+    /// The `m4-f32` build's instructions per transfer-relight unit (COST.md's transfer section).
+    pub transfer_f32: f64,
+    /// The `m4-fixed` build's instructions per transfer-relight unit.
+    pub transfer_fixed: f64,
 }
 
 impl InstructionsPerUnit {
@@ -425,10 +430,38 @@ impl InstructionsPerUnit {
             Arith::Fixed => self.fixed,
         }
     }
+
+    /// Instructions per transfer-relight unit of `arith`.
+    #[must_use]
+    pub fn transfer_of(&self, arith: Arith) -> f64 {
+        match arith {
+            Arith::F32 => self.transfer_f32,
+            Arith::Fixed => self.transfer_fixed,
+        }
+    }
 }
 
-/// The firmware cost model's bound instructions per work unit for the `m4-f32` and `m4-fixed` builds, from the
-/// table in `firmware-sim/COST.md`.
+/// Instructions per transfer-relight unit of firmware build `build` (`m4-f32`, `m4-fixed`): the `instr. per unit`
+/// column of the first transfer-relight table in `firmware-sim/COST.md` (the uniform enclosure's, the largest
+/// ratio over its relights).
+///
+/// # Errors
+/// If the section, its column or the build's row is missing or does not parse.
+pub fn transfer_per_unit(cost_md: &str, build: &str) -> Result<f64, BenchError> {
+    let missing = |what: &str| BenchError::Options(format!("COST.md: transfer relight section: {what}"));
+    let mut lines = cost_md.lines().skip_while(|l| !l.starts_with("## Transfer relight"));
+    let header = lines.find(|l| l.starts_with("| build |")).ok_or_else(|| missing("no table"))?;
+    let col =
+        header.split('|').position(|c| c.trim() == "instr. per unit").ok_or_else(|| missing("no column"))?;
+    let row = lines
+        .take_while(|l| l.starts_with('|'))
+        .find(|l| l.starts_with(&format!("| {build} |")))
+        .ok_or_else(|| missing(&format!("no row for {build}")))?;
+    row.split('|').nth(col).and_then(|c| c.trim().parse::<f64>().ok()).ok_or_else(|| missing("bad value"))
+}
+
+/// The firmware cost model's bound instructions per work unit for the `m4-f32` and `m4-fixed` builds, and their
+/// transfer-relight rates, from the tables in `firmware-sim/COST.md`.
 ///
 /// # Errors
 /// If the table or a build's row is missing.
@@ -436,6 +469,8 @@ pub fn instructions_per_unit(cost_md: &str) -> Result<InstructionsPerUnit, Bench
     Ok(InstructionsPerUnit {
         f32: bound_per_unit(cost_md, &format!("m4-{}", Arith::F32))?,
         fixed: bound_per_unit(cost_md, &format!("m4-{}", Arith::Fixed))?,
+        transfer_f32: transfer_per_unit(cost_md, &format!("m4-{}", Arith::F32))?,
+        transfer_fixed: transfer_per_unit(cost_md, &format!("m4-{}", Arith::Fixed))?,
     })
 }
 

@@ -259,8 +259,10 @@ pub fn markdown(r: &BenchResults, plot_files: &[(String, Vec<String>)]) -> Strin
         "- Model instructions = work units x the Cortex-M4 cost model's **bound** per unit from \
          `firmware-sim/COST.md` ({:.2} for f32, {:.2} for fixed point; measured under QEMU on shooting frames). \
          It is the model's upper bound, not a measurement of these runs; sweep units (Gauss-Seidel, Jacobi) are \
-         converted with the same per-unit bound, although a sweep unit has no selection work and likely costs less.",
-        r.instr_per_unit.f32, r.instr_per_unit.fixed
+         converted with the same per-unit bound, although a sweep unit has no selection work and likely costs less. \
+         Transfer-basis units take the transfer relight's own rate from `firmware-sim/COST.md` ({:.1} for f32, \
+         {:.1} for fixed point: the largest per unit measured under QEMU on the one-group test table).",
+        r.instr_per_unit.f32, r.instr_per_unit.fixed, r.instr_per_unit.transfer_f32, r.instr_per_unit.transfer_fixed
     );
     let _ = writeln!(
         s,

@@ -1069,9 +1069,10 @@ fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), B
 /// the RAM).
 const DEMO_HIER_EPSILON: f64 = 0.02;
 
-/// The demo's hierarchical part: the Cornell box as a hierarchical device table (brightness refinement), its
-/// bake summary, and the lights-on script on it (host f32 and fixed point, and the f32 firmware under QEMU),
-/// every frame against the table's own f64 answer and the dense f64 answer of the same leaves.
+/// The demo's hierarchical part: the Cornell box as a hierarchical device table (brightness refinement, with the
+/// transfer basis), its bake summary, and the lights-on script on it (host f32 and fixed point, and the f32
+/// firmware under QEMU), every frame and every transfer relight against the table's own f64 answer and the
+/// dense f64 answer of the same leaves.
 fn demo_hierarchical(
     scene: &Scene,
     table: &std::path::Path,
@@ -1092,7 +1093,8 @@ fn demo_hierarchical(
     };
     let solution = solve_hierarchical(scene, &options)?;
     writeln!(out, "{}", solution.stats)?;
-    let baked = bake_hierarchy(scene, &solution, 16, false)?;
+    // With the transfer basis: the firmware also relights every element from it in one pass per light change.
+    let baked = bake_hierarchy(scene, &solution, 16, true)?;
     let summary = HierBakeSummary::measure(&baked, &solution)?;
     files::write_atomic(table, &baked.table)?;
     writeln!(out, "{summary}\nwrote {}", table.display())?;
