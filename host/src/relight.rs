@@ -770,7 +770,7 @@ impl fmt::Display for RelightReport {
         }
         writeln!(
             f,
-            "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10} {:>10}{}{}",
+            "{:<14} {:>5} {:>7} {:>7} {:>5} {:>10} {:>10}{}",
             "script",
             "frame",
             "budget",
@@ -778,8 +778,7 @@ impl fmt::Display for RelightReport {
             "conv",
             "err f32",
             "err fixed",
-            if has_dense { "  dense f32" } else { "" },
-            if has_qemu { "   instr f32 instr fixed" } else { "" }
+            tail_header(has_dense, has_qemu)
         )?;
         let f32_rows = self.frames.iter().filter(|r| r.arith == Arith::F32);
         for r in f32_rows {
@@ -798,14 +797,8 @@ impl fmt::Display for RelightReport {
                 error_cell(&r.error),
                 fixed.map_or("-".into(), |x| error_cell(&x.error))
             )?;
-            if has_dense {
-                write!(f, " {:>10}", r.dense_error.as_ref().map_or("-".into(), error_cell))?;
-            }
-            if has_qemu {
-                let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
-                write!(f, " {:>11} {:>11}", show(r.instructions), show(fixed.and_then(|x| x.instructions)))?;
-            }
-            writeln!(f)?;
+            let instructions = (r.instructions, fixed.and_then(|x| x.instructions));
+            write_tail(f, (has_dense, has_qemu), r.dense_error.as_ref(), instructions)?;
         }
         self.fmt_transfer(f, has_dense, has_qemu)
     }
@@ -824,14 +817,13 @@ impl RelightReport {
         )?;
         writeln!(
             f,
-            "{:<14} {:>5} {:>7} {:>10} {:>10}{}{}",
+            "{:<14} {:>5} {:>7} {:>10} {:>10}{}",
             "script",
             "frame",
             "units",
             "err f32",
             "err fixed",
-            if has_dense { "  dense f32" } else { "" },
-            if has_qemu { "   instr f32 instr fixed" } else { "" }
+            tail_header(has_dense, has_qemu)
         )?;
         for r in self.transfer.iter().filter(|r| r.arith == Arith::F32) {
             let fixed = self
@@ -847,17 +839,37 @@ impl RelightReport {
                 error_cell(&r.error),
                 fixed.map_or("-".into(), |x| error_cell(&x.error))
             )?;
-            if has_dense {
-                write!(f, " {:>10}", r.dense_error.as_ref().map_or("-".into(), error_cell))?;
-            }
-            if has_qemu {
-                let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
-                write!(f, " {:>11} {:>11}", show(r.instructions), show(fixed.and_then(|x| x.instructions)))?;
-            }
-            writeln!(f)?;
+            let instructions = (r.instructions, fixed.and_then(|x| x.instructions));
+            write_tail(f, (has_dense, has_qemu), r.dense_error.as_ref(), instructions)?;
         }
         Ok(())
     }
+}
+
+/// The optional columns' headers of the report's tables: the dense error and the instructions of both builds.
+fn tail_header(has_dense: bool, has_qemu: bool) -> String {
+    format!(
+        "{}{}",
+        if has_dense { "  dense f32" } else { "" },
+        if has_qemu { "   instr f32 instr fixed" } else { "" }
+    )
+}
+
+/// The optional columns of a row (see [`tail_header`]) and the line's end.
+fn write_tail(
+    f: &mut fmt::Formatter<'_>,
+    (has_dense, has_qemu): (bool, bool),
+    dense: Option<&ErrorReport>,
+    (instr_f32, instr_fixed): (Option<u64>, Option<u64>),
+) -> fmt::Result {
+    if has_dense {
+        write!(f, " {:>10}", dense.map_or("-".into(), error_cell))?;
+    }
+    if has_qemu {
+        let show = |v: Option<u64>| v.map_or("-".to_string(), |v| v.to_string());
+        write!(f, " {:>11} {:>11}", show(instr_f32), show(instr_fixed))?;
+    }
+    writeln!(f)
 }
 
 /// A frame's error for the text table: the relative L2 error, or, where it is undefined (every light off), `abs`
