@@ -160,14 +160,24 @@ impl sealed::Internal for f32 {
     /// same step), so a product with `intensity 2^(k + TRANSFER_RAW_SHIFT)` (exact when that is a normal f32)
     /// is the product with the decoded response, rounded once: one shift, one move and one multiply per
     /// channel. Intensities whose scaled value is not a normal f32 (huge or tiny) take the decode.
+    ///
+    /// The scaling itself is integer work on the bits (it runs per group and channel at every call of a chunked
+    /// relight): a zero keeps its bits (`0 * 2^s` is that zero), a normal intensity whose exponent field stays
+    /// in `1..=254` after adding `s` gets exactly `intensity 2^s`; everything else (subnormal, infinite, NaN, or
+    /// a result out of the normal range) takes the decode path.
     type TransferScale = F32TransferScale;
     fn transfer_scale(intensity: f32, k: i8) -> F32TransferScale {
-        let e = i32::from(k) + TRANSFER_RAW_SHIFT;
-        let (a, b) = if e > 127 { (127, e - 127) } else { (e, 0) };
-        let first = intensity * pow2_f32(a);
-        let scaled = first * pow2_f32(b);
-        let exact = |v: f32| v == 0.0 || v.is_normal();
-        let fast = exact(first) && exact(scaled) && (intensity == 0.0) == (scaled == 0.0);
+        let s = i32::from(k) + TRANSFER_RAW_SHIFT;
+        let bits = intensity.to_bits();
+        let exponent = ((bits >> 23) & 0xff) as i32;
+        let (scaled, fast) = if bits & 0x7fff_ffff == 0 {
+            (intensity, true)
+        } else if (1..=254).contains(&exponent) && (1..=254).contains(&(exponent + s)) {
+            // The exponent field grows by `s` with no carry into the sign: exactly `intensity 2^s`.
+            (f32::from_bits(bits.wrapping_add((s as u32) << 23)), true)
+        } else {
+            (0.0, false)
+        };
         F32TransferScale { scaled, fast, intensity, k }
     }
     #[inline(always)]
@@ -456,10 +466,15 @@ mod tests {
     #[test]
     fn f32_transfer_terms_are_the_products_with_the_decoded_responses() {
         use crate::codec::transfer::{TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPONENT};
-        let intensities = [1.0f32, -0.3, 7.77e5, 1.3e-30, 1e-44, 3.0e38, 0.0, 2.5e-3];
+        let intensities = [1.0f32, -0.3, 7.77e5, 1.3e-30, 1e-44, 3.0e38, 0.0, -0.0, 2.5e-3, f32::MIN_POSITIVE, -2.0e20];
         for k in [TRANSFER_MIN_EXPONENT, -40, -1, 0, 5, 15, 16, TRANSFER_MAX_EXPONENT] {
             for &i in &intensities {
                 let scale = f32::transfer_scale(i, k);
+                if scale.fast {
+                    // The scaled intensity is exactly `i 2^(k + 112)`.
+                    let exact = f64::from(i) * 2f64.powi(i32::from(k) + TRANSFER_RAW_SHIFT);
+                    assert_eq!(f64::from(scale.scaled), exact, "k {k} intensity {i}");
+                }
                 for code in (0..=u16::MAX).step_by(37).chain([0, 1, 0x0fff, 0x1000, u16::MAX]) {
                     let (m, e) = decode_transfer_dyadic(code, k);
                     let want = i * f32::from_dyadic(m, e);
