@@ -466,7 +466,8 @@ mod tests {
     #[test]
     fn f32_transfer_terms_are_the_products_with_the_decoded_responses() {
         use crate::codec::transfer::{TRANSFER_MAX_EXPONENT, TRANSFER_MIN_EXPONENT};
-        let intensities = [1.0f32, -0.3, 7.77e5, 1.3e-30, 1e-44, 3.0e38, 0.0, -0.0, 2.5e-3, f32::MIN_POSITIVE, -2.0e20];
+        let intensities =
+            [1.0f32, -0.3, 7.77e5, 1.3e-30, 1e-44, 3.0e38, 0.0, -0.0, 2.5e-3, f32::MIN_POSITIVE, -2.0e20];
         for k in [TRANSFER_MIN_EXPONENT, -40, -1, 0, 5, 15, 16, TRANSFER_MAX_EXPONENT] {
             for &i in &intensities {
                 let scale = f32::transfer_scale(i, k);
