@@ -13,7 +13,7 @@
 //! removes at least `tolerance * (1 - rho_max) - 3 L` units of unshot magnitude, at least `3 L` units.
 
 use crate::codec::transfer::decode_transfer_dyadic;
-use crate::codec::{decode_reflectance, pow2_f32, Frac};
+use crate::codec::{decode_reflectance, pow2_f32, F32RowDecoder, Frac, RowDecoder};
 
 /// The solver's per-entry internals of a [`Scalar`]. Public in a private module, so no other crate can name it,
 /// implement [`Scalar`] or call these.
@@ -54,6 +54,15 @@ pub(crate) mod sealed {
         /// holds (for others any value).
         #[must_use]
         fn transfer_term_fast(code: u16, scale: Self::TransferScale) -> Self;
+        /// A run's form-factor decoder prepared for hierarchical shooting's per-link products.
+        type LinkDecoder: Copy + core::fmt::Debug;
+        /// Prepares `row` (one run's decoder) for [`Internal::link_products`].
+        #[must_use]
+        fn link_decoder(row: crate::codec::RowDecoder) -> Self::LinkDecoder;
+        /// `power` times the factor of form-factor code `code`: bit for bit `p.mul_frac(row.decode(code))` per
+        /// channel, `row` the decoder `d` was prepared from.
+        #[must_use]
+        fn link_products(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
     }
 }
 
@@ -196,6 +205,17 @@ impl sealed::Internal for f32 {
     fn transfer_term_fast(code: u16, scale: F32TransferScale) -> f32 {
         f32::from_bits(u32::from(code) << 11) * scale.scaled
     }
+    /// `mul_frac` multiplies by `Frac::to_f32` of the decoded factor, which [`F32RowDecoder`] computes from the
+    /// code's bits: the factor once per link, then one multiply per channel.
+    type LinkDecoder = F32RowDecoder;
+    fn link_decoder(row: RowDecoder) -> F32RowDecoder {
+        F32RowDecoder::new(row)
+    }
+    #[inline(always)]
+    fn link_products(power: [f32; 3], code: u32, d: F32RowDecoder) -> [f32; 3] {
+        let f = d.decode(code);
+        [power[0] * f, power[1] * f, power[2] * f]
+    }
 }
 
 /// An f32 intensity prepared for the transfer relight's products (`transfer_scale`).
@@ -290,22 +310,31 @@ impl Scalar for Fixed {
         Fixed::saturate((i128::from(self.0) << FIXED_FRAC_BITS) / i128::from(other.0))
     }
     fn mul_frac(self, f: Frac) -> Fixed {
-        // Shifts `1..=32` (the usual form factors and reflectances) take 64-bit products instead of a 128-bit
-        // one: with `self = hi 2^32 + lo` (`hi` signed, `lo < 2^32`), `hi m 2^32` is a multiple of `2^shift`, so
-        // `floor((self m + half) / 2^shift) = hi m 2^(32 - shift) + floor((lo m + half) / 2^shift)`, and the
-        // last term is summed from `lo m`'s high and low parts so that adding `half` cannot overflow. When the
-        // result fits in an i64 these are the bits of the 128-bit path below (which saturates otherwise).
-        if (1..=32).contains(&f.shift) {
-            let (s, m) = (f.shift, u64::from(f.mantissa));
-            let hi = (self.0 >> 32) * m as i64;
-            let lo = u64::from(self.0 as u32) * m;
-            let low = (lo >> s) + (((lo & ((1u64 << s) - 1)) + (1u64 << (s - 1))) >> s);
-            let sum = hi
-                .checked_mul(1i64 << (32 - s))
-                .zip(i64::try_from(low).ok())
-                .and_then(|(h, l)| h.checked_add(l));
-            if let Some(v) = sum {
-                return Fixed(v);
+        // Mantissas below 2^31 with shifts `1..=95` (every form factor and reflectance) take 32 x 32-bit products
+        // instead of a 128-bit one. With `self = hi 2^32 + lo` (`hi` signed and below 2^31 in magnitude, `lo <
+        // 2^32`), the product is `P = P_hi 2^32 + P_lo` with `P_hi = hi m + floor(lo m / 2^32)` (below 2^63 in
+        // magnitude) and `P_lo = lo m mod 2^32`. Adding `half = 2^(s - 1)` and flooring by `2^s`:
+        // - `s > 32` (`t = s - 32`): `half = 2^(t - 1) 2^32` and `P_lo < 2^32` cannot carry into the quotient,
+        //   so the result is `floor((P_hi + 2^(t - 1)) / 2^t)`, an arithmetic shift, and never saturates;
+        // - `s <= 32`: `P_hi 2^32` is a multiple of `2^s`, so the result is `P_hi 2^(32 - s) + floor((P_lo +
+        //   half) / 2^s)`, taken when neither the shift nor the sum overflows (the 128-bit path saturates).
+        // Both are the bits of the 128-bit path below.
+        if f.mantissa >> 31 == 0 && (1..=95).contains(&f.shift) {
+            let (s, m) = (f.shift, f.mantissa);
+            let lo_m = u64::from(self.0 as u32) * u64::from(m);
+            let p_hi = (self.0 >> 32) * i64::from(m) + (lo_m >> 32) as i64;
+            if s > 32 {
+                let t = s - 32;
+                return Fixed((p_hi + (1i64 << (t - 1))) >> t);
+            }
+            let p_lo = lo_m & 0xffff_ffff;
+            let low = ((p_lo + (1u64 << (s - 1))) >> s) as i64;
+            let k = 32 - s;
+            let high = p_hi << k;
+            if high >> k == p_hi {
+                if let Some(v) = high.checked_add(low) {
+                    return Fixed(v);
+                }
             }
         }
         // |self| < 2^63 and mantissa < 2^32: the product fits in i128. Round half up: flooring would bias
@@ -381,6 +410,16 @@ impl sealed::Internal for Fixed {
     fn transfer_term_fast(code: u16, scale: (Fixed, i8)) -> Fixed {
         Fixed::transfer_term(code, scale)
     }
+    /// Fixed point rounds each product of the dyadic factor (`mul_frac`): the row's decoder as it is.
+    type LinkDecoder = RowDecoder;
+    fn link_decoder(row: RowDecoder) -> RowDecoder {
+        row
+    }
+    #[inline(always)]
+    fn link_products(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
+        let f = d.decode(code);
+        [power[0].mul_frac(f), power[1].mul_frac(f), power[2].mul_frac(f)]
+    }
 }
 
 #[cfg(test)]
@@ -428,7 +467,8 @@ mod tests {
 
     #[test]
     fn fixed_mul_frac_matches_the_128_bit_product() {
-        // The 64-bit path (shifts 1..=32) against the 128-bit product, signs, edges and saturation included.
+        // The split paths (shifts 1..=95, mantissas below 2^31) against the 128-bit product, signs, edges and
+        // saturation included, and the shifts and mantissas outside them.
         let reference = |x: i64, f: Frac| {
             let shift = f.shift.min(126);
             let p = i128::from(x) * i128::from(f.mantissa);
@@ -448,14 +488,15 @@ mod tests {
             let v = next();
             xs.push((v as i64) >> (v % 64));
         }
-        let mut mantissas = vec![0u32, 1, 2, 0xffff, 0x1_0000, u32::MAX, u32::MAX - 1, 1 << 31];
+        let mut mantissas =
+            vec![0u32, 1, 2, 0xffff, 0x1_0000, 0x1_ffff, u32::MAX, u32::MAX - 1, 1 << 31, (1 << 31) - 1];
         for _ in 0..40 {
             let v = next();
             mantissas.push((v as u32) >> (v % 32));
         }
         for &x in &xs {
             for &mantissa in &mantissas {
-                for shift in 0..=40 {
+                for shift in (0..=100).chain([120, 126, 127, 130]) {
                     let f = Frac { mantissa, shift };
                     assert_eq!(Fixed(x).mul_frac(f), reference(x, f), "{x} * {mantissa} / 2^{shift}");
                 }

@@ -380,7 +380,7 @@ fn tables_with_more_groups_than_a_block_sum_in_group_order() {
         .collect();
     let response = |i: usize, g: usize| {
         let v = (1.0 + (i * 7 + g * 13) as f32 * 0.37) * 10f32.powi((g % 5) as i32 - 2);
-        [v, 0.5 * v, if g % 4 == 0 { 0.0 } else { 3.0 * v }]
+        [v, 0.5 * v, if g.is_multiple_of(4) { 0.0 } else { 3.0 * v }]
     };
     s.transfer = Some((0..3).flat_map(|i| (0..groups).map(move |g| response(i, g))).collect());
     let blob = s.write();

@@ -46,7 +46,7 @@ struct Writer {
 
 impl Writer {
     fn view(&mut self, bytes: &[u8]) -> usize {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}));
@@ -164,11 +164,11 @@ impl Writer {
     /// Writes `path` as binary glTF: header, JSON chunk (space padded), BIN chunk (zero padded).
     fn write_glb(&self, path: &Path) {
         let mut json = serde_json::to_vec(&self.json(None)).unwrap();
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let mut bin = self.bin.clone();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + json.len() + 8 + bin.len();

@@ -73,6 +73,58 @@ impl RowDecoder {
     }
 }
 
+/// A [`RowDecoder`] that decodes straight to f32 (hierarchical shooting's per-link factor): a normal code's
+/// exponent and mantissa fields are moved into an f32's fields by integer work, one shift, one add and one
+/// or per code, instead of the dyadic [`Frac`] and its conversion; the value is the same, bit for bit
+/// ([`Frac::to_f32`] of [`RowDecoder::decode`]).
+///
+/// Why it is exact: a normal code (exponent field `x >= 1`) decodes to `(2^M + m) 2^-s` with `s = base + 1 -
+/// x`; when `0 <= s <= 126` for every `x` of the codec, that is the normal f32 with exponent field `127 + M -
+/// s` and mantissa field `m 2^(23 - M)`, and `Frac::to_f32` computes exactly it (an integer below `2^24`
+/// times an exact power of two). A code with `x = 0` decodes to `m 2^-base`: the same product with the power
+/// of two kept. Rows whose exponent puts some `s` outside that range (none that a valid table's row exponents
+/// `<= 64` give with a standard codec, but the check is cheap) take the `Frac` path for every code.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct F32RowDecoder {
+    row: RowDecoder,
+    /// `126 + M - base`: added to a normal code's exponent field gives the f32's exponent field.
+    exponent_bias: u32,
+    /// `2^-base`, the step of the codes with exponent field 0.
+    step: f32,
+    /// Whether the bit path is exact for every code of the row.
+    fast: bool,
+}
+
+impl F32RowDecoder {
+    /// Prepares `row`'s codes for decoding to f32.
+    #[must_use]
+    pub fn new(row: RowDecoder) -> Self {
+        let largest_x = (row.max_code >> row.m_bits) as i32;
+        // Shifts of the normal codes run from `base + 1 - largest_x` (largest code) to `base` (x = 1).
+        let fast = row.m_bits <= 23 && row.base + 1 - largest_x >= 0 && row.base <= 126;
+        let exponent_bias = if fast { (126 + row.m_bits as i32 - row.base) as u32 } else { 0 };
+        let step = pow2_f32(-row.base.max(0));
+        F32RowDecoder { row, exponent_bias, step, fast }
+    }
+
+    /// The value of `code` (codes above the largest are clamped), bit for bit `row.decode(code).to_f32()`.
+    #[must_use]
+    #[inline(always)]
+    pub fn decode(self, code: u32) -> f32 {
+        if !self.fast {
+            return self.row.decode(code).to_f32();
+        }
+        let code = code.min(self.row.max_code);
+        let x = code >> self.row.m_bits;
+        let m = code & ((1u32 << self.row.m_bits) - 1);
+        if x == 0 {
+            m as f32 * self.step
+        } else {
+            f32::from_bits(((x + self.exponent_bias) << 23) | (m << (23 - self.row.m_bits)))
+        }
+    }
+}
+
 /// A form-factor codec: code width and exponent bits (see the module docs for the decoding rule).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FfCodec {
@@ -410,6 +462,38 @@ pub(crate) fn quantize_row_with_exponent(
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// The f32 decoder gives the `Frac` path's bits for every code of every standard codec at row exponents
+    /// across the range, and takes the `Frac` path where its bit path would not be exact.
+    #[test]
+    fn f32_row_decoder_matches_the_frac_path() {
+        let codecs = [
+            FfCodec::FLOAT16,
+            FfCodec::FLOAT8,
+            FfCodec::LINEAR16,
+            FfCodec::LINEAR8,
+            FfCodec { bits: 16, exponent_bits: 2 },
+            FfCodec { bits: 8, exponent_bits: 1 },
+        ];
+        for codec in codecs {
+            for e in [0u8, 1, 7, 20, 40, 63, MAX_ROW_EXPONENT] {
+                let row = codec.row_decoder(e);
+                let d = F32RowDecoder::new(row);
+                assert!(d.fast, "{codec} row exponent {e}: the bit path should apply");
+                for c in 0..=u32::from(codec.max_code()) + 3 {
+                    let (got, want) = (d.decode(c), row.decode(c).to_f32());
+                    assert_eq!(got.to_bits(), want.to_bits(), "{codec} e {e} code {c}: {got} vs {want}");
+                }
+            }
+        }
+        // A base beyond the f32 exponent range (not a valid row exponent): the Frac path, same values.
+        let row = RowDecoder { max_code: 0xffff, m_bits: 12, base: 140 };
+        let d = F32RowDecoder::new(row);
+        assert!(!d.fast);
+        for c in (0..=0xffffu32).step_by(13) {
+            assert_eq!(d.decode(c).to_bits(), row.decode(c).to_f32().to_bits(), "code {c}");
+        }
+    }
 
     /// The inverted decoding rule agrees with the binary search at every code's value, one unit either side,
     /// and between codes, for every codec and row exponents across the range (0 and the largest included).

@@ -72,7 +72,7 @@ pub mod transfer;
 
 pub(crate) use ff::{f32_to_exact, pow2_f32, EXACT_SHIFT, QUANT_BLOCK};
 pub(crate) use ff::{quantize_row_with_exponent, row_exponent_for};
-pub use ff::{CodecParamError, FfCodec, Frac, RowDecoder, MAX_ROW_EXPONENT};
+pub use ff::{CodecParamError, F32RowDecoder, FfCodec, Frac, RowDecoder, MAX_ROW_EXPONENT};
 pub use radiometric::{
     decode_emission, decode_emission_f32, decode_reflectance, encode_emission, encode_reflectance,
     EMISSION_MAX,

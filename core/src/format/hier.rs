@@ -14,7 +14,7 @@ use super::parse::{
 };
 use super::view::Row;
 use super::HIER_FORMAT_VERSION;
-use crate::codec::{FfCodec, Frac, EMISSION_MAX, EXACT_SHIFT, MAX_ROW_EXPONENT};
+use crate::codec::{FfCodec, Frac, RowDecoder, EMISSION_MAX, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
 
 /// The postcard-encoded header of a hierarchical table.
@@ -192,6 +192,58 @@ pub struct HierTable<'a> {
     link_code: &'a [u8],
     transfer_exponent: &'a [u8],
     transfer_code: &'a [u8],
+}
+
+/// The node sections of a [`HierTable`] that resolve a link's receiver (hierarchical shooting's inner loop):
+/// reads with the same results as the table's accessors ([`HierTable::subtree_end`], [`HierTable::leaf_start`],
+/// [`HierTable::parent`], [`HierTable::material`]) for nodes and leaves in range,
+/// without the count checks a receiver validated by parse does not need (out of range still reads 0).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct NodeSections<'a> {
+    end: &'a [u8],
+    leaf_start: &'a [u8],
+    parent: &'a [u8],
+    material: &'a [u8],
+}
+
+/// Entry `i` of a section of `N`-byte little-endian values (`N` is 2 or 4), 0 past its end: one comparison
+/// against the section's entry count.
+#[inline(always)]
+fn entry<const N: usize>(s: &[u8], i: u32) -> u32 {
+    let (entries, _) = s.as_chunks::<N>();
+    entries.get(i as usize).map_or(0, |b| {
+        let mut v = [0u8; 4];
+        if let Some(dst) = v.get_mut(..N) {
+            dst.copy_from_slice(b);
+        }
+        u32::from_le_bytes(v)
+    })
+}
+
+impl NodeSections<'_> {
+    /// End of `node`'s subtree.
+    #[inline(always)]
+    pub(crate) fn end(&self, node: u32) -> u32 {
+        entry::<4>(self.end, node)
+    }
+
+    /// Leaves before `node` in preorder.
+    #[inline(always)]
+    pub(crate) fn leaf_start(&self, node: u32) -> u32 {
+        entry::<4>(self.leaf_start, node)
+    }
+
+    /// Stored parent of `node` (itself for a root), from an index section of `IB` bytes per entry.
+    #[inline(always)]
+    pub(crate) fn parent<const IB: usize>(&self, node: u32) -> u32 {
+        entry::<IB>(self.parent, node)
+    }
+
+    /// Material of `leaf`.
+    #[inline(always)]
+    pub(crate) fn material(&self, leaf: u32) -> u32 {
+        entry::<2>(self.material, leaf)
+    }
 }
 
 /// Reads index `k` of an index section of `width` bytes (0 past its end).
@@ -801,6 +853,48 @@ impl<'a> HierTable<'a> {
                 self.group_count(),
             )
         })
+    }
+
+    /// The receiver and code bytes of the links at table positions `from..end` (empty when the range is empty or
+    /// not inside the link sections), with the decoder of `sender`'s run exponent: what [`HierTable::run_view`]'s
+    /// [`Row::tail`] gives for positions inside `sender`'s run, without reading the run's bounds again.
+    #[must_use]
+    #[inline]
+    pub(crate) fn link_bytes(&self, sender: u32, from: u32, end: u32) -> (&'a [u8], &'a [u8], RowDecoder) {
+        let ib = usize::from(self.header.index_bytes);
+        let cb = self.codec.code_bytes();
+        let (s, e) = (from as usize, (end as usize).max(from as usize));
+        let receivers = self.link_receiver.get(s.saturating_mul(ib)..e.saturating_mul(ib)).unwrap_or(&[]);
+        let codes = self.link_code.get(s.saturating_mul(cb)..e.saturating_mul(cb)).unwrap_or(&[]);
+        let exponent = self.run_exponent.get(sender as usize).copied().unwrap_or(0);
+        (receivers, codes, self.codec.row_decoder(exponent))
+    }
+
+    /// `node`'s run as table positions `(start, end)` (what [`HierTable::run`] gives for a node in range), read
+    /// with one comparison each; for a round's judging of every node.
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn run_bounds(&self, node: u32) -> (u32, u32) {
+        (entry::<4>(self.run_start, node), entry::<4>(self.run_start, node.wrapping_add(1)))
+    }
+
+    /// The node sections a link's receiver is resolved with, for hierarchical shooting's inner loop.
+    #[must_use]
+    #[inline]
+    pub(crate) fn node_sections(&self) -> NodeSections<'a> {
+        NodeSections {
+            end: self.node_end,
+            leaf_start: self.node_leaf_start,
+            parent: self.node_parent,
+            material: self.leaf_material,
+        }
+    }
+
+    /// Bytes per node index (2 or 4, checked by parse).
+    #[must_use]
+    #[inline]
+    pub(crate) fn index_bytes(&self) -> u8 {
+        self.header.index_bytes
     }
 
     /// Sender `node`'s run as a [`Row`] whose entries (receiver node, decoded factor) need no further checks.

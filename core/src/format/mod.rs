@@ -18,10 +18,12 @@ mod view;
 pub mod write;
 
 pub use error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
+pub(crate) use hier::NodeSections;
 pub use hier::{HierMember, HierSectionSizes, HierTable};
 pub use hier_write::{hier_required_len, write_hier_table, HierSpec, NodeSpec};
 pub use layout::{SectionSizes, TransferSection};
 pub use parse::Table;
+pub(crate) use view::le;
 pub use view::{Entries, Member, Row};
 pub use write::{
     required_len, write_table, GroupSpec, MemberSpec, PatchSpec, RowsSpec, TableSpec, WriteError,

@@ -389,7 +389,7 @@ impl<'a> Row<'a> {
 
 /// Little-endian value of a fixed-width field (`N <= 4`).
 #[inline(always)]
-fn le<const N: usize>(b: &[u8]) -> u32 {
+pub(crate) fn le<const N: usize>(b: &[u8]) -> u32 {
     let mut v = [0u8; 4];
     if let (Some(dst), Some(src)) = (v.get_mut(..N), b.get(..N)) {
         dst.copy_from_slice(src);

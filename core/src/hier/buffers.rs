@@ -23,6 +23,8 @@ use crate::scalar::Scalar;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SweepFrame<S> {
     pub(crate) node: u32,
+    /// The end of `node`'s subtree (the sweep leaves the node when it reaches it).
+    pub(crate) end: u32,
     pub(crate) irradiance: [S; 3],
     pub(crate) reflected: [S; 3],
 }
@@ -30,7 +32,7 @@ pub struct SweepFrame<S> {
 impl<S: Scalar> SweepFrame<S> {
     /// An unused frame (what buffers start with; a sweep overwrites a frame before it reads it).
     pub const EMPTY: SweepFrame<S> =
-        SweepFrame { node: 0, irradiance: [S::ZERO; 3], reflected: [S::ZERO; 3] };
+        SweepFrame { node: 0, end: 0, irradiance: [S::ZERO; 3], reflected: [S::ZERO; 3] };
 }
 
 /// Caller-supplied buffers of a [`HierSolver`](super::HierSolver). Every slice must hold at least the count
@@ -42,8 +44,8 @@ pub struct HierBuffers<'b, S> {
     /// Unshot power `U_n` (RGB) per node: power reflected or emitted in the node's subtree and not yet shot
     /// through its links (read only for nodes with links): [`HierBufferSizes::nodes`].
     pub unshot: &'b mut [[S; 3]],
-    /// Pending irradiance (RGB) per inner node: what the node's incoming links delivered since the last sweep
-    /// entered it: [`HierBufferSizes::inner`].
+    /// Pending power (RGB) per inner node: what the node's incoming links delivered since the last sweep
+    /// entered it (the sweep spreads it over the node's area): [`HierBufferSizes::inner`].
     pub pending: &'b mut [[S; 3]],
     /// Pending reflected power (RGB) per inner node: what its leaf children reflected from links that reached
     /// them directly since the last sweep entered it, still to be summed up its chain:
@@ -91,7 +93,7 @@ impl HierBufferSizes {
 
     /// Bytes of RAM the buffers take with arithmetic `S`:
     /// `rgb (leaves + nodes + 2 inner + groups) + frame depth + 6 materials`, `rgb` the size of `[S; 3]` and
-    /// `frame` that of a [`SweepFrame`]: in f32 (12-byte `rgb`, 28-byte frame), 24 bytes per leaf and 36 per
+    /// `frame` that of a [`SweepFrame`]: in f32 (12-byte `rgb`, 32-byte frame), 24 bytes per leaf and 36 per
     /// inner node.
     #[must_use]
     pub fn bytes<S>(&self) -> usize {

@@ -10,15 +10,15 @@
 //!   leaf's new power is added to `U` of the leaf and of every ancestor with links: the links of a leaf's
 //!   chain (the leaf and its ancestors) each carry their part of the leaf's interactions.
 //! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` delivers the power `F_sr U_s` to
-//!   `r`. An inner receiver keeps it as the **pending** irradiance `F_sr U_s / A_r` ([`HierBuffers::pending`]),
-//!   uniform over `r`: nothing below or above `r` is touched, so a link costs the same whatever the size of
-//!   its receiver. A leaf receiver takes it at once: into its incident power `H_l`, and the reflected
+//!   `r`. An inner receiver adds it to its **pending** power ([`HierBuffers::pending`]), to be spread over `r`
+//!   uniformly (as the irradiance `pending / A_r`, one division per node and sweep rather than per link):
+//!   nothing below or above `r` is touched, so a link costs the same whatever the size of its receiver. A leaf receiver takes it at once: into its incident power `H_l`, and the reflected
 //!   `rho_l F_sr U_s` into its own unshot power and into its parent's **reflected** entry
 //!   ([`HierBuffers::reflected`]), pending for the rest of its chain. So leaves need no pending entry.
 //! - A **sweep** then makes the pending light count, in one pass over the nodes in preorder that keeps the
 //!   path from a root to the current node as a stack of [`SweepFrame`]s ([`HierBuffers::path`], one per
 //!   level of the tree). **Entering** a node pushes its frame: an inner node's chain irradiance is its
-//!   parent frame's plus its own pending, and its subtree sum starts with its reflected entry (both taken);
+//!   parent frame's plus its own pending power over its area, and its subtree sum starts with its reflected entry (both taken);
 //!   a leaf adds `dH = A_l e` to `H_l`, `e` its parent frame's chain irradiance, and starts its frame's
 //!   subtree sum at `rho_l dH`. **Leaving** a node (once the preorder has passed its subtree) pops its frame:
 //!   the power reflected in its subtree goes into its unshot power (if it has links) and into its parent's
@@ -42,7 +42,7 @@
 //!   sweep's entry of the leaf on: what a round shot shows after its sweep.
 //!
 //! # Memory
-//! `[S; 3]` per leaf (`H_l`), per node (`U_n`), two per inner node (pending irradiance, reflected power) and
+//! `[S; 3]` per leaf (`H_l`), per node (`U_n`), two per inner node (pending power, reflected power) and
 //! one per light group (intensity), a [`SweepFrame`] per level of the tree and three reflectance codes per
 //! material ([`HierBufferSizes::bytes`]): in f32, 24 bytes per leaf and 36 per inner node, where storing each
 //! leaf's power and a pending entry per node (which carried the sweep's chain and subtree sums) took 48 and
@@ -133,6 +133,7 @@
 //! ```
 
 mod buffers;
+mod links;
 
 #[cfg(any(test, feature = "std"))]
 pub use buffers::HierOwnedBuffers;
@@ -142,7 +143,7 @@ use crate::base::emission;
 use crate::codec::{decode_reflectance, encode_reflectance, Frac};
 use crate::format::HierTable;
 use crate::scalar::Scalar;
-use crate::solver::{Config, NoProgressReason, Outcome, SolverError, MAX_PATCHES};
+use crate::solver::{Config, NoProgressReason, Outcome, SolverError, MAX_PATCHES, RHO_CACHE};
 
 /// A round shoots every node whose unshot magnitude is at least `1 / 2^ROUND_SHARE_SHIFT` of the largest
 /// (module docs, "Rounds").
@@ -173,6 +174,9 @@ pub struct HierSolver<'a, S: Scalar> {
     shots: u32,
     sweeps: u32,
     links: u64,
+    /// Decoded reflectances of materials `0..RHO_CACHE` (kept current with the reflectance buffer), read by
+    /// every link to a leaf; materials beyond it are decoded per link.
+    rho_cache: [[S::Rho; 3]; RHO_CACHE],
 }
 
 fn add3<S: Scalar>(a: [S; 3], b: [S; 3]) -> [S; 3] {
@@ -187,8 +191,9 @@ fn magnitude<S: Scalar>(v: [S; 3]) -> S {
 /// solver's argument ([`crate::convergence_floor`], the `scalar` module docs) with the rounded receipts of a
 /// shot counted as the leaves its links reach times the chain walks that repeat each leaf's rounding:
 /// `ceil(6 R D / (1 - rho_max))`, `R` the most leaves any run reaches (with multiplicity), `D` the longest
-/// chain. The lazy push rounds less than that count (two roundings per link, two per leaf and sweep, exact
-/// fixed-point sums down and up the tree), so the floor stays sufficient. `O(links + materials)`.
+/// chain. The lazy push rounds less than that count (one rounding per link to an inner node and two per link
+/// to a leaf, one per inner node and two per leaf and sweep, exact fixed-point sums down and up the tree), so
+/// the floor stays sufficient. `O(links + materials)`.
 #[must_use]
 pub fn hier_convergence_floor<S: Scalar>(table: &HierTable<'_>) -> S {
     let mut most = 0u64;
@@ -246,6 +251,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             shots: 0,
             sweeps: 0,
             links: 0,
+            rho_cache: [[S::Rho::default(); 3]; RHO_CACHE],
         };
         s.reset();
         Ok(s)
@@ -257,6 +263,9 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             if let Some(r) = self.buf.reflectance.get_mut(m as usize) {
                 *r = self.table.reflectance(m).unwrap_or([0; 3]);
             }
+        }
+        for m in 0..RHO_CACHE as u32 {
+            self.refresh_rho(m);
         }
         for g in 0..self.table.group_count() {
             if let Some(v) = self.buf.intensity.get_mut(g as usize) {
@@ -315,6 +324,24 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
 
     fn leaf_area(&self, leaf: u32) -> S {
         S::from_f32(self.table.leaf_area(leaf).unwrap_or(0.0))
+    }
+
+    /// Refreshes material `m`'s cached decoded reflectance from the reflectance buffer (nothing beyond the cache).
+    fn refresh_rho(&mut self, m: u32) {
+        let code = self.buf.reflectance.get(m as usize).copied().unwrap_or([0; 3]);
+        if let Some(r) = self.rho_cache.get_mut(m as usize) {
+            *r = code.map(S::rho);
+        }
+    }
+
+    /// `leaf`'s reflectance decoded for products (`mul_rho`, bit for bit `mul_frac` of the decoded code):
+    /// cached per material, decoded for a material beyond the cache.
+    fn leaf_rho(&self, leaf: u32) -> [S::Rho; 3] {
+        let m = self.table.material(leaf).unwrap_or(0) as usize;
+        match self.rho_cache.get(m) {
+            Some(r) => *r,
+            None => self.buf.reflectance.get(m).copied().unwrap_or([0; 3]).map(S::rho),
+        }
     }
 
     /// Current reflectance codes of `leaf`'s material.
@@ -413,29 +440,31 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             match self.phase {
                 Phase::Converged => {}
                 Phase::Round { threshold, next } => {
-                    if next >= self.table.node_count() {
+                    let nodes = self.table.node_count();
+                    if next >= nodes {
                         self.sweeps = self.sweeps.saturating_add(1);
                         self.phase = Self::new_sweep();
                         continue;
                     }
-                    used += 1;
-                    self.phase = Phase::Round { threshold, next: next + 1 };
-                    let u = self.unshot_of(next);
-                    let m = magnitude(u);
-                    if m < threshold || m <= self.config.tolerance || !self.table.has_links(next) {
+                    // As many nodes as the budget allows, one unit each, until one shoots.
+                    let range = (next, nodes.min(next.saturating_add(budget - used)));
+                    let tolerance = self.config.tolerance;
+                    let (judged, shooter) =
+                        links::judge(&self.table, self.buf.unshot, range, threshold, tolerance);
+                    used += judged;
+                    let Some((sender, u, run)) = shooter else {
+                        self.phase = Phase::Round { threshold, next: next + judged };
                         continue;
-                    }
+                    };
                     // With overshooting the shot sends `(1 + overshoot / 256) U_s` and leaves
                     // `-overshoot / 256 U_s`, as the flat solver does.
                     let extra = Frac { mantissa: u32::from(self.config.overshoot), shift: 8 };
                     let power = u.map(|x| x.add(x.mul_frac(extra)));
-                    if let Some(v) = self.buf.unshot.get_mut(next as usize) {
+                    if let Some(v) = self.buf.unshot.get_mut(sender as usize) {
                         *v = [0, 1, 2].map(|c| v[c].sub(power[c]));
                     }
-                    let run = self.table.run(next).unwrap_or(0..0);
                     self.shots = self.shots.saturating_add(1);
-                    self.phase =
-                        Phase::Shooting { sender: next, power, next: run.start, end: run.end, threshold };
+                    self.phase = Phase::Shooting { sender, power, next: run.start, end: run.end, threshold };
                 }
                 Phase::Shooting { sender, power, next, end, threshold } => {
                     if next >= end {
@@ -446,89 +475,62 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                     let count = (end - next).min(budget - used);
                     used += count;
                     self.links = self.links.saturating_add(u64::from(count));
-                    self.apply_links(sender, next, count, power);
+                    let links = (sender, next, next + count);
+                    links::apply_run(&self.table, &mut self.buf, &self.rho_cache, links, power);
                     self.phase = Phase::Shooting { sender, power, next: next + count, end, threshold };
                 }
-                Phase::Sweep { next, depth, largest, usable, stale } => {
-                    let top =
-                        depth.checked_sub(1).and_then(|d| self.buf.path.get(d as usize)).map(|f| f.node);
-                    let leaves_top =
-                        top.and_then(|t| self.table.subtree_end(t)).is_some_and(|end| next >= end);
-                    if leaves_top {
-                        used += 1;
-                        let (largest, usable) = match self.leave(depth) {
-                            Some(m) if !m.is_usable() => (largest, false),
-                            Some(m) if m > largest => (m, usable),
-                            _ => (largest, usable),
-                        };
-                        self.phase = Phase::Sweep { next, depth: depth - 1, largest, usable, stale };
-                    } else if next < self.table.node_count() {
-                        used += 1;
-                        self.enter(next, depth);
-                        self.phase =
-                            Phase::Sweep { next: next + 1, depth: depth + 1, largest, usable, stale };
-                    } else {
-                        if stale {
-                            self.phase = Self::new_sweep();
-                            continue;
+                Phase::Sweep { mut next, mut depth, mut largest, mut usable, stale } => {
+                    // Enter and leave nodes while the budget lasts, one unit each: the top frame is left once
+                    // the preorder has passed its subtree, else the next node is entered.
+                    let nodes = self.table.node_count();
+                    let mut left = budget - used;
+                    let mut finished = false;
+                    while left > 0 {
+                        let top = depth.checked_sub(1).and_then(|d| self.buf.path.get(d as usize));
+                        if top.is_some_and(|f| next >= f.end) {
+                            match self.leave(depth) {
+                                Some(m) if !m.is_usable() => usable = false,
+                                Some(m) if m > largest => largest = m,
+                                _ => {}
+                            }
+                            depth -= 1;
+                        } else if next < nodes {
+                            self.enter(next, depth);
+                            next += 1;
+                            depth += 1;
+                        } else {
+                            finished = true;
+                            break;
                         }
-                        if !usable {
-                            return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
-                        }
-                        if largest <= self.config.tolerance {
-                            self.phase = Phase::Converged;
-                            return Outcome::Converged { used };
-                        }
-                        let share = Frac { mantissa: 1, shift: ROUND_SHARE_SHIFT };
-                        self.phase = Phase::Round { threshold: largest.mul_frac(share), next: 0 };
+                        left -= 1;
                     }
+                    used = budget - left;
+                    self.phase = Phase::Sweep { next, depth, largest, usable, stale };
+                    if !finished {
+                        continue;
+                    }
+                    if stale {
+                        self.phase = Self::new_sweep();
+                        continue;
+                    }
+                    if !usable {
+                        return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
+                    }
+                    if largest <= self.config.tolerance {
+                        self.phase = Phase::Converged;
+                        return Outcome::Converged { used };
+                    }
+                    let share = Frac { mantissa: 1, shift: ROUND_SHARE_SHIFT };
+                    self.phase = Phase::Round { threshold: largest.mul_frac(share), next: 0 };
                 }
-            }
-        }
-    }
-
-    /// Applies `count` links of `sender`'s run from table position `from` (one loop over the run's receivers
-    /// and codes at the table's widths, decoded with the run's exponent).
-    fn apply_links(&mut self, sender: u32, from: u32, count: u32, power: [S; 3]) {
-        let Some(run) = self.table.run_view(sender) else { return };
-        run.for_each_from(from, count, |r, f| self.apply_link(r, f, power));
-    }
-
-    /// Link `(r, F)` delivers the power `F U_s` to node `r`. An inner receiver
-    /// keeps it as the irradiance `F U_s / A_r` pending for its subtree. A leaf takes it at once: into its
-    /// incident power, and the reflected `rho_l F U_s` into its own unshot power and, pending for the rest of
-    /// its chain, into its parent's reflected entry.
-    fn apply_link(&mut self, r: u32, f: Frac, power: [S; 3]) {
-        let x = power.map(|p| p.mul_frac(f));
-        if !self.table.is_leaf(r) {
-            let area = S::from_f32(self.table.node_area(r).unwrap_or(0.0));
-            let i = self.inner_index(r);
-            if let Some(p) = self.buf.pending.get_mut(i) {
-                *p = add3(*p, x.map(|q| q.div(area)));
-            }
-            return;
-        }
-        // `r` is a node (`is_leaf` checked), so its leaf index is one read.
-        let l = self.table.leaf_start(r);
-        let rho = self.rho(l);
-        let reflected = [0, 1, 2].map(|c| x[c].mul_frac(decode_reflectance(rho[c])));
-        if let Some(h) = self.buf.incident.get_mut(l as usize) {
-            *h = add3(*h, x);
-        }
-        if let Some(u) = self.buf.unshot.get_mut(r as usize) {
-            *u = add3(*u, reflected);
-        }
-        if let Some(p) = self.table.parent(r) {
-            let i = self.inner_index(p);
-            if let Some(v) = self.buf.reflected.get_mut(i) {
-                *v = add3(*v, reflected);
             }
         }
     }
 
     /// A sweep enters `node` (preorder; the path's top frame, at `depth - 1`, is its parent's, or the path is
-    /// empty for a root) and pushes its frame. An inner node's chain irradiance is its parent's plus its own
-    /// pending, and its subtree sum starts with its reflected entry (both taken, leaving zeros). A leaf takes
+    /// empty for a root) and pushes its frame (with the node's subtree end, which says when to leave it). An
+    /// inner node's chain irradiance is its parent's plus its own pending power over its area, and its subtree
+    /// sum starts with its reflected entry (both taken, leaving zeros). A leaf takes
     /// its parent's chain irradiance, the irradiance of every link above it since the last sweep: incident
     /// power `dH = A_l e`, and its reflected power `rho_l dH` starts the frame's subtree sum.
     fn enter(&mut self, node: u32, depth: u32) {
@@ -536,24 +538,26 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             .checked_sub(1)
             .and_then(|d| self.buf.path.get(d as usize))
             .map_or([S::ZERO; 3], |f| f.irradiance);
-        let (e, reflected) = if self.table.is_leaf(node) {
+        let end = self.table.subtree_end(node).unwrap_or(node.wrapping_add(1));
+        let area = S::from_f32(self.table.node_area(node).unwrap_or(0.0));
+        let (e, reflected) = if end == node.wrapping_add(1) {
+            // A leaf (its node's area is its own).
             let l = self.table.leaf_start(node);
-            let a = self.leaf_area(l);
-            let rho = self.rho(l);
-            let dh = above.map(|q| q.mul(a));
+            let rho = self.leaf_rho(l);
+            let dh = above.map(|q| q.mul(area));
             if let Some(v) = self.buf.incident.get_mut(l as usize) {
                 *v = add3(*v, dh);
             }
-            (above, [0, 1, 2].map(|c| dh[c].mul_frac(decode_reflectance(rho[c]))))
+            (above, [0, 1, 2].map(|c| dh[c].mul_rho(rho[c])))
         } else {
             let i = self.inner_index(node);
             let take =
                 |v: Option<&mut [S; 3]>| v.map_or([S::ZERO; 3], |v| core::mem::replace(v, [S::ZERO; 3]));
-            let pending = take(self.buf.pending.get_mut(i));
+            let pending = take(self.buf.pending.get_mut(i)).map(|p| p.div(area));
             (add3(above, pending), take(self.buf.reflected.get_mut(i)))
         };
         if let Some(f) = self.buf.path.get_mut(depth as usize) {
-            *f = SweepFrame { node, irradiance: e, reflected };
+            *f = SweepFrame { node, end, irradiance: e, reflected };
         }
     }
 
@@ -619,6 +623,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         if let Some(r) = self.buf.reflectance.get_mut(material as usize) {
             *r = new;
         }
+        self.refresh_rho(material);
         let mut units = 0u32;
         for l in 0..self.table.leaf_count() {
             units = units.saturating_add(1);

@@ -73,7 +73,7 @@ pub struct Solver<'a, S: Scalar> {
 }
 
 /// Materials whose decoded reflectance the solver keeps (a table rarely has more).
-const RHO_CACHE: usize = 16;
+pub(crate) const RHO_CACHE: usize = 16;
 
 fn get3<S: Scalar>(s: &[[S; 3]], i: u32) -> [S; 3] {
     s.get(i as usize).copied().unwrap_or([S::ZERO; 3])

@@ -517,7 +517,7 @@ fn triangles(
     let n = indices.len();
     match mode {
         Mode::Triangles => {
-            if n % 3 != 0 {
+            if !n.is_multiple_of(3) {
                 return Err(at(place.to_owned(), format!("{n} vertices for TRIANGLES, not a multiple of 3")));
             }
             Ok(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).enumerate().collect())

@@ -51,7 +51,7 @@ impl SceneGltf {
         let mut bin = Vec::new();
         let (mut views, mut accessors) = (Vec::new(), Vec::new());
         let mut view = |bin: &mut Vec<u8>, bytes: &[u8]| {
-            while bin.len() % 4 != 0 {
+            while !bin.len().is_multiple_of(4) {
                 bin.push(0);
             }
             views.push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}));
