@@ -10,7 +10,9 @@
 # firmware-sim/tables/hierarchical-enclosure.rft, is run on all builds as well, and its cost model and
 # instructions per link and per node visit are appended to the report. Tables with a transfer basis (all three
 # committed ones) are also relit from it; the four-light enclosure (firmware-sim/tables/four-lights.rft, its
-# scripts beside it) runs on the Cortex-M4 builds for the transfer relight's cost per light group.
+# scripts beside it) runs on the Cortex-M4 builds for the transfer relight's cost per light group, and the
+# Cornell box as a baked hierarchical table (firmware-sim/tables/cornell-box-hier.rft) on m4-f32 for the
+# instructions per link and per node visit at a real scene's run lengths.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -64,6 +66,22 @@ done
     for target in m4-f32 m4-fixed m0-fixed; do
         grep -h '^size:' "$out/hier-$target.txt" | sed "s/^size: /- $target: /"
     done
+} >>"$out/COST.md"
+# A baked hierarchical table of representative size (the Cornell box at epsilon 0.02, as `make demo` bakes it):
+# its runs are as long as a real scene's, where the test table's hold at most 4 links, so its instructions per
+# link and per node visit are the ones a device sees. Its f32 buffers fit the M4's 64 KiB of RAM; fixed point's
+# do not.
+cornell=firmware-sim/tables/cornell-box-hier.rft
+echo "--- m4-f32 (the Cornell box as a hierarchical table)"
+"$sim" qemu --table "$cornell" --target m4-f32 --timeout 300 --log "$out/cornell-hier-m4-f32.log" \
+    | tee "$out/cornell-hier-m4-f32.txt"
+"$sim" cost --table "$cornell" --log "$out/cornell-hier-m4-f32.log" --out "$out/COST-cornell.md"
+{
+    printf '\n# Hierarchical table of representative size (format version 4): %s\n' "$cornell"
+    printf '\nThe Cornell box baked as `make demo` bakes it (`radiosity bake scenes/cornell-box.obj --method hierarchical --epsilon 0.02 --transfer`), run on the f32 build.\n'
+    tail -n +2 "$out/COST-cornell.md" | sed 's/^## /### /'
+    printf '\n### Size and stack high-water mark\n\n'
+    grep -h '^size:' "$out/cornell-hier-m4-f32.txt" | sed "s/^size: /- m4-f32: /"
 } >>"$out/COST.md"
 cat "$out/COST.md"
 if [[ "${1:-}" == "--update" ]]; then
