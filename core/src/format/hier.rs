@@ -12,7 +12,7 @@ use super::layout::{le_f32, le_u16, le_u32, rgb16, TransferSection};
 use super::parse::{
     check_codec, check_offsets, check_prefix, check_transfer_exponents, header_error, in_range,
 };
-use super::view::Row;
+use super::view::{le, Row};
 use super::HIER_FORMAT_VERSION;
 use crate::codec::{FfCodec, Frac, RowDecoder, EMISSION_MAX, EXACT_SHIFT, MAX_ROW_EXPONENT};
 use crate::crc::crc32;
@@ -211,13 +211,7 @@ pub(crate) struct NodeSections<'a> {
 #[inline(always)]
 fn entry<const N: usize>(s: &[u8], i: u32) -> u32 {
     let (entries, _) = s.as_chunks::<N>();
-    entries.get(i as usize).map_or(0, |b| {
-        let mut v = [0u8; 4];
-        if let Some(dst) = v.get_mut(..N) {
-            dst.copy_from_slice(b);
-        }
-        u32::from_le_bytes(v)
-    })
+    entries.get(i as usize).map_or(0, |b| le::<N>(b))
 }
 
 impl NodeSections<'_> {
@@ -856,8 +850,9 @@ impl<'a> HierTable<'a> {
     }
 
     /// The receiver and code bytes of the links at table positions `from..end` (empty when the range is empty or
-    /// not inside the link sections), with the decoder of `sender`'s run exponent: what [`HierTable::run_view`]'s
-    /// [`Row::tail`] gives for positions inside `sender`'s run, without reading the run's bounds again.
+    /// not inside the link sections), with the decoder of `sender`'s run exponent: the entries
+    /// [`HierTable::run_view`]'s [`Row::entries_from`] reads for positions inside `sender`'s run, without
+    /// reading the run's bounds again.
     #[must_use]
     #[inline]
     pub(crate) fn link_bytes(&self, sender: u32, from: u32, end: u32) -> (&'a [u8], &'a [u8], RowDecoder) {

@@ -363,28 +363,6 @@ impl<'a> Row<'a> {
     pub fn entries(&self) -> Entries<'a> {
         self.entries_from(self.start)
     }
-
-    /// Calls `f(receiver, decoded factor)` for at most `count` entries from table position `position` (none if
-    /// past the row's end; the row's start if before it): what [`Row::entries_from`] yields, bit for bit, in a
-    /// loop specialized once per call for the table's index and code widths, so an entry is read with fixed
-    /// widths instead of a width match per entry.
-    #[inline]
-    pub fn for_each_from(&self, position: u32, count: u32, f: impl FnMut(u32, Frac)) {
-        let skip = position.saturating_sub(self.start) as usize;
-        let cb = self.codec.code_bytes();
-        let receivers = self.receivers.get(skip.saturating_mul(self.index_bytes)..).unwrap_or(&[]);
-        let codes = self.codes.get(skip.saturating_mul(cb)..).unwrap_or(&[]);
-        let decoder = self.codec.row_decoder(self.exponent);
-        let count = count as usize;
-        match (self.index_bytes, cb) {
-            (2, 1) => fixed_width::<2, 1>(receivers, codes, count, decoder, f),
-            (2, 2) => fixed_width::<2, 2>(receivers, codes, count, decoder, f),
-            (4, 1) => fixed_width::<4, 1>(receivers, codes, count, decoder, f),
-            (4, 2) => fixed_width::<4, 2>(receivers, codes, count, decoder, f),
-            // Parse accepts no other widths.
-            _ => {}
-        }
-    }
 }
 
 /// Little-endian value of a fixed-width field (`N <= 4`).
@@ -395,20 +373,6 @@ pub(crate) fn le<const N: usize>(b: &[u8]) -> u32 {
         dst.copy_from_slice(src);
     }
     u32::from_le_bytes(v)
-}
-
-/// [`Row::for_each_from`]'s loop for index width `IB` and code width `CB` (bytes).
-#[inline(always)]
-fn fixed_width<const IB: usize, const CB: usize>(
-    receivers: &[u8],
-    codes: &[u8],
-    count: usize,
-    decoder: RowDecoder,
-    mut f: impl FnMut(u32, Frac),
-) {
-    for (r, c) in receivers.chunks_exact(IB).zip(codes.chunks_exact(CB)).take(count) {
-        f(le::<IB>(r), decoder.decode(le::<CB>(c)));
-    }
 }
 
 /// Iterator over a [`Row`]'s entries: `(receiver slot, decoded form factor)`.

@@ -1,10 +1,9 @@
 //! Hierarchical shooting's inner loops: a run of links applied to their receivers ([`apply_run`]), with the
 //! receiver's table sections and the solver's buffers held in locals for the whole run and the entries read at
-//! the table's fixed index and code widths; and a round's judging of nodes until one shoots ([`judge`]). The arithmetic is [`HierSolver`](super::HierSolver)'s link rule
-//! (module docs of [`hier`](super), "The scheme"), operation for operation, so results do not depend on which
-//! loop applied a link.
+//! the table's fixed index and code widths; and a round's judging of nodes until one shoots ([`judge`]). The
+//! rules are the solver's (module docs of [`hier`](super), "The scheme" and "Rounds").
 
-use super::HierBuffers;
+use super::{add3, magnitude, HierBuffers};
 use crate::format::{le, HierTable, NodeSections};
 use crate::scalar::Scalar;
 use crate::solver::RHO_CACHE;
@@ -20,11 +19,25 @@ struct Targets<'s, 'a, S: Scalar> {
     rho_cache: &'s [[S::Rho; 3]; RHO_CACHE],
 }
 
+/// Material `m`'s reflectance decoded for products (`mul_rho`, bit for bit `mul_frac` of the decoded code):
+/// from the cache, or decoded from `codes` for a material beyond it.
+#[inline(always)]
+pub(super) fn cached_rho<S: Scalar>(
+    cache: &[[S::Rho; 3]; RHO_CACHE],
+    codes: &[[u16; 3]],
+    m: usize,
+) -> [S::Rho; 3] {
+    match cache.get(m) {
+        Some(r) => *r,
+        None => codes.get(m).copied().unwrap_or([0; 3]).map(S::rho),
+    }
+}
+
 /// Adds `d` to entry `i` of `buf` (nothing past its end).
 #[inline(always)]
 fn add_at<S: Scalar>(buf: &mut [[S; 3]], i: usize, d: [S; 3]) {
     if let Some(v) = buf.get_mut(i) {
-        *v = [v[0].add(d[0]), v[1].add(d[1]), v[2].add(d[2])];
+        *v = add3(*v, d);
     }
 }
 
@@ -58,10 +71,7 @@ impl<S: Scalar> Targets<'_, '_, S> {
         }
         let l = n.leaf_start(r);
         let m = n.material(l) as usize;
-        let rho = match self.rho_cache.get(m) {
-            Some(r) => *r,
-            None => self.reflectance.get(m).copied().unwrap_or([0; 3]).map(S::rho),
-        };
+        let rho = cached_rho::<S>(self.rho_cache, self.reflectance, m);
         let reflected = [x[0].mul_rho(rho[0]), x[1].mul_rho(rho[1]), x[2].mul_rho(rho[2])];
         add_at(self.incident, l as usize, x);
         add_at(self.unshot, r as usize, reflected);
@@ -125,7 +135,7 @@ pub(super) fn judge<S: Scalar>(
             continue;
         }
         let u = unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3]);
-        let m = u[0].abs().add(u[1].abs()).add(u[2].abs());
+        let m = magnitude(u);
         if m < threshold || m <= tolerance {
             continue;
         }

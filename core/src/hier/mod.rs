@@ -12,13 +12,15 @@
 //! - A shot of node `s` sets `U_s = 0` and walks its run: link `(r, F_sr)` delivers the power `F_sr U_s` to
 //!   `r`. An inner receiver adds it to its **pending** power ([`HierBuffers::pending`]), to be spread over `r`
 //!   uniformly (as the irradiance `pending / A_r`, one division per node and sweep rather than per link):
-//!   nothing below or above `r` is touched, so a link costs the same whatever the size of its receiver. A leaf receiver takes it at once: into its incident power `H_l`, and the reflected
+//!   nothing below or above `r` is touched, so a link costs the same whatever the size of its receiver. A leaf
+//!   receiver takes it at once: into its incident power `H_l`, and the reflected
 //!   `rho_l F_sr U_s` into its own unshot power and into its parent's **reflected** entry
 //!   ([`HierBuffers::reflected`]), pending for the rest of its chain. So leaves need no pending entry.
 //! - A **sweep** then makes the pending light count, in one pass over the nodes in preorder that keeps the
 //!   path from a root to the current node as a stack of [`SweepFrame`]s ([`HierBuffers::path`], one per
 //!   level of the tree). **Entering** a node pushes its frame: an inner node's chain irradiance is its
-//!   parent frame's plus its own pending power over its area, and its subtree sum starts with its reflected entry (both taken);
+//!   parent frame's plus its own pending power over its area, and its subtree sum starts with its reflected
+//!   entry (both taken);
 //!   a leaf adds `dH = A_l e` to `H_l`, `e` its parent frame's chain irradiance, and starts its frame's
 //!   subtree sum at `rho_l dH`. **Leaving** a node (once the preorder has passed its subtree) pops its frame:
 //!   the power reflected in its subtree goes into its unshot power (if it has links) and into its parent's
@@ -338,10 +340,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     /// cached per material, decoded for a material beyond the cache.
     fn leaf_rho(&self, leaf: u32) -> [S::Rho; 3] {
         let m = self.table.material(leaf).unwrap_or(0) as usize;
-        match self.rho_cache.get(m) {
-            Some(r) => *r,
-            None => self.buf.reflectance.get(m).copied().unwrap_or([0; 3]).map(S::rho),
-        }
+        links::cached_rho::<S>(&self.rho_cache, self.buf.reflectance, m)
     }
 
     /// Current reflectance codes of `leaf`'s material.
