@@ -217,7 +217,19 @@ pub fn relight_transfer_range<S: Scalar, T: TransferTable>(
         // One loop per path, chosen once per block: every product on the one-multiply path (the usual
         // intensities), or each product choosing its own.
         if scales.iter().flatten().all(S::transfer_fast) {
-            pass.run(out, scales, S::transfer_term_fast);
+            // The block's size as a constant: its products unrolled with every scale in a register.
+            const _: () = assert!(TRANSFER_GROUP_BLOCK == 8, "one arm per block size");
+            match scales.len() {
+                1 => pass.run_block::<S, 1>(out, scales),
+                2 => pass.run_block::<S, 2>(out, scales),
+                3 => pass.run_block::<S, 3>(out, scales),
+                4 => pass.run_block::<S, 4>(out, scales),
+                5 => pass.run_block::<S, 5>(out, scales),
+                6 => pass.run_block::<S, 6>(out, scales),
+                7 => pass.run_block::<S, 7>(out, scales),
+                8 => pass.run_block::<S, 8>(out, scales),
+                _ => pass.run(out, scales, S::transfer_term_fast),
+            }
         } else {
             pass.run(out, scales, S::transfer_term);
         }
@@ -241,6 +253,52 @@ struct Pass<'t, 's, T> {
 }
 
 impl<T: TransferTable> Pass<'_, '_, T> {
+    /// [`Pass::run`] on the one-multiply path for a block of exactly `G` groups (the caller matches
+    /// `scales.len()`; any other length writes nothing): the same products and sums in the same order, with the
+    /// group loop unrolled.
+    #[inline(never)]
+    fn run_block<S: Scalar, const G: usize>(&self, out: &mut [[S; 3]], scales: &[[S::TransferScale; 3]]) {
+        // A copy, so the scales stay in registers across the elements (behind a reference they are reloaded).
+        let Ok(&scales) = <&[[S::TransferScale; 3]; G]>::try_from(scales) else {
+            return;
+        };
+        let statics = self.statics();
+        let per = self.section.groups() as usize * 6;
+        let at = self.g0 * 6;
+        let codes = self.section.codes_from(self.first).chunks_exact(per);
+        for (k, (o, element)) in out.iter_mut().zip(codes).enumerate() {
+            let mut b = self.start(statics, k, o);
+            let block = element.get(at..).unwrap_or(&[]).as_chunks::<6>().0;
+            if let Some(block) = block.get(..G).and_then(|b| <&[[u8; 6]; G]>::try_from(b).ok()) {
+                for (code, scale) in block.iter().zip(&scales) {
+                    // Two-byte arrays copied whole: one 16-bit load each.
+                    for (c, &pair) in code.as_chunks::<2>().0.iter().enumerate() {
+                        b[c] = b[c].add(S::transfer_term_fast(u16::from_le_bytes(pair), scale[c]));
+                    }
+                }
+            }
+            *o = b;
+        }
+    }
+
+    /// Whether elements start from the static base: the first block of a table that has one.
+    fn statics(&self) -> bool {
+        self.init && self.table.has_static_base()
+    }
+
+    /// What element `first + k` starts from: its static base in the first block (`statics`; zero for a table
+    /// without one), else `o`, what the earlier blocks left.
+    #[inline(always)]
+    fn start<S: Scalar>(&self, statics: bool, k: usize, o: &[S; 3]) -> [S; 3] {
+        if statics {
+            self.table.element_static::<S>(self.first + k as u32).unwrap_or([S::ZERO; 3])
+        } else if self.init {
+            [S::ZERO; 3]
+        } else {
+            *o
+        }
+    }
+
     /// `out[k] = (init ? B_static : out[k]) + sum over the block's groups of term(code, the group's scale)`
     /// per channel, for element `first + k`.
     #[inline(always)]
@@ -250,16 +308,8 @@ impl<T: TransferTable> Pass<'_, '_, T> {
         scales: &[[S::TransferScale; 3]],
         term: impl Fn(u16, S::TransferScale) -> S,
     ) {
-        let statics = self.init && self.table.has_static_base();
-        let start = |k: usize, o: &[S; 3]| {
-            if statics {
-                self.table.element_static::<S>(self.first + k as u32).unwrap_or([S::ZERO; 3])
-            } else if self.init {
-                [S::ZERO; 3]
-            } else {
-                *o
-            }
-        };
+        let statics = self.statics();
+        let start = |k: usize, o: &[S; 3]| self.start(statics, k, o);
         let per = self.section.groups() as usize * 6;
         if per == 0 {
             for (k, o) in out.iter_mut().enumerate() {

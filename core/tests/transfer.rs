@@ -370,10 +370,17 @@ fn decode_is_exact() {
 
 #[test]
 fn tables_with_more_groups_than_a_block_sum_in_group_order() {
-    use radiosity_core::{relight_transfer_range, TRANSFER_GROUP_BLOCK};
-    // Three patches (one with a static base) and 2 blocks and 3 groups of light groups, responses spread over
-    // magnitudes so that the f32 sums depend on their order.
-    let groups = 2 * TRANSFER_GROUP_BLOCK + 3;
+    use radiosity_core::TRANSFER_GROUP_BLOCK;
+    // Every block size (the relight's products are unrolled per block size) and up to 2 blocks and 3 groups.
+    for groups in 1..=2 * TRANSFER_GROUP_BLOCK + 3 {
+        sums_in_group_order(groups);
+    }
+}
+
+/// Three patches (one with a static base) and `groups` light groups, responses spread over magnitudes so that
+/// the f32 sums depend on their order: relit (whole and one element at a time) bit for bit the naive sum.
+fn sums_in_group_order(groups: usize) {
+    use radiosity_core::relight_transfer_range;
     let mut s = three(Vec::new());
     s.groups = (0..groups)
         .map(|g| (g as u32 + 1, [1.0; 3], vec![MemberSpec { patch: (g % 3) as u32, emission: [1.0; 3] }]))
@@ -402,11 +409,11 @@ fn tables_with_more_groups_than_a_block_sum_in_group_order() {
     let mut out = [[0.0f32; 3]; 3];
     assert_eq!(relight_transfer(&t, &intensity, &mut out), Ok(3 * (groups as u32 + 1)));
     let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&out), bits(&want));
+    assert_eq!(bits(&out), bits(&want), "{groups} groups");
     // The same through a one-element buffer.
     for i in 0..3u32 {
         let mut one = [[0.0f32; 3]; 1];
         relight_transfer_range(&t, &intensity, i, &mut one).unwrap();
-        assert_eq!(bits(&one), bits(&want[i as usize..=i as usize]), "element {i}");
+        assert_eq!(bits(&one), bits(&want[i as usize..=i as usize]), "{groups} groups, element {i}");
     }
 }
