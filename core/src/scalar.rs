@@ -401,14 +401,40 @@ impl sealed::Internal for Fixed {
         (intensity, k)
     }
     fn transfer_term(code: u16, scale: (Fixed, i8)) -> Fixed {
+        if Fixed::transfer_fast(&scale) {
+            return Fixed::transfer_term_fast(code, scale);
+        }
         let (m, e) = decode_transfer_dyadic(code, scale.1);
         scale.0.mul(Fixed::from_dyadic(m, e))
     }
-    fn transfer_fast(_: &(Fixed, i8)) -> bool {
-        false
+    /// Intensities below `2^18` in magnitude (raw below `2^50`) under scale exponents `K <= 12`: every code's
+    /// `m 2^e` then has `m < 2^13` and `e = K - s <= 0` (a FLOAT16 code's shift `s` is at least 12), where
+    /// [`Internal::transfer_term_fast`] is exact.
+    fn transfer_fast(scale: &(Fixed, i8)) -> bool {
+        scale.0 .0.unsigned_abs() >> 50 == 0 && scale.1 <= 12
     }
+    /// `intensity.mul(Fixed::from_dyadic(m, e))` for the code's `m 2^e` in 64-bit integers, for scales where
+    /// [`Internal::transfer_fast`] holds (`|I| < 2^50` raw, `m < 2^13`, `e <= 0`). There `from_dyadic` is
+    /// `R = floor(m 2^(e + 32))` (exact while `e >= -32`, else `m >> (-e - 32)`), below `2^45`, and `mul` is
+    /// `floor(I R / 2^32)` with `|I R| < 2^63`:
+    /// - `e >= -32`: `I R / 2^32 = I m 2^e` exactly, so the result is `floor(I m / 2^-e)`, an arithmetic shift of
+    ///   the 64-bit `I m`;
+    /// - `e < -32`: `R = m >> (-e - 32) < 2^13` (zero from `-e - 32 >= 13`), and the result is `(I R) >> 32`.
+    ///
+    /// Neither saturates (`|I m| < 2^63`), so both are the bits of the 128-bit path. Other scales get some value
+    /// (wrapping, never a panic).
+    #[inline(always)]
     fn transfer_term_fast(code: u16, scale: (Fixed, i8)) -> Fixed {
-        Fixed::transfer_term(code, scale)
+        let (m, e) = decode_transfer_dyadic(code, scale.1);
+        let (i, m, s) = (scale.0 .0, i64::from(m), e.wrapping_neg() as u32);
+        Fixed(if s <= 32 {
+            i.wrapping_mul(m) >> s
+        } else if s < 45 {
+            i.wrapping_mul(m >> (s - 32)) >> FIXED_FRAC_BITS
+        } else {
+            // R = 0 (or e > 0, outside the path).
+            0
+        })
     }
     /// Fixed point rounds each product of the dyadic factor (`mul_frac`): the row's decoder as it is.
     type LinkDecoder = RowDecoder;
@@ -426,6 +452,43 @@ impl sealed::Internal for Fixed {
 mod tests {
     use super::sealed::Internal;
     use super::*;
+
+    #[test]
+    fn fixed_transfer_terms_match_the_128_bit_product() {
+        // Every code's mantissa and exponent under scale exponents across the valid range, with intensities on
+        // both sides of the 64-bit path's bound (raw 2^50), signed: the fast path's bits against the 128-bit one.
+        let intensities = [
+            0i64,
+            1,
+            -1,
+            3,
+            (1 << 32) - 1,
+            1 << 32,
+            -(1 << 32),
+            5 << 31,
+            0x1234_5678_9abc,
+            -0x1234_5678_9abc,
+            (1 << 50) - 1,
+            -((1 << 50) - 1),
+            1 << 50,
+            -(1 << 50),
+            i64::MAX,
+            i64::MIN,
+        ];
+        for code in (0..=u16::MAX).step_by(7).chain([1, 0xfff, 0x1000, 0xffff]) {
+            for k in [-96i8, -60, -45, -33, -32, -20, -13, -12, -7, -1, 0, 1, 13, 20, 32] {
+                let (m, e) = decode_transfer_dyadic(code, k);
+                if k <= 12 {
+                    assert!(m >> 13 == 0 && e <= 0, "the fast path's premise: code {code:#x}, k {k}");
+                }
+                for &i in &intensities {
+                    let want = Fixed(i).mul(Fixed::from_dyadic(m, e));
+                    let got = Fixed::transfer_term(code, Fixed::transfer_scale(Fixed(i), k));
+                    assert_eq!(got, want, "code {code:#x}, k {k}, intensity raw {i}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn fixed_div_matches_the_128_bit_quotient() {
