@@ -63,6 +63,14 @@ pub(crate) mod sealed {
         /// channel, `row` the decoder `d` was prepared from.
         #[must_use]
         fn link_products(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
+        /// Whether [`Internal::link_products_fast`] gives `link_products`' bits for `d` and every code read at
+        /// the codec's width.
+        #[must_use]
+        fn link_fast(d: &Self::LinkDecoder) -> bool;
+        /// `link_products` without its per-code checks, for decoders where [`Internal::link_fast`] holds (for
+        /// others any value).
+        #[must_use]
+        fn link_products_fast(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
     }
 }
 
@@ -214,6 +222,14 @@ impl sealed::Internal for f32 {
     #[inline(always)]
     fn link_products(power: [f32; 3], code: u32, d: F32RowDecoder) -> [f32; 3] {
         let f = d.decode(code);
+        [power[0] * f, power[1] * f, power[2] * f]
+    }
+    fn link_fast(d: &F32RowDecoder) -> bool {
+        d.is_fast()
+    }
+    #[inline(always)]
+    fn link_products_fast(power: [f32; 3], code: u32, d: F32RowDecoder) -> [f32; 3] {
+        let f = d.decode_fast(code);
         [power[0] * f, power[1] * f, power[2] * f]
     }
 }
@@ -445,6 +461,12 @@ impl sealed::Internal for Fixed {
     fn link_products(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
         let f = d.decode(code);
         [power[0].mul_frac(f), power[1].mul_frac(f), power[2].mul_frac(f)]
+    }
+    fn link_fast(_: &RowDecoder) -> bool {
+        false
+    }
+    fn link_products_fast(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
+        Fixed::link_products(power, code, d)
     }
 }
 

@@ -195,12 +195,11 @@ pub struct HierTable<'a> {
 }
 
 /// The node sections of a [`HierTable`] that resolve a link's receiver (hierarchical shooting's inner loop):
-/// reads with the same results as the table's accessors ([`HierTable::subtree_end`], [`HierTable::leaf_start`],
+/// reads with the same results as the table's accessors ([`HierTable::leaf_start`], [`HierTable::is_leaf`],
 /// [`HierTable::parent`], [`HierTable::material`]) for nodes and leaves in range,
 /// without the count checks a receiver validated by parse does not need (out of range still reads 0).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct NodeSections<'a> {
-    end: &'a [u8],
     leaf_start: &'a [u8],
     parent: &'a [u8],
     material: &'a [u8],
@@ -215,16 +214,23 @@ fn entry<const N: usize>(s: &[u8], i: u32) -> u32 {
 }
 
 impl NodeSections<'_> {
-    /// End of `node`'s subtree.
-    #[inline(always)]
-    pub(crate) fn end(&self, node: u32) -> u32 {
-        entry::<4>(self.end, node)
-    }
-
     /// Leaves before `node` in preorder.
     #[inline(always)]
     pub(crate) fn leaf_start(&self, node: u32) -> u32 {
         entry::<4>(self.leaf_start, node)
+    }
+
+    /// `(leaf_start(node), leaf_start(node + 1))` with one comparison (`(0, 0)` past the section): they differ
+    /// exactly when `node` is a leaf (leaf starts count the leaves before each node, validated by parse), so
+    /// this tells a leaf from an inner node and gives its leaf or inner index without the subtree end.
+    #[inline(always)]
+    pub(crate) fn leaf_starts(&self, node: u32) -> (u32, u32) {
+        let (entries, _) = self.leaf_start.as_chunks::<4>();
+        let i = node as usize;
+        match entries.get(i..i.wrapping_add(2)) {
+            Some([a, b]) => (le::<4>(a), le::<4>(b)),
+            _ => (0, 0),
+        }
     }
 
     /// Stored parent of `node` (itself for a root), from an index section of `IB` bytes per entry.
@@ -878,7 +884,6 @@ impl<'a> HierTable<'a> {
     #[inline]
     pub(crate) fn node_sections(&self) -> NodeSections<'a> {
         NodeSections {
-            end: self.node_end,
             leaf_start: self.node_leaf_start,
             parent: self.node_parent,
             material: self.leaf_material,

@@ -53,8 +53,15 @@ impl<S: Scalar> Targets<'_, '_, S> {
     ) {
         let (receivers, _) = receivers.as_chunks::<IB>();
         let (codes, _) = codes.as_chunks::<CB>();
-        for (r, c) in receivers.iter().zip(codes) {
-            self.link::<IB>(le::<IB>(r), S::link_products(power, le::<CB>(c), decoder));
+        // The decoder's path chosen once per run: codes read at the codec's width need no clamp.
+        if S::link_fast(&decoder) {
+            for (r, c) in receivers.iter().zip(codes) {
+                self.link::<IB>(le::<IB>(r), S::link_products_fast(power, le::<CB>(c), decoder));
+            }
+        } else {
+            for (r, c) in receivers.iter().zip(codes) {
+                self.link::<IB>(le::<IB>(r), S::link_products(power, le::<CB>(c), decoder));
+            }
         }
     }
 
@@ -65,11 +72,11 @@ impl<S: Scalar> Targets<'_, '_, S> {
     #[inline(always)]
     fn link<const IB: usize>(&mut self, r: u32, x: [S; 3]) {
         let n = &self.nodes;
-        if n.end(r) != r.wrapping_add(1) {
-            add_at(self.pending, r.wrapping_sub(n.leaf_start(r)) as usize, x);
+        let (l, next) = n.leaf_starts(r);
+        if next == l {
+            add_at(self.pending, r.wrapping_sub(l) as usize, x);
             return;
         }
-        let l = n.leaf_start(r);
         let m = n.material(l) as usize;
         let rho = cached_rho::<S>(self.rho_cache, self.reflectance, m);
         let reflected = [x[0].mul_rho(rho[0]), x[1].mul_rho(rho[1]), x[2].mul_rho(rho[2])];
