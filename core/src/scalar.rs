@@ -296,6 +296,21 @@ fn shift_saturating(v: i128, shift: i32) -> Fixed {
     }
 }
 
+impl Fixed {
+    /// [`Scalar::mul_frac`] through the 128-bit product (the operands its 32-bit path does not take): kept out
+    /// of line, so the inlined products stay small.
+    #[inline(never)]
+    #[cold]
+    fn mul_frac_wide(self, f: Frac) -> Fixed {
+        // |self| < 2^63 and mantissa < 2^32: the product fits in i128. Round half up: flooring would bias
+        // every transfer down by half a unit on average, which adds up over thousands of shots.
+        let shift = f.shift.min(126);
+        let p = i128::from(self.0) * i128::from(f.mantissa);
+        let half = if shift == 0 { 0 } else { 1i128 << (shift - 1) };
+        shift_saturating(p + half, -(shift as i32))
+    }
+}
+
 impl Scalar for Fixed {
     const ZERO: Fixed = Fixed(0);
     fn add(self, other: Fixed) -> Fixed {
@@ -335,6 +350,18 @@ impl Scalar for Fixed {
         // - `s <= 32`: `P_hi 2^32` is a multiple of `2^s`, so the result is `P_hi 2^(32 - s) + floor((P_lo +
         //   half) / 2^s)`, taken when neither the shift nor the sum overflows (the 128-bit path saturates).
         // Both are the bits of the 128-bit path below.
+        //
+        // Smaller operands, the usual ones, take one 64-bit product: with `|self| < 2^49` and `m < 2^13` (a
+        // FLOAT16 form factor's mantissa) or `|self| < 2^46` and `m < 2^16` (a reflectance), `P = self m` is
+        // below 2^62 in magnitude, so for shifts `1..=62` (`half <= 2^61`) `P + half` fits in an i64: the result
+        // is its arithmetic shift, which cannot saturate, the bits of the 128-bit path.
+        let a = self.0.unsigned_abs();
+        if ((a >> 49 == 0 && f.mantissa >> 13 == 0) || (a >> 46 == 0 && f.mantissa >> 16 == 0))
+            && (1..=62).contains(&f.shift)
+        {
+            let s = f.shift;
+            return Fixed((self.0 * i64::from(f.mantissa) + (1i64 << (s - 1))) >> s);
+        }
         if f.mantissa >> 31 == 0 && (1..=95).contains(&f.shift) {
             let (s, m) = (f.shift, f.mantissa);
             let lo_m = u64::from(self.0 as u32) * u64::from(m);
@@ -353,12 +380,7 @@ impl Scalar for Fixed {
                 }
             }
         }
-        // |self| < 2^63 and mantissa < 2^32: the product fits in i128. Round half up: flooring would bias
-        // every transfer down by half a unit on average, which adds up over thousands of shots.
-        let shift = f.shift.min(126);
-        let p = i128::from(self.0) * i128::from(f.mantissa);
-        let half = if shift == 0 { 0 } else { 1i128 << (shift - 1) };
-        shift_saturating(p + half, -(shift as i32))
+        self.mul_frac_wide(f)
     }
     fn abs(self) -> Fixed {
         Fixed(self.0.saturating_abs())
@@ -402,6 +424,7 @@ impl sealed::Internal for Fixed {
     fn rho(code: u16) -> u16 {
         code
     }
+    #[inline(always)]
     fn mul_rho(self, rho: u16) -> Fixed {
         self.mul_frac(decode_reflectance(rho))
     }
@@ -562,6 +585,10 @@ mod tests {
         };
         let mut xs =
             vec![0i64, 1, -1, 2, -2, (1 << 32) - 1, 1 << 32, -(1 << 32), i64::MAX, i64::MIN, i64::MIN + 1];
+        // Both sides of the one-product path's bounds (2^46, 2^49) and beyond.
+        for b in [46, 47, 49, 50] {
+            xs.extend([(1i64 << b) - 1, 1 << b, -((1i64 << b) - 1), -(1i64 << b), (1 << b) + 1]);
+        }
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut next = || {
             seed ^= seed << 13;
@@ -573,8 +600,20 @@ mod tests {
             let v = next();
             xs.push((v as i64) >> (v % 64));
         }
-        let mut mantissas =
-            vec![0u32, 1, 2, 0xffff, 0x1_0000, 0x1_ffff, u32::MAX, u32::MAX - 1, 1 << 31, (1 << 31) - 1];
+        let mut mantissas = vec![
+            0u32,
+            1,
+            2,
+            0xffff,
+            0x1_0000,
+            0x1_ffff,
+            u32::MAX,
+            u32::MAX - 1,
+            1 << 31,
+            (1 << 31) - 1,
+            0x1fff,
+            0x2000,
+        ];
         for _ in 0..40 {
             let v = next();
             mantissas.push((v as u32) >> (v % 32));
