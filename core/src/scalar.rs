@@ -63,10 +63,10 @@ pub(crate) mod sealed {
         /// channel, `row` the decoder `d` was prepared from.
         #[must_use]
         fn link_products(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
-        /// Whether [`Internal::link_products_fast`] gives `link_products`' bits for `d` and every code read at
-        /// the codec's width.
+        /// Whether [`Internal::link_products_fast`] gives `link_products`' bits for `d`, `power` and every
+        /// code read at the codec's width.
         #[must_use]
-        fn link_fast(d: &Self::LinkDecoder) -> bool;
+        fn link_fast(d: &Self::LinkDecoder, power: &[Self; 3]) -> bool;
         /// `link_products` without its per-code checks, for decoders where [`Internal::link_fast`] holds (for
         /// others any value).
         #[must_use]
@@ -224,7 +224,7 @@ impl sealed::Internal for f32 {
         let f = d.decode(code);
         [power[0] * f, power[1] * f, power[2] * f]
     }
-    fn link_fast(d: &F32RowDecoder) -> bool {
+    fn link_fast(d: &F32RowDecoder, _: &[f32; 3]) -> bool {
         d.is_fast()
     }
     #[inline(always)]
@@ -485,11 +485,23 @@ impl sealed::Internal for Fixed {
         let f = d.decode(code);
         [power[0].mul_frac(f), power[1].mul_frac(f), power[2].mul_frac(f)]
     }
-    fn link_fast(_: &RowDecoder) -> bool {
-        false
+    /// Rows whose values have mantissas below `2^13` and shifts in `1..=62` (FLOAT16 rows of exponents in
+    /// the usual range) shot with powers below `2^49` raw in magnitude: every product then takes `mul_frac`'s
+    /// one 64-bit product path, which [`Internal::link_products_fast`] computes without `mul_frac`'s checks.
+    fn link_fast(d: &RowDecoder, power: &[Fixed; 3]) -> bool {
+        let (least, largest) = d.shift_range();
+        d.mantissa_bits() <= 13
+            && least >= 1
+            && largest <= 62
+            && power.iter().all(|p| p.0.unsigned_abs() >> 49 == 0)
     }
+    /// `mul_frac`'s one-product path: `(p m + 2^(s - 1)) >> s` per channel, the code decoded once.
+    #[inline(always)]
     fn link_products_fast(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
-        Fixed::link_products(power, code, d)
+        let f = d.decode_unclamped(code);
+        let (m, s) = (i64::from(f.mantissa), f.shift);
+        let half = 1i64.wrapping_shl(s.wrapping_sub(1));
+        power.map(|p| Fixed(p.0.wrapping_mul(m).wrapping_add(half).wrapping_shr(s)))
     }
 }
 
@@ -497,6 +509,41 @@ impl sealed::Internal for Fixed {
 mod tests {
     use super::sealed::Internal;
     use super::*;
+
+    #[test]
+    fn fixed_link_products_fast_are_the_checked_products() {
+        // Every code of the codecs at row exponents across the range, powers on both sides of 2^49: where
+        // `link_fast` holds, the unchecked products are `link_products`' bits; the premise holds for FLOAT16 rows
+        // of small exponents with moderate powers (the path is not dead).
+        use crate::codec::FfCodec;
+        let powers = [
+            [Fixed(0), Fixed(1), Fixed(-1)],
+            [Fixed(1 << 32), Fixed(-(5 << 31)), Fixed(0x1234_5678_9abc)],
+            [Fixed((1 << 49) - 1), Fixed(-((1 << 49) - 1)), Fixed(3)],
+            [Fixed(1 << 49), Fixed(7), Fixed(-7)],
+        ];
+        let mut taken = 0;
+        for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
+            for e in [0u8, 1, 5, 20, 40, 50, 63] {
+                let d = codec.row_decoder(e);
+                for power in &powers {
+                    if !Fixed::link_fast(&d, power) {
+                        continue;
+                    }
+                    taken += 1;
+                    for code in 0..=u32::from(codec.max_code()) {
+                        let (got, want) = (
+                            Fixed::link_products_fast(*power, code, d),
+                            Fixed::link_products(*power, code, d),
+                        );
+                        assert_eq!(got, want, "{codec} e {e} code {code} power {power:?}");
+                    }
+                }
+            }
+        }
+        assert!(taken >= 10, "the fast path's premise held for {taken} rows and powers");
+        assert!(Fixed::link_fast(&FfCodec::FLOAT16.row_decoder(0), &[Fixed(1 << 32); 3]));
+    }
 
     #[test]
     fn fixed_transfer_terms_match_the_128_bit_product() {

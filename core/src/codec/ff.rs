@@ -58,6 +58,38 @@ pub struct RowDecoder {
 }
 
 impl RowDecoder {
+    /// The least and the largest shift of the row's codes' values (as [`RowDecoder::decode`] gives them).
+    #[must_use]
+    pub fn shift_range(self) -> (u32, u32) {
+        let largest_x = (self.max_code >> self.m_bits) as i32;
+        let least = if largest_x == 0 { self.base } else { self.base + 1 - largest_x };
+        (least.max(0) as u32, self.base.max(0) as u32)
+    }
+
+    /// Bits of the largest mantissa of the row's values (with a normal code's leading one).
+    #[must_use]
+    pub fn mantissa_bits(self) -> u32 {
+        self.m_bits + u32::from(self.max_code >> self.m_bits != 0)
+    }
+
+    /// [`RowDecoder::decode`] without its clamps, for codes no larger than the largest (every code read at the
+    /// codec's width) in rows whose shifts are all positive ([`RowDecoder::shift_range`]): then the same
+    /// value. Any other use gives some value, never a panic.
+    #[must_use]
+    #[inline(always)]
+    pub fn decode_unclamped(self, code: u32) -> Frac {
+        let x = code.wrapping_shr(self.m_bits);
+        let m = code & 1u32.wrapping_shl(self.m_bits).wrapping_sub(1);
+        if x == 0 {
+            Frac { mantissa: m, shift: self.base as u32 }
+        } else {
+            Frac {
+                mantissa: 1u32.wrapping_shl(self.m_bits) | m,
+                shift: self.base.wrapping_add(1).wrapping_sub(x as i32) as u32,
+            }
+        }
+    }
+
     /// The code's value, as [`FfCodec::decode`] gives it (codes above the largest are clamped).
     #[must_use]
     #[inline]

@@ -53,8 +53,9 @@ impl<S: Scalar> Targets<'_, '_, S> {
     ) {
         let (receivers, _) = receivers.as_chunks::<IB>();
         let (codes, _) = codes.as_chunks::<CB>();
-        // The decoder's path chosen once per run: codes read at the codec's width need no clamp.
-        if S::link_fast(&decoder) {
+        // The products' path chosen once per run: codes read at the codec's width need no clamp, and the
+        // shooter's power and the row's shifts decide once whether fixed point's products can skip their checks.
+        if S::link_fast(&decoder, &power) {
             for (r, c) in receivers.iter().zip(codes) {
                 self.link::<IB>(le::<IB>(r), S::link_products_fast(power, le::<CB>(c), decoder));
             }
