@@ -474,7 +474,7 @@ pub fn instructions_per_unit(cost_md: &str) -> Result<InstructionsPerUnit, Bench
     })
 }
 
-/// The bound instructions per work unit of firmware build `build` (`m4-f32`, `hier-m4-f32`, ...) from the cost
+/// The bound instructions per work unit of firmware build `build` (`m4-f32`, `cornell-hier-m4-f32`, ...) from the cost
 /// tables in `firmware-sim/COST.md` (every table there has the same columns).
 ///
 /// # Errors

@@ -415,7 +415,8 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
          against the table's own f64 answer (its convergence), \"faces\" the per-face error against the continuous \
          reference above (the common yardstick of two different discretizations). Model instructions are work \
          units times the bound per unit of the table's firmware build in `firmware-sim/COST.md` (measured under \
-         QEMU).\n"
+         QEMU; for the hierarchical table the bound of the same table run on the f32 firmware, \
+         `cornell-hier-m4-f32`, whose runs are as long as here).\n"
     );
     let _ = writeln!(
         s,
