@@ -213,6 +213,18 @@ fn entry<const N: usize>(s: &[u8], i: u32) -> u32 {
     entries.get(i as usize).map_or(0, |b| le::<N>(b))
 }
 
+/// Entries `i` and `i + 1` of a section of 4-byte little-endian values with one comparison (`(0, 0)` past its
+/// end).
+#[inline(always)]
+fn pair(s: &[u8], i: u32) -> (u32, u32) {
+    let (entries, _) = s.as_chunks::<4>();
+    let i = i as usize;
+    match entries.get(i..i.wrapping_add(2)) {
+        Some([a, b]) => (le::<4>(a), le::<4>(b)),
+        _ => (0, 0),
+    }
+}
+
 impl NodeSections<'_> {
     /// Leaves before `node` in preorder.
     #[inline(always)]
@@ -225,12 +237,7 @@ impl NodeSections<'_> {
     /// this tells a leaf from an inner node and gives its leaf or inner index without the subtree end.
     #[inline(always)]
     pub(crate) fn leaf_starts(&self, node: u32) -> (u32, u32) {
-        let (entries, _) = self.leaf_start.as_chunks::<4>();
-        let i = node as usize;
-        match entries.get(i..i.wrapping_add(2)) {
-            Some([a, b]) => (le::<4>(a), le::<4>(b)),
-            _ => (0, 0),
-        }
+        pair(self.leaf_start, node)
     }
 
     /// Stored parent of `node` (itself for a root), from an index section of `IB` bytes per entry.
@@ -876,7 +883,19 @@ impl<'a> HierTable<'a> {
     #[must_use]
     #[inline(always)]
     pub(crate) fn run_bounds(&self, node: u32) -> (u32, u32) {
-        (entry::<4>(self.run_start, node), entry::<4>(self.run_start, node.wrapping_add(1)))
+        pair(self.run_start, node)
+    }
+
+    /// The end of `node`'s subtree, read without `node`'s own range check (0 past the section).
+    #[inline(always)]
+    pub(crate) fn subtree_end_unchecked(&self, node: u32) -> u32 {
+        entry::<4>(self.node_end, node)
+    }
+
+    /// The area of `node`, read without `node`'s own range check (0 past the section).
+    #[inline(always)]
+    pub(crate) fn node_area_unchecked(&self, node: u32) -> f32 {
+        f32::from_bits(entry::<4>(self.node_area, node))
     }
 
     /// The node sections a link's receiver is resolved with, for hierarchical shooting's inner loop.

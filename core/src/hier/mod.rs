@@ -336,13 +336,6 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         }
     }
 
-    /// `leaf`'s reflectance decoded for products (`mul_rho`, bit for bit `mul_frac` of the decoded code):
-    /// cached per material, decoded for a material beyond the cache.
-    fn leaf_rho(&self, leaf: u32) -> [S::Rho; 3] {
-        let m = self.table.material(leaf).unwrap_or(0) as usize;
-        links::cached_rho::<S>(&self.rho_cache, self.buf.reflectance, m)
-    }
-
     /// Current reflectance codes of `leaf`'s material.
     fn rho(&self, leaf: u32) -> [u16; 3] {
         let m = self.table.material(leaf).unwrap_or(0);
@@ -410,15 +403,6 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             return [S::ZERO; 3];
         }
         self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])
-    }
-
-    /// The inner index of `node` (the inner nodes before it): its entry in the per-inner-node buffers.
-    fn inner_index(&self, node: u32) -> usize {
-        if node < self.table.node_count() {
-            node.wrapping_sub(self.table.leaf_start(node)) as usize
-        } else {
-            usize::MAX
-        }
     }
 
     /// Runs actions (module docs) until convergence or until `budget` work units are spent. Every action
@@ -537,19 +521,23 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             .checked_sub(1)
             .and_then(|d| self.buf.path.get(d as usize))
             .map_or([S::ZERO; 3], |f| f.irradiance);
-        let end = self.table.subtree_end(node).unwrap_or(node.wrapping_add(1));
-        let area = S::from_f32(self.table.node_area(node).unwrap_or(0.0));
-        let (e, reflected) = if end == node.wrapping_add(1) {
+        // A leaf or an inner node, and its leaf or inner index, from two adjacent leaf starts.
+        let nodes = self.table.node_sections();
+        let (l, next) = nodes.leaf_starts(node);
+        let leaf = next != l;
+        let end = if leaf { node.wrapping_add(1) } else { self.table.subtree_end_unchecked(node) };
+        let area = S::from_f32(self.table.node_area_unchecked(node));
+        let (e, reflected) = if leaf {
             // A leaf (its node's area is its own).
-            let l = self.table.leaf_start(node);
-            let rho = self.leaf_rho(l);
+            let rho =
+                links::cached_rho::<S>(&self.rho_cache, self.buf.reflectance, nodes.material(l) as usize);
             let dh = above.map(|q| q.mul(area));
             if let Some(v) = self.buf.incident.get_mut(l as usize) {
                 *v = add3(*v, dh);
             }
             (above, [0, 1, 2].map(|c| dh[c].mul_rho(rho[c])))
         } else {
-            let i = self.inner_index(node);
+            let i = node.wrapping_sub(l) as usize;
             let take =
                 |v: Option<&mut [S; 3]>| v.map_or([S::ZERO; 3], |v| core::mem::replace(v, [S::ZERO; 3]));
             let pending = take(self.buf.pending.get_mut(i)).map(|p| p.div(area));
@@ -569,7 +557,8 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         if let Some(parent) = top.checked_sub(1).and_then(|d| self.buf.path.get_mut(d as usize)) {
             parent.reflected = add3(parent.reflected, frame.reflected);
         }
-        if !self.table.has_links(frame.node) {
+        let (start, end) = self.table.run_bounds(frame.node);
+        if end <= start {
             return None;
         }
         let u = self.buf.unshot.get_mut(frame.node as usize)?;
