@@ -4,11 +4,13 @@
 //! brightness refinement at [`HIER_EPSILON`], 16-bit codes), with the error at geometrically spaced amounts of
 //! work against each table's own f64 answer and, per OBJ face, against the continuous reference (the common
 //! yardstick: the two tables solve different discretizations of the same scene). Work becomes model
-//! instructions through the firmware's cost model (`firmware-sim/COST.md`, measured under QEMU: the bound per
-//! unit of the `m4-f32` build for the flat table, and for the hierarchical one the bound of
-//! `cornell-hier-m4-f32`, this same table as `firmware-sim/tables/cornell-box-hier.rft` run on the f32
-//! firmware, whose runs are as long as the curve's; the committed test table's, `hier-m4-f32`, holds runs of at
-//! most 4 links, so each shot's setup weighs on its units).
+//! instructions through the firmware's cost model (`firmware-sim/COST.md`, measured under QEMU): the bound per
+//! unit of the `m4-f32` build for the flat table; for the hierarchical one the two-rate bound (per link and per
+//! node visit, scaled to the envelope of its calibration frames) of `cornell-hier-m4-f32`, this same table as
+//! `firmware-sim/tables/cornell-box-hier.rft` run on the f32 firmware, whose runs are as long as the curve's
+//! (the committed test table's, `hier-m4-f32`, holds runs of at most 4 links), applied to the links and node
+//! visits the solver counts. A link and a node visit cost different amounts, and the mix changes along a run,
+//! so one rate per unit would not bound every stretch of it.
 
 use radiosity_core::{
     hier_convergence_floor, Config, HierOwnedBuffers, HierSolver, HierTable, NoProgressReason, Outcome,
@@ -17,7 +19,7 @@ use radiosity_core::{
 
 use super::device::{radiosity, Owned};
 use super::faces::{face_errors, face_means, FaceErrors};
-use super::{bound_per_unit, log, BenchError, BenchOptions, COST_MD};
+use super::{bound_per_unit, log, two_rate_bound, BenchError, BenchOptions, COST_MD};
 use crate::bake::{bake, bake_hierarchy, BakeInput, BakeOptions};
 use crate::formfactor::FormFactorOptions;
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
@@ -53,7 +55,9 @@ const TOLERANCE: f64 = 1e-7;
 pub struct DevicePoint {
     /// Work units spent so far.
     pub units: u64,
-    /// Model instructions: units times the build's bound per unit.
+    /// Of them, links applied (hierarchical tables; `None` for a flat table, whose units are all alike).
+    pub links: Option<u64>,
+    /// Model instructions: the curve's [`CostModel`] applied to the work so far.
     pub instructions: f64,
     /// Area-weighted relative L2 error against the table's own f64 answer.
     pub own: f64,
@@ -72,12 +76,54 @@ pub struct DeviceCurve {
     pub bytes: usize,
     /// The firmware build whose cost model turns units into instructions.
     pub build: String,
-    /// That build's bound instructions per unit.
-    pub per_unit: f64,
+    /// That build's bound.
+    pub model: CostModel,
     /// Whether the solver converged (to [`TOLERANCE`]) before [`MAX_UNITS`].
     pub converged: bool,
     /// The checkpoints.
     pub points: Vec<DevicePoint>,
+}
+
+/// A firmware build's bound on instructions for an amount of work (`firmware-sim/COST.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CostModel {
+    /// The bound instructions per work unit.
+    PerUnit(f64),
+    /// The two-rate bound: `scale (per_link links + per_node node visits)` (without the per-frame overhead:
+    /// a curve is one run, not frames).
+    TwoRate {
+        /// Instructions per link applied.
+        per_link: f64,
+        /// Instructions per node visit (judged in a round, entered or left by a sweep).
+        per_node: f64,
+        /// The envelope's scale over the calibration frames.
+        scale: f64,
+    },
+}
+
+impl CostModel {
+    /// Model instructions for `units` work units of which `links` are links (all units alike if `None`).
+    #[must_use]
+    pub fn instructions(&self, units: u64, links: Option<u64>) -> f64 {
+        match *self {
+            CostModel::PerUnit(r) => units as f64 * r,
+            CostModel::TwoRate { per_link, per_node, scale } => {
+                let links = links.unwrap_or(0).min(units);
+                scale * (per_link * links as f64 + per_node * (units - links) as f64)
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for CostModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CostModel::PerUnit(r) => write!(f, "{r:.2} per unit"),
+            CostModel::TwoRate { per_link, per_node, scale } => {
+                write!(f, "{per_link:.1} per link, {per_node:.1} per node visit, x {scale:.3}")
+            }
+        }
+    }
 }
 
 impl DeviceCurve {
@@ -169,7 +215,7 @@ fn flat(
     let mut solver = Solver::new(&table, buffers, Config { tolerance, overshoot: 0 })
         .map_err(|e| BenchError::Solver(format!("flat table: {e}")))?;
     let build = "m4-f32";
-    let per_unit = bound_per_unit(COST_MD, build)?;
+    let model = CostModel::PerUnit(bound_per_unit(COST_MD, build)?);
     let solver = std::cell::RefCell::new(&mut solver);
     let (points, converged) = checkpoints(
         |budget| solver.borrow_mut().step(budget),
@@ -177,7 +223,8 @@ fn flat(
             let b = radiosity(&solver.borrow(), &table);
             Ok(DevicePoint {
                 units,
-                instructions: units as f64 * per_unit,
+                links: None,
+                instructions: model.instructions(units, None),
                 own: metrics::compare(&b, &exact, &area)?.rel_l2,
                 faces: face_errors(&face_means(&p.patches, &b, reference), want, judged),
             })
@@ -188,7 +235,7 @@ fn flat(
         elements: p.patches.len(),
         bytes: baked.table.len(),
         build: build.to_owned(),
-        per_unit,
+        model,
         converged,
         points,
     })
@@ -224,7 +271,8 @@ fn hierarchical(
     let mut solver = HierSolver::new(&table, buffers.buffers(), Config { tolerance, overshoot: 0 })
         .map_err(|e| BenchError::Solver(format!("hierarchical table: {e}")))?;
     let build = "cornell-hier-m4-f32";
-    let per_unit = bound_per_unit(COST_MD, build)?;
+    let (per_link, per_node, scale) = two_rate_bound(COST_MD, build)?;
+    let model = CostModel::TwoRate { per_link, per_node, scale };
     let mut out = vec![[0.0f32; 3]; leaves.len()];
     let solver = std::cell::RefCell::new(&mut solver);
     let (points, converged) = checkpoints(
@@ -232,9 +280,11 @@ fn hierarchical(
         |units| {
             solver.borrow().radiosity_into(&mut out);
             let b: Vec<Rgb> = out.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
+            let links = Some(solver.borrow().links());
             Ok(DevicePoint {
                 units,
-                instructions: units as f64 * per_unit,
+                links,
+                instructions: model.instructions(units, links),
                 own: metrics::compare(&b, &baked.radiosity, &area)?.rel_l2,
                 faces: face_errors(&face_means(&leaves, &b, reference), want, judged),
             })
@@ -245,7 +295,7 @@ fn hierarchical(
         elements: leaves.len(),
         bytes: baked.table.len(),
         build: build.to_owned(),
-        per_unit,
+        model,
         converged,
         points,
     })

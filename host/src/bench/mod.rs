@@ -498,6 +498,28 @@ pub fn bound_per_unit(cost_md: &str, build: &str) -> Result<f64, BenchError> {
         .ok_or_else(|| BenchError::Options(format!("COST.md: bad bound per unit for {build}")))
 }
 
+/// The two-rate bound of firmware build `build` from the table of instructions per link and per node visit in
+/// `firmware-sim/COST.md`: `(per link, per node visit, bound scale)`.
+///
+/// # Errors
+/// If that table, its columns or a row for `build` are missing, or a value does not parse.
+pub fn two_rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64), BenchError> {
+    let bad = |what: &str| BenchError::Options(format!("COST.md: {what} (two-rate bound of {build})"));
+    let mut lines =
+        cost_md.lines().skip_while(|l| !(l.starts_with("| build |") && l.contains("instr. per link")));
+    let header = lines.next().ok_or_else(|| bad("no table with an `instr. per link` column"))?;
+    let col = |name: &str| {
+        header.split('|').position(|c| c.trim() == name).ok_or_else(|| bad(&format!("no `{name}` column")))
+    };
+    let (link, node, scale) = (col("instr. per link")?, col("instr. per node visit")?, col("bound scale")?);
+    let row = lines.find(|l| l.starts_with(&format!("| {build} |"))).ok_or_else(|| bad("no row"))?;
+    let cells: Vec<&str> = row.split('|').collect();
+    let value = |k: usize| {
+        cells.get(k).and_then(|c| c.trim().parse::<f64>().ok()).ok_or_else(|| bad("a value does not parse"))
+    };
+    Ok((value(link)?, value(node)?, value(scale)?))
+}
+
 /// The cost model as built in.
 pub(crate) const COST_MD: &str = include_str!("../../../firmware-sim/COST.md");
 
@@ -587,4 +609,30 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
     results.machine.push(load_average("at the end"));
     report::write(&results, &options.out)?;
     Ok(results)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cost_bounds_are_read_from_their_own_tables() {
+        // A cost report of the committed shape: a one-rate table, then the two-rate table, a build in both.
+        let md = "\
+| build | calibration frames | LS overhead (instr.) | LS instr. per unit | bound overhead | bound instr. per unit |\n\
+|---|---|---|---|---|---|\n\
+| x | 37 | 10 | 74.19 | 10 | 82.58 |\n\
+\n\
+| build | frames | overhead | instr. per link | instr. per node visit | residual | bound overhead | bound scale |\n\
+|---|---|---|---|---|---|---|---|\n\
+| y | 33 | 5 | 99.0 | 1.0 | 0.1 | 5 | 1.5 |\n\
+| x | 33 | 12121 | 82.5 | 65.2 | 3.4e-3 | 12121 | 1.204 |\n";
+        assert_eq!(bound_per_unit(md, "x").unwrap(), 82.58);
+        assert_eq!(two_rate_bound(md, "x").unwrap(), (82.5, 65.2, 1.204));
+        assert!(two_rate_bound(md, "z").is_err());
+        assert!(two_rate_bound("| build | a |\n| x | 1 |\n", "x").is_err());
+        // The built-in report has the Cornell table's two-rate row the device curves price with.
+        let (link, node, scale) = two_rate_bound(COST_MD, "cornell-hier-m4-f32").unwrap();
+        assert!(link > 0.0 && node > 0.0 && scale >= 1.0, "{link} {node} {scale}");
+    }
 }

@@ -413,14 +413,15 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
          tables of the Cornell box, each relit by core's f32 solver from a cold start at the default intensities \
          (host simulator, bit-identical to the firmware under QEMU): \"own\" is the area-weighted relative L2 error \
          against the table's own f64 answer (its convergence), \"faces\" the per-face error against the continuous \
-         reference above (the common yardstick of two different discretizations). Model instructions are work \
-         units times the bound per unit of the table's firmware build in `firmware-sim/COST.md` (measured under \
-         QEMU; for the hierarchical table the bound of the same table run on the f32 firmware, \
-         `cornell-hier-m4-f32`, whose runs are as long as here).\n"
+         reference above (the common yardstick of two different discretizations). Model instructions are \
+         the work priced by the bound of the table's firmware build in `firmware-sim/COST.md` (measured under \
+         QEMU): per unit for the flat table; for the hierarchical one the two-rate bound (per link and per node \
+         visit, scaled to its calibration frames' envelope) of the same table run on the f32 firmware, \
+         `cornell-hier-m4-f32`, applied to the links and node visits the solver counts.\n"
     );
     let _ = writeln!(
         s,
-        "| table | elements | bytes | build (instr. per unit) | instructions to 10% own | to 1% own | last: own | last: worst face vs continuous (face) | last: mean face |"
+        "| table | elements | bytes | build (bound) | instructions to 10% own | to 1% own | last: own | last: worst face vs continuous (face) | last: mean face |"
     );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
     let f = |v: Option<f64>| v.map_or("not reached".to_owned(), |v| format!("{v:.3e}"));
@@ -428,12 +429,12 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
         let last = c.points.last();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} ({:.2}) | {} | {} | {}{} | {} | {} |",
+            "| {} | {} | {} | {} ({}) | {} | {} | {}{} | {} | {} |",
             c.name,
             c.elements,
             c.bytes,
             c.build,
-            c.per_unit,
+            c.model,
             f(c.instructions_to(0.1)),
             f(c.instructions_to(0.01)),
             last.map_or("-".to_owned(), |p| format!("{:.2e}", p.own)),
