@@ -505,14 +505,22 @@ pub fn bound_per_unit(cost_md: &str, build: &str) -> Result<f64, BenchError> {
 /// If that table, its columns or a row for `build` are missing, or a value does not parse.
 pub fn two_rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64), BenchError> {
     let bad = |what: &str| BenchError::Options(format!("COST.md: {what} (two-rate bound of {build})"));
-    let mut lines =
-        cost_md.lines().skip_while(|l| !(l.starts_with("| build |") && l.contains("instr. per link")));
-    let header = lines.next().ok_or_else(|| bad("no table with an `instr. per link` column"))?;
+    // The build's row in a table whose header has the two-rate columns (a build has rows in other tables too).
+    let lines: Vec<&str> = cost_md.lines().collect();
+    let row_in_table = |k: usize| {
+        let rows = lines.get(k + 1..).unwrap_or(&[]).iter().take_while(|l| l.starts_with('|'));
+        rows.copied().find(|l| l.starts_with(&format!("| {build} |")))
+    };
+    let (header, row) = lines
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.starts_with("| build |") && l.contains("instr. per link"))
+        .find_map(|(k, header)| row_in_table(k).map(|row| (*header, row)))
+        .ok_or_else(|| bad("no row in a table with an `instr. per link` column"))?;
     let col = |name: &str| {
         header.split('|').position(|c| c.trim() == name).ok_or_else(|| bad(&format!("no `{name}` column")))
     };
     let (link, node, scale) = (col("instr. per link")?, col("instr. per node visit")?, col("bound scale")?);
-    let row = lines.find(|l| l.starts_with(&format!("| {build} |"))).ok_or_else(|| bad("no row"))?;
     let cells: Vec<&str> = row.split('|').collect();
     let value = |k: usize| {
         cells.get(k).and_then(|c| c.trim().parse::<f64>().ok()).ok_or_else(|| bad("a value does not parse"))
@@ -617,22 +625,33 @@ mod tests {
 
     #[test]
     fn cost_bounds_are_read_from_their_own_tables() {
-        // A cost report of the committed shape: a one-rate table, then the two-rate table, a build in both.
-        let md = "\
-| build | calibration frames | LS overhead (instr.) | LS instr. per unit | bound overhead | bound instr. per unit |\n\
-|---|---|---|---|---|---|\n\
-| x | 37 | 10 | 74.19 | 10 | 82.58 |\n\
-\n\
-| build | frames | overhead | instr. per link | instr. per node visit | residual | bound overhead | bound scale |\n\
-|---|---|---|---|---|---|---|---|\n\
-| y | 33 | 5 | 99.0 | 1.0 | 0.1 | 5 | 1.5 |\n\
-| x | 33 | 12121 | 82.5 | 65.2 | 3.4e-3 | 12121 | 1.204 |\n";
-        assert_eq!(bound_per_unit(md, "x").unwrap(), 82.58);
-        assert_eq!(two_rate_bound(md, "x").unwrap(), (82.5, 65.2, 1.204));
-        assert!(two_rate_bound(md, "z").is_err());
+        // A cost report of the committed shape: sections, each a one-rate table and then a two-rate table. Build
+        // `x` has rows only in the second section, its one-rate row after the first two-rate table's header.
+        let one_rate =
+            "| build | calibration frames | LS overhead (instr.) | LS instr. per unit | bound overhead | \
+                        bound instr. per unit |\n|---|---|---|---|---|---|\n";
+        let two_rate = "| build | frames | overhead | instr. per link | instr. per node visit | residual | bound overhead \
+                        | bound scale |\n|---|---|---|---|---|---|---|---|\n";
+        let md = format!(
+            "{one_rate}| y | 37 | 10 | 70.0 | 10 | 80.0 |\n\n{two_rate}| y | 33 | 5 | 99.0 | 1.0 | 0.1 | 5 | 1.5 |\n\n\
+             {one_rate}| x | 37 | 2227 | 74.19 | 2227 | 82.58 |\n\n\
+             {two_rate}| x | 33 | 12121 | 82.5 | 65.2 | 3.4e-3 | 12121 | 1.204 |\n"
+        );
+        assert_eq!(bound_per_unit(&md, "x").unwrap(), 82.58);
+        assert_eq!(two_rate_bound(&md, "x").unwrap(), (82.5, 65.2, 1.204));
+        assert_eq!(two_rate_bound(&md, "y").unwrap(), (99.0, 1.0, 1.5));
+        assert!(two_rate_bound(&md, "z").is_err());
         assert!(two_rate_bound("| build | a |\n| x | 1 |\n", "x").is_err());
-        // The built-in report has the Cornell table's two-rate row the device curves price with.
+        // The built-in report: the Cornell table's rates are those of the last row of its build (the two-rate
+        // table closes the section that names the table).
         let (link, node, scale) = two_rate_bound(COST_MD, "cornell-hier-m4-f32").unwrap();
-        assert!(link > 0.0 && node > 0.0 && scale >= 1.0, "{link} {node} {scale}");
+        let row = COST_MD.lines().rfind(|l| l.starts_with("| cornell-hier-m4-f32 |")).unwrap();
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(
+            (cells[4], cells[5]),
+            (format!("{link:.1}").as_str(), format!("{node:.1}").as_str()),
+            "{row}"
+        );
+        assert!(scale >= 1.0, "{scale}");
     }
 }
