@@ -296,6 +296,13 @@ fn shift_saturating(v: i128, shift: i32) -> Fixed {
     }
 }
 
+/// `(x m + 2^(s - 1)) >> s` in 64-bit integers: `mul_frac`'s one-product path, exact (the 128-bit path's bits)
+/// when `|x m| < 2^62` and `s` is in `1..=62`; other operands get some value (wrapping, never a panic).
+#[inline(always)]
+fn round_shift_product(x: i64, m: i64, s: u32) -> i64 {
+    x.wrapping_mul(m).wrapping_add(1i64.wrapping_shl(s.wrapping_sub(1))).wrapping_shr(s)
+}
+
 impl Fixed {
     /// [`Scalar::mul_frac`] through the 128-bit product (the operands its 32-bit path does not take): kept out
     /// of line, so the inlined products stay small.
@@ -359,8 +366,7 @@ impl Scalar for Fixed {
         if ((a >> 49 == 0 && f.mantissa >> 13 == 0) || (a >> 46 == 0 && f.mantissa >> 16 == 0))
             && (1..=62).contains(&f.shift)
         {
-            let s = f.shift;
-            return Fixed((self.0 * i64::from(f.mantissa) + (1i64 << (s - 1))) >> s);
+            return Fixed(round_shift_product(self.0, i64::from(f.mantissa), f.shift));
         }
         if f.mantissa >> 31 == 0 && (1..=95).contains(&f.shift) {
             let (s, m) = (f.shift, f.mantissa);
@@ -499,9 +505,8 @@ impl sealed::Internal for Fixed {
     #[inline(always)]
     fn link_products_fast(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
         let f = d.decode_unclamped(code);
-        let (m, s) = (i64::from(f.mantissa), f.shift);
-        let half = 1i64.wrapping_shl(s.wrapping_sub(1));
-        power.map(|p| Fixed(p.0.wrapping_mul(m).wrapping_add(half).wrapping_shr(s)))
+        let m = i64::from(f.mantissa);
+        power.map(|p| Fixed(round_shift_product(p.0, m, f.shift)))
     }
 }
 
