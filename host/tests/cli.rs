@@ -691,8 +691,29 @@ fn hierarchical_solve_by_shooting() {
     );
     assert_fails(
         &["solve", MISSING, "--max-links", "10"],
-        &["--max-links apply to --method hierarchical only"],
+        &["--max-links and --pieces apply to --method hierarchical only"],
     );
+    let out = radiosity(&["solve", MISSING, "--method", "hierarchical", "--pieces", "0"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("'0' for '--pieces"), "{err}");
+    // Refinement split into receiver-subtree pieces and merged: the same patch table, byte for byte.
+    let csv = |pieces: &str| {
+        let out = radiosity(&[
+            "solve",
+            &scene("two-rooms.obj"),
+            "-q",
+            "--method",
+            "hierarchical",
+            "--epsilon",
+            "0.1",
+            "--pieces",
+            pieces,
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        out.stdout
+    };
+    let one = csv("1");
+    assert!(one.len() > 1000 && csv("3") == one);
     // A limit below what the scene needs: the error says so (and no patch table is printed).
     let out = radiosity(&[
         "solve",
@@ -796,9 +817,6 @@ fn hierarchical_bake_writes_a_table_that_inspect_reads() {
         &["bake", MISSING, "--method", "hierarchical", "--threshold", "0.01", "-o", table],
         &["--threshold"],
     );
-    assert_fails(
-        &["bake", MISSING, "--epsilon", "0.1", "-o", table],
-        &["--refinement and --max-links apply"],
-    );
+    assert_fails(&["bake", MISSING, "--epsilon", "0.1", "-o", table], &["--max-links and --pieces apply"]);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -213,6 +213,55 @@ fn answers_do_not_depend_on_the_thread_count() {
 }
 
 #[test]
+fn refinement_split_into_receiver_subtree_pieces_merges_to_the_one_piece_answer_bit_for_bit() {
+    // Issue 18: link construction in independent pieces (by receiver subtree) whose merge is the one-process run,
+    // byte for byte. Both refinements (the budgets' rounds and the brightness passes refine in pieces too), on
+    // one thread, so that only the pieces differ; piece counts that do not divide the cut evenly included.
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    // Budgets at 0.5 keep some cluster links (their point pairs' streams are keyed by the nodes too).
+    let mut cluster_links = 0;
+    for (refinement, epsilon) in [(Refinement::Budgets, 0.5), (Refinement::Brightness, 0.05)] {
+        let run = |pieces| {
+            let mut o = HierarchyOptions { epsilon, refinement, pieces, ..HierarchyOptions::default() };
+            o.form_factors.threads = Some(1);
+            solve_hierarchical(&s, &o).unwrap()
+        };
+        let one = run(1);
+        let bits = |sol: &HierarchicalSolution| {
+            let mut out: Vec<u64> = Vec::new();
+            for l in &sol.network.links {
+                out.extend([u64::from(l.a), u64::from(l.b), l.f_ab.to_bits(), l.f_ba.to_bits()]);
+            }
+            for n in &sol.network.nodes {
+                out.extend([
+                    u64::from(n.parent.unwrap_or(u32::MAX)),
+                    u64::from(n.subtree_end),
+                    n.area.to_bits(),
+                ]);
+            }
+            for b in &sol.b {
+                out.extend([b.x.to_bits(), b.y.to_bits(), b.z.to_bits()]);
+            }
+            let transfer = sol.transfer.as_ref().expect("split by source");
+            for v in std::iter::once(&transfer.b_static).chain(&transfer.t) {
+                out.extend(v.iter().flat_map(|b| [b.x.to_bits(), b.y.to_bits(), b.z.to_bits()]));
+            }
+            out
+        };
+        let reference = bits(&one);
+        assert!(one.stats.leaves > 200, "{}", one.stats);
+        cluster_links += one.stats.cluster_links;
+        for pieces in [2, 3, 7] {
+            let split = run(pieces);
+            assert_eq!(split.stats, one.stats, "{refinement:?}, {pieces} pieces");
+            assert_eq!(split.leaves, one.leaves, "{refinement:?}, {pieces} pieces");
+            assert!(bits(&split) == reference, "{refinement:?}: {pieces} pieces differ from one");
+        }
+    }
+    assert!(cluster_links > 0);
+}
+
+#[test]
 fn the_exported_network_is_well_formed_and_solves_to_the_answer_by_shooting() {
     // The Cornell box at a coarse epsilon (clusters take part), its gathering solve run to a tight tolerance.
     let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();

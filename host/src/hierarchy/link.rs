@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 use rayon::prelude::*;
 
 use super::span::Span;
-use super::tree::{Kind, Tree};
+use super::tree::{Kind, Tree, NONE};
 use super::HierarchyError;
 use crate::formfactor::{point_to_polygon, Element, ElementRules};
 use crate::raycast::{Ray, RayCaster};
@@ -151,7 +151,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
         match (&na.kind, &nb.kind) {
             (Kind::Surface { element: ea, .. }, Kind::Surface { element: eb, .. }) => {
-                self.surface_pair(a, ea, b, eb).unwrap_or(zero)
+                self.surface_pair(tree, a, ea, b, eb).unwrap_or(zero)
             }
             _ => self.cluster_pair(tree, a, b),
         }
@@ -162,7 +162,14 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
     /// times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a shadow edge
     /// can cross the receiver) and the fraction's standard error; where it is not, the fraction's resolution
     /// (one ray in `rays_per_pair`) times the unoccluded factor. `None` if the two cannot exchange light.
-    pub(super) fn surface_pair(&self, a: u32, ea: &Element, b: u32, eb: &Element) -> Option<Estimate> {
+    pub(super) fn surface_pair(
+        &self,
+        tree: &Tree,
+        a: u32,
+        ea: &Element,
+        b: u32,
+        eb: &Element,
+    ) -> Option<Estimate> {
         // Integrated over the smaller of the two (the kernel is exact over the other), the other direction by
         // reciprocity: the quadrature then never has to resolve a small neighbour's peak on a large element.
         let (aa, ab) = (ea.patch().area, eb.patch().area);
@@ -176,11 +183,13 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         if !(u_ab > 0.0 && u_ab.is_finite() && u_ba.is_finite()) {
             return None;
         }
-        // The stream of the lower index first, so the estimate does not depend on the pair's order.
-        let (v, rays) = if a < b {
-            self.rules.visible_fraction(self.caster, ea, eb, (u64::from(a), u64::from(b)))
+        // The stream of the lower key first, so the estimate does not depend on the pair's order (nor, keyed by
+        // the nodes' keys, on when refinement made them).
+        let (ka, kb) = (tree.nodes[a as usize].key, tree.nodes[b as usize].key);
+        let (v, rays) = if ka < kb {
+            self.rules.visible_fraction(self.caster, ea, eb, (ka, kb))
         } else {
-            self.rules.visible_fraction(self.caster, eb, ea, (u64::from(b), u64::from(a)))
+            self.rules.visible_fraction(self.caster, eb, ea, (kb, ka))
         };
         let v = if v.is_nan() { 1.0 } else { v };
         let n = self.rules.rays_per_pair() as f64;
@@ -210,8 +219,9 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
     /// Greenberg 1994), plus two standard errors of the mean.
     fn cluster_pair(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
         let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
-        let (lo, hi) = (a.min(b), a.max(b));
-        let mut rng = SplitMix64::for_stream(self.seed ^ CLUSTER_STREAM, u64::from(lo), u64::from(hi));
+        let (lo, hi) = if na.key < nb.key { (a, b) } else { (b, a) };
+        let (klo, khi) = (tree.nodes[lo as usize].key, tree.nodes[hi as usize].key);
+        let mut rng = SplitMix64::for_stream(self.seed ^ CLUSTER_STREAM, klo, khi);
         let offset = self.caster.offset();
         let n = self.cluster_samples;
         let mut values = Vec::with_capacity(n);
@@ -284,6 +294,17 @@ pub(super) struct RefineCounts {
     pub(super) untrusted: u64,
 }
 
+impl RefineCounts {
+    /// Adds `other`'s counts (a piece's) to these.
+    pub(super) fn add(&mut self, other: &RefineCounts) {
+        self.estimated += other.estimated;
+        self.rays += other.rays;
+        self.at_limit += other.at_limit;
+        self.split += other.split;
+        self.untrusted += other.untrusted;
+    }
+}
+
 /// Limits of refinement.
 #[derive(Clone, Copy)]
 pub(super) struct Limits {
@@ -296,18 +317,31 @@ pub(super) struct Limits {
     /// Most links, accepted and pending together: refinement stops with [`HierarchyError::TooManyLinks`]
     /// before it would hold more.
     pub(super) max_links: usize,
+    /// Receiver-subtree pieces a refinement runs in (`pieces`; 1: one piece, in place). Any count gives the same
+    /// links and nodes, bit for bit.
+    pub(super) pieces: usize,
 }
 
-/// Whether `n` may be split: a cluster always, a surface while its children would be at least `min_area` and the
-/// node limit allows them.
+/// How many children splitting surface `n` makes (the mesher's split: 4 for a triangle or a quadrilateral, one
+/// per vertex of a larger polygon).
+fn split_count(tree: &Tree, n: u32) -> usize {
+    let vertices = tree.nodes[n as usize].element().map_or(4, |e| e.patch().vertices.len());
+    if vertices == 3 {
+        4
+    } else {
+        vertices.max(4)
+    }
+}
+
+/// Whether `n` may be split: a cluster always, a surface while its children would be at least `min_area`. (The
+/// node limit is an error, [`HierarchyError::TooManyNodes`], not a reason to keep a link: what is split must not
+/// depend on the order of the splits, so that pieces merge to the one-piece answer.)
 fn splittable(tree: &Tree, limits: &Limits, n: u32) -> bool {
     let node = &tree.nodes[n as usize];
     if tree.is_cluster(n) || !node.children.is_empty() {
         return true;
     }
-    let vertices = node.element().map_or(4, |e| e.patch().vertices.len());
-    let pieces = if vertices == 3 { 4 } else { vertices.max(4) };
-    node.area / pieces as f64 >= limits.min_area && tree.nodes.len() + pieces <= limits.max_nodes
+    node.area / split_count(tree, n) as f64 >= limits.min_area
 }
 
 /// The pairs a self-link of `n` stands for: every unordered pair of distinct children, and the self-links of the
@@ -328,13 +362,59 @@ pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<(u32, u32)>)
     }
 }
 
-/// Estimates `candidates` in waves (in parallel within a wave), accepting each that is within the bound and
-/// replacing each that is not by the pairs of the children of its larger splittable end; appends the accepted
-/// links to `links` (also those whose rays all missed: they carry nothing, but the budgets may refine them).
+/// Refines `candidates` (each pair on its own: estimated, accepted if within the bound, else replaced by the pairs
+/// of the children of its larger splittable end, and so on down), in `limits.pieces` receiver-subtree pieces
+/// (`pieces`); appends the accepted links to `links` (also those whose rays all missed: they carry nothing, but
+/// the budgets may refine them). What a pair becomes depends on the pair alone (the estimates' streams are keyed
+/// by the nodes' keys), so the links and nodes do not depend on the order the pairs were refined in; the nodes
+/// made and the links appended are then put in that order's stead in one that depends on them alone (nodes by
+/// [`Tree::renumber_from`], links by their ends), so that every piece count gives the same tree and links, bit
+/// for bit.
 ///
 /// # Errors
-/// [`HierarchyError::Mesh`] if a surface cannot be split.
+/// [`HierarchyError::Mesh`] if a surface cannot be split; [`HierarchyError::TooManyLinks`] or
+/// [`HierarchyError::TooManyNodes`] if refinement would exceed `limits`.
 pub(super) fn refine<C: RayCaster + ?Sized>(
+    tree: &mut Tree,
+    estimator: &Estimator<'_, C>,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    candidates: Vec<(u32, u32)>,
+    links: &mut Vec<Link>,
+    counts: &mut RefineCounts,
+) -> Result<(), HierarchyError> {
+    let (first_node, first_link) = (tree.nodes.len(), links.len());
+    if limits.pieces <= 1 {
+        waves(tree, estimator, spans, limits, candidates, links, counts, 0, |_, _| true, &mut Vec::new())?;
+    } else {
+        super::pieces::refine_in_pieces(tree, estimator, spans, limits, candidates, links, counts)?;
+    }
+    let order = tree.renumber_from(first_node);
+    let mut new_index = vec![NONE; order.len()];
+    for (k, &old) in order.iter().enumerate() {
+        new_index[old as usize - first_node] = (first_node + k) as u32;
+    }
+    let moved: Vec<Span> = order.iter().map(|&old| spans[old as usize]).collect();
+    spans.truncate(first_node);
+    spans.extend(moved);
+    let renumber = |n: u32| if (n as usize) < first_node { n } else { new_index[n as usize - first_node] };
+    for link in &mut links[first_link..] {
+        link.a = renumber(link.a);
+        link.b = renumber(link.b);
+    }
+    links[first_link..].sort_unstable_by_key(|l| (l.a, l.b));
+    Ok(())
+}
+
+/// Estimates `candidates` in waves (in parallel within a wave), accepting each that is within the bound and
+/// replacing each that is not by the pairs of the children of its larger splittable end; appends the accepted
+/// links to `links`. A pair whose receiver end (`a`) `here` refuses is set aside in `elsewhere` instead (the
+/// pieces' split). `held` links are held outside `links` (other pieces'), for the link limit.
+///
+/// # Errors
+/// As [`refine`].
+#[allow(clippy::too_many_arguments)]
+pub(super) fn waves<C: RayCaster + ?Sized>(
     tree: &mut Tree,
     estimator: &Estimator<'_, C>,
     spans: &mut Vec<Span>,
@@ -342,10 +422,22 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
     mut candidates: Vec<(u32, u32)>,
     links: &mut Vec<Link>,
     counts: &mut RefineCounts,
+    held: usize,
+    here: impl Fn(&Tree, u32) -> bool,
+    elsewhere: &mut Vec<(u32, u32)>,
 ) -> Result<(), HierarchyError> {
-    while !candidates.is_empty() {
-        if links.len() + candidates.len() > limits.max_links {
-            return Err(too_many_links(tree, limits, links.len(), candidates.len(), counts));
+    loop {
+        candidates.retain(|&(a, b)| {
+            here(tree, a) || {
+                elsewhere.push((a, b));
+                false
+            }
+        });
+        if candidates.is_empty() {
+            break;
+        }
+        if held + links.len() + candidates.len() > limits.max_links {
+            return Err(too_many_links(tree, limits, held + links.len(), candidates.len(), counts));
         }
         if let Some(p) = estimator.progress {
             p.report(tree, links.len(), candidates.len());
@@ -537,6 +629,15 @@ pub(super) fn split_end(
     if !splittable(tree, limits, end) {
         return Ok(false);
     }
+    if tree.nodes[end as usize].children.is_empty()
+        && tree.nodes.len() + split_count(tree, end) > limits.max_nodes
+    {
+        return Err(HierarchyError::TooManyNodes {
+            limit: limits.max_nodes,
+            nodes: tree.nodes.len(),
+            pass: 0,
+        });
+    }
     tree.split(rules, end).map_err(HierarchyError::Mesh)?;
     while spans.len() < tree.nodes.len() {
         let parent = tree.nodes[spans.len()].parent;
@@ -570,7 +671,8 @@ mod tests {
         let rules = ElementRules::new(&FormFactorOptions { progress: false, ..FormFactorOptions::default() })
             .unwrap();
         let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
-        let limits = Limits { threshold: 0.0, min_area: 0.0, max_nodes: 100_000, max_links: usize::MAX };
+        let limits =
+            Limits { threshold: 0.0, min_area: 0.0, max_nodes: 100_000, max_links: usize::MAX, pieces: 1 };
         // The largest surface, and a cluster smaller than it that does not hold it.
         let n = tree.nodes.len() as u32;
         let surface = (0..n)

@@ -33,8 +33,13 @@
 //!      beyond the bound per link, or if what the leaf reflects wrongly through it exceeds `epsilon` times the
 //!      leaf's reflected radiosity (dim leaves beside an occluder, which the absolute bound leaves coarse).
 //!
-//!   A link whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) or the node
-//!   limit is kept and counted.
+//!   A link whose ends are both at the resolution limit (`min_area_fraction` of the scene's area) is kept and
+//!   counted; refinement that would pass the node or link limit stops with an error.
+//! - **Pieces** (`pieces`). What a pair is refined into depends on the pair alone (random streams are keyed by
+//!   the nodes' keys, which name a node by its place in the tree, not by when it was made), so every refinement
+//!   can run in independent pieces split by receiver subtree, each on its own copy of the tree, and merge into
+//!   what one piece makes: new nodes and links are put in an order that depends on what they are
+//!   ([`HierarchyOptions::pieces`]; a test merges 2, 3 and 7 pieces bit for bit into the one-piece answer).
 //! - **Solve** (`solve`): Jacobi sweeps with push-pull, or (`shoot`, [`HierarchySolver::Shooting`]) progressive
 //!   refinement: the nodes with the most unshot power shoot over their links. Passes alternate solve and budget refinement until no
 //!   link is split or the passes run out.
@@ -55,7 +60,7 @@
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
 //! node) -> `excess` (chains that gather more than 1) -> `link` (estimates, the per-link oracle, pair refinement)
-//! -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
+//! -> `pieces` (refinement split by receiver subtree and merged) -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
 //! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
 //! results).
@@ -64,6 +69,7 @@ mod budget;
 mod excess;
 mod link;
 mod network;
+mod pieces;
 mod shadow;
 mod shoot;
 mod solve;
@@ -101,6 +107,8 @@ pub const DEFAULT_MIN_AREA_FRACTION: f64 = 1e-5;
 pub const DEFAULT_MAX_NODES: usize = 2_000_000;
 /// Default point pairs (and shadow rays) of a link with a cluster at one end.
 pub const DEFAULT_CLUSTER_SAMPLES: usize = 32;
+/// Default receiver-subtree pieces of refinement (in place).
+pub const DEFAULT_PIECES: usize = 1;
 /// Default refinement passes (each but the last followed by a re-check against the solved radiosity).
 pub const DEFAULT_PASSES: usize = 4;
 /// Default relative change at which the push-pull iteration stops.
@@ -142,7 +150,7 @@ pub struct HierarchyOptions {
     pub epsilon: f64,
     /// Surfaces are not split below this fraction of the scene's surface area.
     pub min_area_fraction: f64,
-    /// Most tree nodes.
+    /// Most tree nodes: refinement that would make more stops with [`HierarchyError::TooManyNodes`].
     pub max_nodes: usize,
     /// Most links: refinement that would hold more (accepted and pending together) stops with
     /// [`HierarchyError::TooManyLinks`] instead of exhausting memory.
@@ -160,6 +168,11 @@ pub struct HierarchyOptions {
     pub refinement: Refinement,
     /// The form-factor estimator's rules (samples per element, rays per pair, seed) for surface pairs.
     pub form_factors: FormFactorOptions,
+    /// Receiver-subtree pieces every refinement runs in, each on its own copy of the tree, in parallel
+    /// (`pieces`). The answer is the same, bit for bit, for every count: this is the split a run on several
+    /// machines will use. On one machine 1 (in place) is as fast: the estimates within each wave of pairs run
+    /// in parallel anyway, and each further piece copies the tree.
+    pub pieces: usize,
     /// Print one line per pass on stderr.
     pub progress: bool,
 }
@@ -177,6 +190,7 @@ impl Default for HierarchyOptions {
             solver: HierarchySolver::Gathering,
             refinement: Refinement::Budgets,
             form_factors: FormFactorOptions { progress: false, ..FormFactorOptions::default() },
+            pieces: DEFAULT_PIECES,
             progress: false,
         }
     }
@@ -229,6 +243,19 @@ pub enum HierarchyError {
         split: u64,
         /// Of those, cluster links split because their estimate could not be trusted.
         untrusted: u64,
+        /// The refinement pass (1 is the direct-light pass).
+        pass: usize,
+    },
+    /// Refinement would make more tree nodes than [`HierarchyOptions::max_nodes`].
+    #[error(
+        "refinement pass {pass} needs more than {limit} tree nodes (it had {nodes}); raise --epsilon, or allow \
+         more nodes if memory allows"
+    )]
+    TooManyNodes {
+        /// The limit.
+        limit: usize,
+        /// Nodes when refinement stopped.
+        nodes: usize,
         /// The refinement pass (1 is the direct-light pass).
         pass: usize,
     },
@@ -429,6 +456,9 @@ fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
     if options.passes == 0 {
         return bad("passes", "must be at least 1");
     }
+    if options.pieces == 0 {
+        return bad("pieces", "must be at least 1");
+    }
     if !(options.solve_tolerance > 0.0 && options.solve_tolerance < 1.0) {
         return bad("solve_tolerance", "must be in (0, 1)");
     }
@@ -521,6 +551,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         min_area: options.min_area_fraction * total_area,
         max_nodes: options.max_nodes,
         max_links: options.max_links,
+        pieces: options.pieces,
     };
     let estimator = Estimator {
         rules: &rules,
@@ -542,6 +573,9 @@ fn solve_checked<C: RayCaster + ?Sized>(
         let in_pass = |e: HierarchyError| match e {
             HierarchyError::TooManyLinks { limit, links, pending, leaves, split, untrusted, .. } => {
                 HierarchyError::TooManyLinks { limit, links, pending, leaves, split, untrusted, pass }
+            }
+            HierarchyError::TooManyNodes { limit, nodes, .. } => {
+                HierarchyError::TooManyNodes { limit, nodes, pass }
             }
             e => e,
         };

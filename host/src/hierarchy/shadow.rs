@@ -108,7 +108,7 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
                 out.estimated += 1;
                 // The leaf's own form factor and its uncertainty: one standard error of the visible fraction
                 // where it is partial, one ray's resolution where it is not (as the link estimator charges).
-                let (own, uncertainty) = match estimator.surface_pair(leaf, el, d.s, es) {
+                let (own, uncertainty) = match estimator.surface_pair(tree, leaf, el, d.s, es) {
                     Some(e) => {
                         out.rays += e.rays;
                         let v = e.link.visible;
@@ -255,7 +255,7 @@ mod tests {
                 span.reflected = crate::rgb::Rgb::splat(reflected);
             }
             let threshold = link_error(&tree, &spans, &link);
-            let limits = Limits { threshold, min_area: 0.0, max_nodes: 10_000, max_links: 10_000 };
+            let limits = Limits { threshold, min_area: 0.0, max_nodes: 10_000, max_links: 10_000, pieces: 1 };
             let mut links = vec![link];
             let mut counts = RefineCounts::default();
             // Each round pushes the contradicted links one level down; the tree has two levels below the floor.

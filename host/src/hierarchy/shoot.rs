@@ -173,6 +173,7 @@ mod tests {
             min_area: 1e-4 * area,
             max_nodes: 100_000,
             max_links: usize::MAX,
+            pieces: 1,
         };
         let estimator =
             Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1, progress: None };

@@ -14,6 +14,7 @@ use crate::rng::SplitMix64;
 pub(super) const NONE: u32 = u32::MAX;
 
 /// What a node is.
+#[derive(Clone)]
 pub(super) enum Kind {
     /// A group of face polygons: those at `order[first..end]` of the tree.
     Cluster { first: usize, end: usize },
@@ -22,6 +23,7 @@ pub(super) enum Kind {
 }
 
 /// One node of the tree.
+#[derive(Clone)]
 pub(super) struct Node {
     /// The parent node, or [`NONE`].
     pub(super) parent: u32,
@@ -39,6 +41,10 @@ pub(super) struct Node {
     pub(super) rho_max: Rgb,
     /// The face polygon (index into the roots) a surface was cut from; [`NONE`] for a cluster.
     pub(super) root: u32,
+    /// The node's name, whatever order refinement made it in: its index for the nodes made with the tree, and
+    /// a hash of its parent's key and its place among the children for pieces ([`child_key`]). Random streams
+    /// are keyed by it, so a pair's estimate does not depend on when (or in which piece) its nodes were made.
+    pub(super) key: u64,
 }
 
 impl Node {
@@ -51,7 +57,17 @@ impl Node {
     }
 }
 
+/// The key of child `k` of a node with key `parent` (the SplitMix64 finalizer of the two mixed, so that
+/// children's keys do not collide with the small keys of the tree's first nodes or with each other's).
+pub(super) fn child_key(parent: u64, k: usize) -> u64 {
+    let mut z = parent.wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (k as u64 + 1);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
 /// The tree over a scene's face polygons.
+#[derive(Clone)]
 pub(super) struct Tree {
     /// All nodes; node 0 is the top.
     pub(super) nodes: Vec<Node>,
@@ -116,6 +132,7 @@ impl Tree {
                 radius,
                 rho_max: rho[*root],
                 root: *root as u32,
+                key: u64::from(index),
             });
             self.order[first] = index;
             return index;
@@ -130,6 +147,7 @@ impl Tree {
             radius,
             rho_max: Rgb::ZERO,
             root: NONE,
+            key: u64::from(index),
         });
         let (lo, hi) = bounding_box(ids.iter().map(|&k| roots[k].centroid));
         let axis = (hi - lo).max_position();
@@ -167,10 +185,10 @@ impl Tree {
             return Ok(());
         }
         let Kind::Surface { element, rho, emission } = &node.kind else { return Ok(()) };
-        let (rho, emission, root) = (*rho, *emission, node.root);
+        let (rho, emission, root, key) = (*rho, *emission, node.root, node.key);
         let pieces = refine(std::slice::from_ref(element.patch()), &[0])?;
         let first = self.nodes.len() as u32;
-        for piece in pieces {
+        for (k, piece) in pieces.into_iter().enumerate() {
             let (center, radius) = bounding_sphere(piece.vertices.iter());
             self.nodes.push(Node {
                 parent: n,
@@ -181,11 +199,54 @@ impl Tree {
                 rho_max: rho,
                 root,
                 kind: Kind::Surface { element: Box::new(rules.element(piece)), rho, emission },
+                key: child_key(key, k),
             });
         }
         let end = self.nodes.len() as u32;
         self.nodes[n as usize].children = (first..end).collect();
         Ok(())
+    }
+
+    /// Renumbers the nodes from `first` on (those made since the tree had `first` nodes) into the order that
+    /// does not depend on the order of the splits that made them: generation by generation, the children of the
+    /// older nodes by their parent's index, each parent's children in their own order. Every parent still
+    /// precedes its children, and a parent's children stay contiguous. Returns the old index of each new place
+    /// (`order[k - first]` is the node that is now `k`), for the caller to move what it keeps per node.
+    pub(super) fn renumber_from(&mut self, first: usize) -> Vec<u32> {
+        let count = self.nodes.len() - first;
+        let mut order: Vec<u32> = Vec::with_capacity(count);
+        // The first generation: children of nodes made before `first`, in their parents' index order.
+        for n in 0..first {
+            order.extend(self.nodes[n].children.iter().copied().filter(|&c| c as usize >= first));
+        }
+        let mut next = 0;
+        while next < order.len() {
+            let end = order.len();
+            for k in next..end {
+                let n = order[k] as usize;
+                order.extend_from_slice(&self.nodes[n].children);
+            }
+            next = end;
+        }
+        debug_assert_eq!(order.len(), count, "every new node descends from an older one");
+        let mut new_index: Vec<u32> = (0..self.nodes.len() as u32).collect();
+        for (k, &old) in order.iter().enumerate() {
+            new_index[old as usize] = (first + k) as u32;
+        }
+        let mut moved: Vec<Option<Node>> = self.nodes.drain(first..).map(Some).collect();
+        for &old in &order {
+            let node = moved[old as usize - first].take().expect("each node is placed once");
+            self.nodes.push(node);
+        }
+        for node in &mut self.nodes {
+            if node.parent != NONE {
+                node.parent = new_index[node.parent as usize];
+            }
+            for c in &mut node.children {
+                *c = new_index[*c as usize];
+            }
+        }
+        order
     }
 
     /// An area-uniform random point of node `n` with the surface normal there.

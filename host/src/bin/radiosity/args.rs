@@ -81,12 +81,21 @@ pub struct HierarchyArgs {
     /// bytes at the peak) [default: 10000000].
     #[arg(long, value_name = "N")]
     pub max_links: Option<usize>,
+    /// Hierarchical only: refine in N independent pieces, split by receiver subtree, each on its own copy of
+    /// the tree, in parallel, and merge them; the answer is the same bit for bit for every N (the split a run
+    /// on several machines will use). On one machine 1 is as fast (each wave's estimates run on every thread
+    /// anyway) [default: 1].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub pieces: Option<u32>,
 }
 
 impl HierarchyArgs {
     /// Whether any hierarchical setting was given (an error with `--method flat`).
     pub fn any(&self) -> bool {
-        self.epsilon.is_some() || self.refinement.is_some() || self.max_links.is_some()
+        self.epsilon.is_some()
+            || self.refinement.is_some()
+            || self.max_links.is_some()
+            || self.pieces.is_some()
     }
 }
 

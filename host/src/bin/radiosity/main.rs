@@ -141,6 +141,7 @@ fn hierarchical_solution(
         solver: solver.map_or_else(Default::default, Into::into),
         refinement: hierarchy.refinement.map_or(default_refinement, Into::into),
         max_links: hierarchy.max_links.unwrap_or(DEFAULT_MAX_LINKS),
+        pieces: hierarchy.pieces.map_or(radiosity_host::hierarchy::DEFAULT_PIECES, |n| n as usize),
         form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
         progress: !scene.quiet,
         ..HierarchyOptions::default()
@@ -380,7 +381,8 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         } => {
             if hierarchy.any() {
                 return Err(
-                    "--epsilon, --refinement and --max-links apply to --method hierarchical only".into()
+                    "--epsilon, --refinement, --max-links and --pieces apply to --method hierarchical only"
+                        .into(),
                 );
             }
             let threshold = threshold.unwrap_or(radiosity_host::bake::DEFAULT_THRESHOLD);
@@ -440,7 +442,8 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         Command::Solve { scene, format, method: SolveMethod::Flat, hierarchy, solver } => {
             if hierarchy.any() {
                 return Err(
-                    "--epsilon, --refinement and --max-links apply to --method hierarchical only".into()
+                    "--epsilon, --refinement, --max-links and --pieces apply to --method hierarchical only"
+                        .into(),
                 );
             }
             if solver.is_some() {
