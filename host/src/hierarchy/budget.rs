@@ -30,7 +30,8 @@
 
 use rayon::prelude::*;
 
-use super::link::{can_split, refine, split_either, Estimator, Limits, Link, RefineCounts};
+use super::link::{can_split, split_either, Estimator, Limits, Link, RefineCounts};
+use super::pieces::refine;
 use super::span::Span;
 use super::tree::{Tree, NONE};
 use super::HierarchyError;

@@ -7,7 +7,7 @@ use std::f64::consts::PI;
 use rayon::prelude::*;
 
 use super::span::Span;
-use super::tree::{Kind, Tree, NONE};
+use super::tree::{Kind, Tree};
 use super::HierarchyError;
 use crate::formfactor::{point_to_polygon, Element, ElementRules};
 use crate::raycast::{Ray, RayCaster};
@@ -362,50 +362,6 @@ pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<(u32, u32)>)
     }
 }
 
-/// Refines `candidates` (each pair on its own: estimated, accepted if within the bound, else replaced by the pairs
-/// of the children of its larger splittable end, and so on down), in `limits.pieces` receiver-subtree pieces
-/// (`pieces`); appends the accepted links to `links` (also those whose rays all missed: they carry nothing, but
-/// the budgets may refine them). What a pair becomes depends on the pair alone (the estimates' streams are keyed
-/// by the nodes' keys), so the links and nodes do not depend on the order the pairs were refined in; the nodes
-/// made and the links appended are then put in that order's stead in one that depends on them alone (nodes by
-/// [`Tree::renumber_from`], links by their ends), so that every piece count gives the same tree and links, bit
-/// for bit.
-///
-/// # Errors
-/// [`HierarchyError::Mesh`] if a surface cannot be split; [`HierarchyError::TooManyLinks`] or
-/// [`HierarchyError::TooManyNodes`] if refinement would exceed `limits`.
-pub(super) fn refine<C: RayCaster + ?Sized>(
-    tree: &mut Tree,
-    estimator: &Estimator<'_, C>,
-    spans: &mut Vec<Span>,
-    limits: &Limits,
-    candidates: Vec<(u32, u32)>,
-    links: &mut Vec<Link>,
-    counts: &mut RefineCounts,
-) -> Result<(), HierarchyError> {
-    let (first_node, first_link) = (tree.nodes.len(), links.len());
-    if limits.pieces <= 1 {
-        waves(tree, estimator, spans, limits, candidates, links, counts, 0, |_, _| true, &mut Vec::new())?;
-    } else {
-        super::pieces::refine_in_pieces(tree, estimator, spans, limits, candidates, links, counts)?;
-    }
-    let order = tree.renumber_from(first_node);
-    let mut new_index = vec![NONE; order.len()];
-    for (k, &old) in order.iter().enumerate() {
-        new_index[old as usize - first_node] = (first_node + k) as u32;
-    }
-    let moved: Vec<Span> = order.iter().map(|&old| spans[old as usize]).collect();
-    spans.truncate(first_node);
-    spans.extend(moved);
-    let renumber = |n: u32| if (n as usize) < first_node { n } else { new_index[n as usize - first_node] };
-    for link in &mut links[first_link..] {
-        link.a = renumber(link.a);
-        link.b = renumber(link.b);
-    }
-    links[first_link..].sort_unstable_by_key(|l| (l.a, l.b));
-    Ok(())
-}
-
 /// Estimates `candidates` in waves (in parallel within a wave), accepting each that is within the bound and
 /// replacing each that is not by the pairs of the children of its larger splittable end; appends the accepted
 /// links to `links`. A pair whose receiver end (`a`) `here` refuses is set aside in `elsewhere` instead (the
@@ -476,48 +432,6 @@ pub(super) fn waves<C: RayCaster + ?Sized>(
         candidates = next;
     }
     Ok(())
-}
-
-/// One pass of brightness-weighted refinement against the solved radiosity (Hanrahan, Salzman, Aupperle 1991,
-/// iterated as in their paper): every link whose power error `link_error` under the current `spans` exceeds the
-/// bound is replaced by the pairs of its larger splittable end, which are estimated and refined like the first
-/// pass's; the others stay as they are (not estimated again). The links of `overstated` (`(index, end)`, sorted
-/// by index, one per link: `excess::overstated`, `shadow::contradicted`) are split at that end whatever their
-/// error. Returns the links split.
-///
-/// # Errors
-/// [`HierarchyError::Mesh`] if a surface cannot be split.
-pub(super) fn refine_brightness<C: RayCaster + ?Sized>(
-    tree: &mut Tree,
-    estimator: &Estimator<'_, C>,
-    spans: &mut Vec<Span>,
-    limits: &Limits,
-    overstated: &[(usize, u32)],
-    links: &mut Vec<Link>,
-    counts: &mut RefineCounts,
-) -> Result<u64, HierarchyError> {
-    let mut candidates = Vec::new();
-    let mut kept = Vec::with_capacity(links.len());
-    let mut split = 0;
-    let mut next_overstated = overstated.iter().peekable();
-    for (k, link) in links.drain(..).enumerate() {
-        let at = next_overstated.next_if(|o| o.0 == k).map(|o| o.1);
-        let done = if let Some(end) = at {
-            split_either(tree, estimator.rules, spans, limits, link.a, link.b, end, &mut candidates)?
-        } else {
-            link_error(tree, spans, &link) > limits.threshold
-                && split_link(tree, estimator.rules, spans, limits, link.a, link.b, &mut candidates)?
-        };
-        if done {
-            split += 1;
-            counts.split += 1;
-        } else {
-            kept.push(link);
-        }
-    }
-    *links = kept;
-    refine(tree, estimator, spans, limits, candidates, links, counts)?;
-    Ok(split)
 }
 
 /// The error for refinement that would exceed `limits.max_links` (the pass is filled in by the driver).

@@ -89,7 +89,9 @@ use crate::scene::Scene;
 
 pub use network::{LinkNetwork, NetworkLink, NetworkNode};
 
-use link::{expand_self, refine, refine_brightness, Estimator, Limits, RefineCounts};
+use link::{expand_self, link_error, split_either, split_link, Estimator, Limits, Link, RefineCounts};
+use pieces::refine;
+use span::Span;
 use tree::{Kind, Tree};
 
 /// Default error budget per element, relative to its reflected radiosity.
@@ -681,6 +683,48 @@ fn refine_brightness_pass<C: RayCaster + ?Sized>(
     split_at.sort_unstable();
     split_at.dedup_by_key(|o| o.0);
     refine_brightness(tree, estimator, spans, limits, &split_at, links, counts)
+}
+
+/// One pass of brightness-weighted refinement against the solved radiosity (Hanrahan, Salzman, Aupperle 1991,
+/// iterated as in their paper): every link whose power error `link_error` under the current `spans` exceeds the
+/// bound is replaced by the pairs of its larger splittable end, which are estimated and refined like the first
+/// pass's; the others stay as they are (not estimated again). The links of `overstated` (`(index, end)`, sorted
+/// by index, one per link: `excess::overstated`, `shadow::contradicted`) are split at that end whatever their
+/// error. Returns the links split.
+///
+/// # Errors
+/// [`HierarchyError::Mesh`] if a surface cannot be split.
+fn refine_brightness<C: RayCaster + ?Sized>(
+    tree: &mut Tree,
+    estimator: &Estimator<'_, C>,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    overstated: &[(usize, u32)],
+    links: &mut Vec<Link>,
+    counts: &mut RefineCounts,
+) -> Result<u64, HierarchyError> {
+    let mut candidates = Vec::new();
+    let mut kept = Vec::with_capacity(links.len());
+    let mut split = 0;
+    let mut next_overstated = overstated.iter().peekable();
+    for (k, link) in links.drain(..).enumerate() {
+        let at = next_overstated.next_if(|o| o.0 == k).map(|o| o.1);
+        let done = if let Some(end) = at {
+            split_either(tree, estimator.rules, spans, limits, link.a, link.b, end, &mut candidates)?
+        } else {
+            link_error(tree, spans, &link) > limits.threshold
+                && split_link(tree, estimator.rules, spans, limits, link.a, link.b, &mut candidates)?
+        };
+        if done {
+            split += 1;
+            counts.split += 1;
+        } else {
+            kept.push(link);
+        }
+    }
+    *links = kept;
+    refine(tree, estimator, spans, limits, candidates, links, counts)?;
+    Ok(split)
 }
 
 /// The system on `links` solved with emission `e` per node by the chosen solver.

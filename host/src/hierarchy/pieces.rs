@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::link::{waves, Estimator, Limits, Link, RefineCounts};
+use super::link::{too_many_links, waves, Estimator, Limits, Link, RefineCounts};
 use super::span::Span;
 use super::tree::{Tree, NONE};
 use super::HierarchyError;
@@ -78,13 +78,57 @@ struct Piece {
     counts: RefineCounts,
 }
 
-/// `link::refine`'s work in `limits.pieces` pieces: the pairs with their receiver above the cut first, on `tree`,
-/// then the pieces in parallel, each on a copy, merged into `tree`, `spans`, `links` and `counts` (the new nodes
-/// and links in the pieces' order; `link::refine` orders them).
+/// Refines `candidates` (each pair on its own: estimated, accepted if within the bound, else replaced by the pairs
+/// of the children of its larger splittable end, and so on down), in `limits.pieces` receiver-subtree pieces
+/// (`pieces`); appends the accepted links to `links` (also those whose rays all missed: they carry nothing, but
+/// the budgets may refine them). What a pair becomes depends on the pair alone (the estimates' streams are keyed
+/// by the nodes' keys), so the links and nodes do not depend on the order the pairs were refined in; the nodes
+/// made and the links appended are then put in that order's stead in one that depends on them alone (nodes by
+/// [`Tree::renumber_from`], links by their ends), so that every piece count gives the same tree and links, bit
+/// for bit.
 ///
 /// # Errors
-/// As `link::refine`; the link and node limits are checked in each piece on what it holds, and on the merge.
-pub(super) fn refine_in_pieces<C: RayCaster + ?Sized>(
+/// [`HierarchyError::Mesh`] if a surface cannot be split; [`HierarchyError::TooManyLinks`] or
+/// [`HierarchyError::TooManyNodes`] if refinement would exceed `limits`.
+pub(super) fn refine<C: RayCaster + ?Sized>(
+    tree: &mut Tree,
+    estimator: &Estimator<'_, C>,
+    spans: &mut Vec<Span>,
+    limits: &Limits,
+    candidates: Vec<(u32, u32)>,
+    links: &mut Vec<Link>,
+    counts: &mut RefineCounts,
+) -> Result<(), HierarchyError> {
+    let (first_node, first_link) = (tree.nodes.len(), links.len());
+    if limits.pieces <= 1 {
+        waves(tree, estimator, spans, limits, candidates, links, counts, 0, |_, _| true, &mut Vec::new())?;
+    } else {
+        in_pieces(tree, estimator, spans, limits, candidates, links, counts)?;
+    }
+    let order = tree.renumber_from(first_node);
+    let mut new_index = vec![NONE; order.len()];
+    for (k, &old) in order.iter().enumerate() {
+        new_index[old as usize - first_node] = (first_node + k) as u32;
+    }
+    let moved: Vec<Span> = order.iter().map(|&old| spans[old as usize]).collect();
+    spans.truncate(first_node);
+    spans.extend(moved);
+    let renumber = |n: u32| if (n as usize) < first_node { n } else { new_index[n as usize - first_node] };
+    for link in &mut links[first_link..] {
+        link.a = renumber(link.a);
+        link.b = renumber(link.b);
+    }
+    links[first_link..].sort_unstable_by_key(|l| (l.a, l.b));
+    Ok(())
+}
+
+/// [`refine`]'s work in `limits.pieces` pieces: the pairs with their receiver above the cut first, on `tree`,
+/// then the pieces in parallel, each on a copy, merged into `tree`, `spans`, `links` and `counts` (the new nodes
+/// and links in the pieces' order; [`refine`] orders them).
+///
+/// # Errors
+/// As [`refine`]; the link and node limits are checked in each piece on what it holds, and on the merge.
+fn in_pieces<C: RayCaster + ?Sized>(
     tree: &mut Tree,
     estimator: &Estimator<'_, C>,
     spans: &mut Vec<Span>,
@@ -145,7 +189,7 @@ pub(super) fn refine_in_pieces<C: RayCaster + ?Sized>(
         merge(tree, spans, links, counts, shared, result?);
     }
     if links.len() > limits.max_links {
-        return Err(super::link::too_many_links(tree, limits, links.len(), 0, counts));
+        return Err(too_many_links(tree, limits, links.len(), 0, counts));
     }
     if tree.nodes.len() > limits.max_nodes {
         return Err(HierarchyError::TooManyNodes {

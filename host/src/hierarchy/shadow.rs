@@ -159,7 +159,8 @@ fn leaves_below(tree: &Tree, n: u32) -> impl Iterator<Item = u32> + '_ {
 mod tests {
     use super::*;
     use crate::formfactor::{occluder_bvh, ElementRules, FormFactorOptions};
-    use crate::hierarchy::link::{link_error, refine_brightness, Limits, RefineCounts};
+    use crate::hierarchy::link::{link_error, Limits, RefineCounts};
+    use crate::hierarchy::refine_brightness;
     use crate::hierarchy::solve::emission_bound;
     use crate::hierarchy::tree::{Tree, NONE};
     use crate::hierarchy::DEFAULT_EPSILON;

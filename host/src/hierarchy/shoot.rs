@@ -136,7 +136,8 @@ pub(super) fn shoot(
 
 #[cfg(test)]
 mod tests {
-    use super::super::link::{expand_self, refine, Estimator, Limits, RefineCounts};
+    use super::super::link::{expand_self, Estimator, Limits, RefineCounts};
+    use super::super::pieces::refine;
     use super::super::solve::{emission as node_emission, emission_bound, solve};
     use super::super::tree::Tree;
     use super::shoot;
