@@ -26,7 +26,7 @@ const CUT_PER_PIECE: usize = 4;
 /// replacing its largest node (by area, then index) that has children by its children, until it holds
 /// [`CUT_PER_PIECE`] nodes per piece or no node of it has children; its nodes go to the piece of least area so
 /// far, largest first. Nodes above the cut get [`NONE`]; nodes below it their cut ancestor's piece.
-pub(super) fn assign(tree: &Tree, pieces: usize) -> Vec<u32> {
+fn assign(tree: &Tree, pieces: usize) -> Vec<u32> {
     let mut cut = vec![0u32];
     while cut.len() < CUT_PER_PIECE * pieces {
         let largest = cut
@@ -62,7 +62,7 @@ pub(super) fn assign(tree: &Tree, pieces: usize) -> Vec<u32> {
 }
 
 /// The piece of node `n` by `piece` ([`assign`] on an older tree): a node made since inherits its parent's.
-pub(super) fn piece_of(tree: &Tree, piece: &[u32], mut n: u32) -> u32 {
+fn piece_of(tree: &Tree, piece: &[u32], mut n: u32) -> u32 {
     while n as usize >= piece.len() {
         n = tree.nodes[n as usize].parent;
     }
