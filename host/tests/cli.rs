@@ -659,20 +659,15 @@ fn demo_without_qemu_runs_on_the_host_only() {
 /// limit below what the scene needs stops the solve with an error that names it.
 #[test]
 fn hierarchical_solve_by_shooting() {
+    let rooms = scene("two-rooms.obj");
+    // The two rooms solved hierarchically at epsilon 0.1, with `more` arguments.
+    let solve = |more: &[&str]| {
+        let mut args = vec!["solve", rooms.as_str(), "-q", "--method", "hierarchical", "--epsilon", "0.1"];
+        args.extend_from_slice(more);
+        radiosity(&args)
+    };
     let json = |solver: &str| -> serde_json::Value {
-        let out = radiosity(&[
-            "solve",
-            &scene("two-rooms.obj"),
-            "-q",
-            "--method",
-            "hierarchical",
-            "--epsilon",
-            "0.1",
-            "--solver",
-            solver,
-            "--format",
-            "json",
-        ]);
+        let out = solve(&["--solver", solver, "--format", "json"]);
         assert!(out.status.success(), "{solver}: {}", String::from_utf8_lossy(&out.stderr));
         serde_json::from_slice(&out.stdout).unwrap()
     };
@@ -698,34 +693,14 @@ fn hierarchical_solve_by_shooting() {
     assert!(!out.status.success() && err.contains("'0' for '--pieces"), "{err}");
     // Refinement split into receiver-subtree pieces and merged: the same patch table, byte for byte.
     let csv = |pieces: &str| {
-        let out = radiosity(&[
-            "solve",
-            &scene("two-rooms.obj"),
-            "-q",
-            "--method",
-            "hierarchical",
-            "--epsilon",
-            "0.1",
-            "--pieces",
-            pieces,
-        ]);
+        let out = solve(&["--pieces", pieces]);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         out.stdout
     };
     let one = csv("1");
     assert!(one.len() > 1000 && csv("3") == one);
     // A limit below what the scene needs: the error says so (and no patch table is printed).
-    let out = radiosity(&[
-        "solve",
-        &scene("two-rooms.obj"),
-        "-q",
-        "--method",
-        "hierarchical",
-        "--epsilon",
-        "0.1",
-        "--max-links",
-        "50",
-    ]);
+    let out = solve(&["--max-links", "50"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && out.stdout.is_empty(), "{err}");
     assert!(

@@ -250,8 +250,8 @@ pub enum HierarchyError {
     },
     /// Refinement would make more tree nodes than [`HierarchyOptions::max_nodes`].
     #[error(
-        "refinement pass {pass} needs more than {limit} tree nodes (it had {nodes}); raise --epsilon, or allow \
-         more nodes if memory allows"
+        "refinement pass {pass} needs more than {limit} tree nodes (it had {nodes}); raise --epsilon (the limit \
+         keeps the tree within memory: a node holds its polygon and quadrature points)"
     )]
     TooManyNodes {
         /// The limit.

@@ -216,7 +216,10 @@ fn merge(
     let at = |map: &[u32], n: u32| if (n as usize) < shared { n } else { map[n as usize - shared] };
     // Parents and children as the piece made them, before its nodes move.
     let parents: Vec<u32> = made.nodes[shared..].iter().map(|n| n.parent).collect();
-    let children: Vec<Vec<u32>> = made.nodes.iter().map(|n| n.children.clone()).collect();
+    // The new nodes' children (taken: a moved node gets its own when the loop reaches them); the shared nodes'
+    // stay in `made`.
+    let children: Vec<Vec<u32>> =
+        made.nodes[shared..].iter_mut().map(|n| std::mem::take(&mut n.children)).collect();
     let mut moved: Vec<Option<super::tree::Node>> = made.nodes.drain(shared..).map(Some).collect();
     for j in shared..shared + moved.len() {
         if map[j - shared] != NONE {
@@ -225,15 +228,17 @@ fn merge(
         // `j` is the first child of a split the piece made (children are made together, in order), and its
         // parent is mapped already (parents are made before their children).
         let parent = parents[j - shared];
-        let siblings = &children[parent as usize];
+        let siblings: &[u32] = if (parent as usize) < shared {
+            &made.nodes[parent as usize].children
+        } else {
+            &children[parent as usize - shared]
+        };
         let target = at(&map, parent);
         if tree.nodes[target as usize].children.is_empty() {
             let first = tree.nodes.len() as u32;
             for (k, &c) in siblings.iter().enumerate() {
                 let mut node = moved[c as usize - shared].take().expect("a child is moved once");
                 node.parent = target;
-                // Its own children (if the piece split it too) are moved when the loop reaches them.
-                node.children.clear();
                 tree.nodes.push(node);
                 spans.push(made_spans[c as usize]);
                 map[c as usize - shared] = first + k as u32;
