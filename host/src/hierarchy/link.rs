@@ -251,15 +251,14 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         let se = (var / n as f64).sqrt();
         let trusted =
             se <= MAX_CLUSTER_RELATIVE_ERROR * mean && nb.area * mean <= 1.0 && na.area * mean <= 1.0;
-        let gap = na.center.distance(nb.center) - na.radius - nb.radius;
-        let bound = |area: f64| if gap > 0.0 { (area / (PI * gap * gap)).min(1.0) } else { 1.0 };
+        let (g_ab, g_ba) = geometric_bounds(tree, a, b);
         let link = Link {
             a,
             b,
             f_ab: nb.area * mean,
             f_ba: na.area * mean,
-            spread_ab: bound(nb.area) + 2.0 * nb.area * se,
-            spread_ba: bound(na.area) + 2.0 * na.area * se,
+            spread_ab: g_ab.min(1.0) + 2.0 * nb.area * se,
+            spread_ba: g_ba.min(1.0) + 2.0 * na.area * se,
             visible: 1.0,
             unoccluded_ab: nb.area * mean,
         };
@@ -267,15 +266,49 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
     }
 }
 
+/// The bound on any point's form factor to the other end of a pair with a cluster, before the cap at 1, both
+/// ways: `(A_b / (pi d^2), A_a / (pi d^2))` with `d` the gap between the nodes' bounding spheres (infinite if
+/// they touch or overlap).
+fn geometric_bounds(tree: &Tree, a: u32, b: u32) -> (f64, f64) {
+    let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
+    let d = na.center.distance(nb.center) - na.radius - nb.radius;
+    let bound = |area: f64| if d > 0.0 { area / (PI * d * d) } else { f64::INFINITY };
+    (bound(nb.area), bound(na.area))
+}
+
 /// The error oracle: the power a link may misplace at either end, `A_r * max_c(rho_r,c * Bmax_s,c) * spread_rs`
 /// (brightness-weighted refinement, Hanrahan, Salzman, Aupperle 1991, with the spread in place of `F`), the
 /// larger of the two directions.
+///
+/// A link with a cluster at either end bounds its geometric part by the sender's power instead: no point of the
+/// receiver gets more irradiance from the sender than `Phi_s / (pi d^2)` (`d` the gap between the bounding
+/// spheres; Smits, Arvo, Greenberg 1994), and none gets less than 0, so neither the receiver's spread of point
+/// values nor the sender's uneven radiosity (a cluster whose few bright surfaces face another way than its
+/// average) can misplace more per unit area: the charge is `min(A_s * mean_s / (pi d^2), Bmax_s)` per unit
+/// area, where the spread's `min(A_s / (pi d^2), 1)` times `Bmax_s` would charge every surface of a cluster as if
+/// it were its brightest (a ceiling cluster holding a few panels). The Monte Carlo term (two standard errors) is
+/// charged at `Bmax_s` as before.
 pub(super) fn link_error(tree: &Tree, spans: &[Span], link: &Link) -> f64 {
-    let one = |r: u32, s: u32, spread: f64| {
+    let clustered = tree.is_cluster(link.a) || tree.is_cluster(link.b);
+    let geometric = clustered.then(|| geometric_bounds(tree, link.a, link.b));
+    let one = |r: u32, s: u32, spread: f64, bound: Option<f64>| {
         let nr = &tree.nodes[r as usize];
-        nr.area * max_channel(nr.rho_max * spans[s as usize].hi) * spread
+        let span = &spans[s as usize];
+        let brightness = match bound {
+            Some(g) => {
+                let noise = (spread - g.min(1.0)).max(0.0);
+                (span.mean * g).min(span.hi) + span.hi * noise
+            }
+            None => span.hi * spread,
+        };
+        nr.area * max_channel(nr.rho_max * brightness)
     };
-    one(link.a, link.b, link.spread_ab).max(one(link.b, link.a, link.spread_ba))
+    one(link.a, link.b, link.spread_ab, geometric.map(|g| g.0)).max(one(
+        link.b,
+        link.a,
+        link.spread_ba,
+        geometric.map(|g| g.1),
+    ))
 }
 
 /// Counters of refinement.
@@ -569,7 +602,90 @@ mod tests {
     use crate::formfactor::FormFactorOptions;
     use crate::lighting::PatchLighting;
     use crate::mesh::{mesh, MeshOptions};
+    use crate::rgb::Rgb;
     use crate::scene::Scene;
+
+    /// The oracle's charge for a cluster link with the light in its cluster: never more than the brightest-
+    /// radiosity charge it replaces, less where the cluster's emitting part is a small share of its area, and
+    /// never less than the largest power a receiver point can gather from the cluster's emitters unoccluded
+    /// (the exact point-to-polygon form factor at the receiver's centroid and vertices), which the link's
+    /// single value misplaces at most.
+    #[test]
+    fn a_cluster_link_is_charged_at_the_senders_power_and_still_bounds_its_error() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
+        let scene = Scene::load(&path).unwrap();
+        let roots =
+            mesh(&scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(&scene) })
+                .unwrap()
+                .patches;
+        let lighting = PatchLighting::new(&scene, &roots);
+        let rules = ElementRules::new(&FormFactorOptions { progress: false, ..FormFactorOptions::default() })
+            .unwrap();
+        let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
+        let spans = super::super::solve::emission_bound(&tree);
+        let n = tree.nodes.len() as u32;
+        let within = |k: u32, c: u32| {
+            let mut k = k;
+            while k != super::super::tree::NONE {
+                if k == c {
+                    return true;
+                }
+                k = tree.nodes[k as usize].parent;
+            }
+            false
+        };
+        let emitters: Vec<u32> = (0..n)
+            .filter(|&k| match &tree.nodes[k as usize].kind {
+                Kind::Surface { emission, .. } => max_channel(*emission) > 0.0,
+                Kind::Cluster { .. } => false,
+            })
+            .collect();
+        let (mut pairs, mut cheaper) = (0, 0);
+        for c in (0..n).filter(|&c| tree.is_cluster(c) && emitters.iter().any(|&e| within(e, c))) {
+            for r in (0..n).filter(|&r| !tree.is_cluster(r) && !within(r, c)) {
+                let (g, _) = geometric_bounds(&tree, r, c);
+                if g >= 1.0 {
+                    continue;
+                }
+                let link = Link {
+                    a: r,
+                    b: c,
+                    f_ab: 0.0,
+                    f_ba: 0.0,
+                    spread_ab: g,
+                    spread_ba: 0.0,
+                    visible: 1.0,
+                    unoccluded_ab: 0.0,
+                };
+                let charge = link_error(&tree, &spans, &link);
+                let nr = &tree.nodes[r as usize];
+                let brightest = nr.area * max_channel(nr.rho_max * spans[c as usize].hi) * g;
+                assert!(charge <= brightest * (1.0 + 1e-12), "({r}, {c}): {charge} > {brightest}");
+                // The largest unoccluded irradiance of a receiver point from the cluster's emitters.
+                let pr = nr.element().unwrap().patch();
+                let probes = std::iter::once(pr.centroid).chain(pr.vertices.iter().copied());
+                let mut most = Rgb::ZERO;
+                for x in probes {
+                    let mut gathered = Rgb::ZERO;
+                    for &e in emitters.iter().filter(|&&e| within(e, c)) {
+                        let ne = &tree.nodes[e as usize];
+                        let Kind::Surface { element, emission, .. } = &ne.kind else { unreachable!() };
+                        let pe = element.patch();
+                        let k = point_to_polygon(x, pr.normal, &pe.vertices, pe.normal);
+                        if k.is_finite() {
+                            gathered += k.max(0.0) * *emission;
+                        }
+                    }
+                    most = crate::rgb::channel_max(most, gathered);
+                }
+                let exact = nr.area * max_channel(nr.rho_max * most);
+                assert!(exact <= charge * (1.0 + 1e-9), "({r}, {c}): gathers {exact}, charged {charge}");
+                pairs += 1;
+                cheaper += usize::from(charge < 0.5 * brightest);
+            }
+        }
+        assert!(pairs > 0 && cheaper > 0, "{pairs} pairs, {cheaper} charged at most half");
+    }
 
     /// A pair of a cluster and a larger surface: with a trusted estimate the larger end (the surface) is split,
     /// with an untrusted one the cluster is opened, whatever the areas.

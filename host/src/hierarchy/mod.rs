@@ -14,7 +14,9 @@
 //!   receives isotropically: every surface in it gets the same irradiance.
 //! - **Oracle** (`link`, `budget`). Each link has a spread: a bound on how far the form factor of a point of the
 //!   receiver may be from `F` (the range of the point kernel over probe points, the partial-visibility and
-//!   ray-count terms for surfaces; `A_s / (pi d^2)` plus two standard errors for clusters, Smits et al.'s bound).
+//!   ray-count terms for surfaces; `A_s / (pi d^2)` plus two standard errors for clusters, Smits et al.'s
+//!   bound, whose geometric part the oracle charges at the sender's power, `Phi_s / (pi d^2)`, not at its
+//!   brightest radiosity over its whole area).
 //!   Refinement runs in two stages:
 //!   1. **Direct light** (pass 1): from the top cluster's self-link, with the brightness of emission alone, a link
 //!      whose power error `A_r * max_c(rho_r * Bmax_s) * spread` exceeds `epsilon * LINK_SHARE` times the
@@ -315,6 +317,9 @@ pub struct PassStats {
     pub estimated: u64,
     /// Links split in the pass.
     pub split: u64,
+    /// Of those, the cluster links split because their estimate could not be trusted (nearly touching
+    /// surfaces), whatever their brightness.
+    pub untrusted: u64,
     /// Occlusion rays cast in the pass.
     pub rays: u64,
 }
@@ -608,11 +613,13 @@ fn solve_checked<C: RayCaster + ?Sized>(
             nodes: tree.nodes.len(),
             estimated: counts.estimated - before.estimated,
             split: counts.split - before.split,
+            untrusted: counts.untrusted - before.untrusted,
             rays: counts.rays - before.rays,
         });
         if let (true, Some(p)) = (options.progress, passes.last()) {
             eprintln!(
-                "hierarchy pass {} ({}): {} pairs estimated, {} split, {} rays -> {} leaves, {} links",
+                "hierarchy pass {} ({}): {} pairs estimated, {} split ({} of them untrusted cluster estimates), {} \
+                 rays -> {} leaves, {} links",
                 passes.len(),
                 match (passes.len(), options.refinement) {
                     (1, _) => "direct light",
@@ -621,6 +628,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 },
                 p.estimated,
                 p.split,
+                p.untrusted,
                 p.rays,
                 p.leaves,
                 p.links
