@@ -8,6 +8,7 @@ use std::time::Instant;
 pub use super::faces::FaceErrors;
 use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
+use super::largescene::{with_peak, OfficeSection};
 use super::{log, BenchError, BenchOptions};
 use crate::formfactor::{compute_form_factors, FormFactorOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
@@ -64,6 +65,8 @@ pub struct HierarchyRow {
     pub vs_continuous: FaceErrors,
     /// The hierarchy's claimed error (see `HierarchyStats::claimed_error`).
     pub claimed: Option<f64>,
+    /// The peak resident memory during the solve (bytes), if the system reports it.
+    pub peak_bytes: Option<u64>,
 }
 
 /// The section's results: the rows, the reference they are judged by, and the fitted growth exponents.
@@ -83,8 +86,8 @@ pub struct HierarchySection {
     /// Device tables of the same scene, flat against hierarchical: error against model instructions
     /// ([`super::hierdevice`]).
     pub device: Vec<super::hierdevice::DeviceCurve>,
-    /// The process's peak resident memory after the section (bytes), if the system reports it.
-    pub peak_rss: Option<u64>,
+    /// The large generated scene (the office) at growing sizes ([`super::largescene`]).
+    pub office: OfficeSection,
 }
 
 /// The faces the errors are taken over: lit ones (reference radiosity above zero) not smaller than
@@ -105,14 +108,6 @@ fn refinement_label(refinement: Refinement) -> &'static str {
         Refinement::Budgets => "budgets",
         Refinement::Brightness => "brightness",
     }
-}
-
-/// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
-fn peak_rss() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
 }
 
 /// Runs the section on the Cornell box: the hierarchy with each refinement at several epsilons (quick: one each),
@@ -172,11 +167,13 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         let label = refinement_label(refinement);
         log(options, &format!("hierarchy: {label} refinement, epsilon {epsilon}"));
         let start = Instant::now();
-        let sol = solve_hierarchical(
-            &scene,
-            &HierarchyOptions { epsilon, refinement, ..HierarchyOptions::default() },
-        )
-        .map_err(|e| {
+        let (sol, peak_bytes) = with_peak(|| {
+            solve_hierarchical(
+                &scene,
+                &HierarchyOptions { epsilon, refinement, ..HierarchyOptions::default() },
+            )
+        });
+        let sol = sol.map_err(|e| {
             BenchError::Options(format!("hierarchical solve ({label}) at epsilon {epsilon}: {e}"))
         })?;
         let seconds = start.elapsed().as_secs_f64();
@@ -210,16 +207,21 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             vs_dense,
             vs_continuous: face_errors(&got, &want, &judged),
             claimed: sol.stats.claimed_error,
+            peak_bytes,
         });
     }
     for &max_patches in flat_sizes {
         log(options, &format!("hierarchy: flat solve at {max_patches:?} patches"));
         let start = Instant::now();
-        let prepared =
-            prepare(&path, &PrepareOptions { max_patches, ..PrepareOptions::quiet(false, 16, 16) })?;
-        let l = &prepared.lighting;
-        let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
-        let b = tv.relight(&l.default_intensity)?;
+        let (solved, peak_bytes) = with_peak(|| -> Result<_, BenchError> {
+            let prepared =
+                prepare(&path, &PrepareOptions { max_patches, ..PrepareOptions::quiet(false, 16, 16) })?;
+            let l = &prepared.lighting;
+            let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
+            let b = tv.relight(&l.default_intensity)?;
+            Ok((prepared, b))
+        });
+        let (prepared, b) = solved?;
         let seconds = start.elapsed().as_secs_f64();
         let entries = prepared.form_factors.nonzeros();
         rows.push(HierarchyRow {
@@ -235,6 +237,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             vs_dense: None,
             vs_continuous: face_errors(&face_means(&prepared.patches, &b, &reference), &want, &judged),
             claimed: None,
+            peak_bytes,
         });
     }
     let mut exponents = Vec::new();
@@ -262,12 +265,13 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         Vec::new()
     };
     let device = super::hierdevice::curves(options, &path, &scene, &reference, &want, &judged)?;
+    let office = super::largescene::section(options)?;
     Ok(HierarchySection {
         rows,
         device,
         references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
         exponents,
         discretization,
-        peak_rss: peak_rss(),
+        office,
     })
 }

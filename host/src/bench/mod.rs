@@ -31,6 +31,7 @@ pub mod fit;
 mod growth;
 pub mod hierarchy;
 pub mod hierdevice;
+pub mod largescene;
 pub mod report;
 pub mod roofline;
 mod scenes;
