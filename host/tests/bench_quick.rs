@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use firmware_sim::sim::Arith;
-use radiosity_host::bench::largescene::with_peak;
+use radiosity_host::bench::peak::with_peak;
 use radiosity_host::bench::{report::CSV_HEADER, run, BenchOptions, DeviceRun};
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -115,8 +115,8 @@ fn quick_bench_writes_a_well_formed_report() {
     }
     // The large generated scene: the office's smallest size, solved, with its costs.
     assert!(md.contains("### A large generated scene: the office"));
-    assert_eq!(h.office.rows.len(), 1, "{:?}", h.office.rows);
-    let office = &h.office.rows[0];
+    assert_eq!(results.office.rows.len(), 1, "{:?}", results.office.rows);
+    let office = &results.office.rows[0];
     let solved = office.outcome.as_ref().expect("the 1 x 1 office solves");
     assert!(office.triangles > 300 && solved.leaves >= office.triangles && solved.links > 0, "{office:?}");
     assert!(solved.nodes > solved.leaves && solved.peak_bytes.is_some_and(|b| b > 0), "{office:?}");

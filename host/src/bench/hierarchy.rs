@@ -8,7 +8,7 @@ use std::time::Instant;
 pub use super::faces::FaceErrors;
 use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
-use super::largescene::{with_peak, OfficeSection};
+use super::peak::with_peak;
 use super::{log, BenchError, BenchOptions};
 use crate::formfactor::{compute_form_factors, FormFactorOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
@@ -86,8 +86,6 @@ pub struct HierarchySection {
     /// Device tables of the same scene, flat against hierarchical: error against model instructions
     /// ([`super::hierdevice`]).
     pub device: Vec<super::hierdevice::DeviceCurve>,
-    /// The large generated scene (the office) at growing sizes ([`super::largescene`]).
-    pub office: OfficeSection,
 }
 
 /// The faces the errors are taken over: lit ones (reference radiosity above zero) not smaller than
@@ -265,13 +263,11 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         Vec::new()
     };
     let device = super::hierdevice::curves(options, &path, &scene, &reference, &want, &judged)?;
-    let office = super::largescene::section(options)?;
     Ok(HierarchySection {
         rows,
         device,
         references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
         exponents,
         discretization,
-        office,
     })
 }

@@ -16,7 +16,8 @@
 //! build time); wall times are medians of repeated runs. Then the roofline ([`roofline`]), the bake throughput
 //! against raw Embree ([`bakebench`]) and the growth of bake time, nonzeros, table bytes and work with the patch
 //! count (`growth.rs`), with log-log least-squares exponents, and the hierarchical solver against the flat one,
-//! both judged by the continuous path-traced reference ([`hierarchy`]). [`report`] writes `REPORT.md`, `curves.csv`,
+//! both judged by the continuous path-traced reference ([`hierarchy`]), with the large generated scene's growth
+//! ([`largescene`]). [`report`] writes `REPORT.md`, `curves.csv`,
 //! `growth.csv` and the plots.
 //!
 //! Files: this module holds the options, the result types and [`run`]; `scenes.rs` runs one scene (mesh, exact
@@ -32,6 +33,7 @@ mod growth;
 pub mod hierarchy;
 pub mod hierdevice;
 pub mod largescene;
+pub mod peak;
 pub mod report;
 pub mod roofline;
 mod scenes;
@@ -404,6 +406,8 @@ pub struct BenchResults {
     pub growth_limit_note: String,
     /// The hierarchical solver against the flat one, judged by the continuous reference.
     pub hierarchy: hierarchy::HierarchySection,
+    /// The large generated scene of the hierarchy section (the office at growing sizes).
+    pub office: largescene::OfficeSection,
     /// Total wall time of the run, seconds.
     pub total_seconds: f64,
 }
@@ -600,6 +604,7 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         bake.push(bakebench::bake_throughput(options, target)?);
     }
     let hierarchy = hierarchy::section(options)?;
+    let office = largescene::section(options)?;
     let mut results = BenchResults {
         quick: options.quick,
         reps: options.reps,
@@ -613,6 +618,7 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         growth,
         growth_limit_note: growth::note(options.quick),
         hierarchy,
+        office,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
     results.machine.push(load_average("at the end"));

@@ -598,12 +598,9 @@ pub(super) fn split_end(
 
 #[cfg(test)]
 mod tests {
+    use super::super::testing::{cornell_polygons, within};
     use super::*;
-    use crate::formfactor::FormFactorOptions;
-    use crate::lighting::PatchLighting;
-    use crate::mesh::{mesh, MeshOptions};
     use crate::rgb::Rgb;
-    use crate::scene::Scene;
 
     /// The oracle's charge for a cluster link with the light in its cluster: never more than the brightest-
     /// radiosity charge it replaces, less where the cluster's emitting part is a small share of its area, and
@@ -612,28 +609,11 @@ mod tests {
     /// single value misplaces at most.
     #[test]
     fn a_cluster_link_is_charged_at_the_senders_power_and_still_bounds_its_error() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
-        let scene = Scene::load(&path).unwrap();
-        let roots =
-            mesh(&scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(&scene) })
-                .unwrap()
-                .patches;
-        let lighting = PatchLighting::new(&scene, &roots);
-        let rules = ElementRules::new(&FormFactorOptions { progress: false, ..FormFactorOptions::default() })
-            .unwrap();
+        let (roots, lighting, rules) = cornell_polygons();
         let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
         let spans = super::super::solve::emission_bound(&tree);
         let n = tree.nodes.len() as u32;
-        let within = |k: u32, c: u32| {
-            let mut k = k;
-            while k != super::super::tree::NONE {
-                if k == c {
-                    return true;
-                }
-                k = tree.nodes[k as usize].parent;
-            }
-            false
-        };
+        let within = |k: u32, c: u32| within(&tree, k, c);
         let emitters: Vec<u32> = (0..n)
             .filter(|&k| match &tree.nodes[k as usize].kind {
                 Kind::Surface { emission, .. } => max_channel(*emission) > 0.0,
@@ -691,15 +671,7 @@ mod tests {
     /// with an untrusted one the cluster is opened, whatever the areas.
     #[test]
     fn an_untrusted_pair_opens_its_cluster() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
-        let scene = Scene::load(&path).unwrap();
-        let roots =
-            mesh(&scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(&scene) })
-                .unwrap()
-                .patches;
-        let lighting = PatchLighting::new(&scene, &roots);
-        let rules = ElementRules::new(&FormFactorOptions { progress: false, ..FormFactorOptions::default() })
-            .unwrap();
+        let (roots, lighting, rules) = cornell_polygons();
         let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
         let limits =
             Limits { threshold: 0.0, min_area: 0.0, max_nodes: 100_000, max_links: usize::MAX, pieces: 1 };
@@ -709,16 +681,7 @@ mod tests {
             .filter(|&k| !tree.is_cluster(k))
             .max_by(|&x, &y| tree.nodes[x as usize].area.total_cmp(&tree.nodes[y as usize].area))
             .unwrap();
-        let holds = |c: u32| {
-            let mut k = surface;
-            while k != super::super::tree::NONE {
-                if k == c {
-                    return true;
-                }
-                k = tree.nodes[k as usize].parent;
-            }
-            false
-        };
+        let holds = |c: u32| within(&tree, surface, c);
         let cluster = (0..n)
             .find(|&k| {
                 tree.is_cluster(k)

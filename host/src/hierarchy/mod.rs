@@ -76,6 +76,8 @@ mod shadow;
 mod shoot;
 mod solve;
 mod span;
+#[cfg(test)]
+mod testing;
 mod tree;
 
 use std::fmt;

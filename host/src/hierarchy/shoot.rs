@@ -139,13 +139,11 @@ mod tests {
     use super::super::link::{expand_self, Estimator, Limits, RefineCounts};
     use super::super::pieces::refine;
     use super::super::solve::{emission as node_emission, emission_bound, solve};
+    use super::super::testing::cornell_polygons;
     use super::super::tree::Tree;
     use super::shoot;
-    use crate::formfactor::{occluder_scene, ElementRules, FormFactorOptions};
-    use crate::lighting::PatchLighting;
-    use crate::mesh::{mesh, MeshOptions};
+    use crate::formfactor::occluder_scene;
     use crate::rgb::max_channel;
-    use crate::scene::Scene;
 
     /// On the Cornell box's direct-light links, shooting and gathering reach the same radiosity: both stop at a
     /// residual of `tol` of the total power, and the error left after a residual `r` is at most `r / (1 - q)`,
@@ -154,17 +152,9 @@ mod tests {
     /// sums do not bound `q` here: a hierarchy's leaf row sums exceed 1 where ancestors' averages overstate.)
     #[test]
     fn shooting_reaches_the_gathering_answer() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell-box.obj");
-        let scene = Scene::load(&path).unwrap();
-        let roots =
-            mesh(&scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(&scene) })
-                .unwrap()
-                .patches;
-        let lighting = PatchLighting::new(&scene, &roots);
+        let (roots, lighting, rules) = cornell_polygons();
         let emission = lighting.default_emission();
         let caster = occluder_scene(&roots, true).unwrap();
-        let rules = ElementRules::new(&FormFactorOptions { progress: false, ..FormFactorOptions::default() })
-            .unwrap();
         let mut tree = Tree::new(&rules, &roots, &lighting.rho, &emission);
         let brightest =
             roots.iter().zip(&emission).map(|(p, e)| p.area * max_channel(*e)).fold(0.0, f64::max);

@@ -392,7 +392,7 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
             f(worst)
         );
     }
-    office(s, &h.office);
+    office(s, &r.office);
     device_curves(s, &h.device);
     let _ = writeln!(s);
 }
