@@ -65,7 +65,7 @@ pub struct HierarchyRow {
     pub vs_continuous: FaceErrors,
     /// The hierarchy's claimed error (see `HierarchyStats::claimed_error`).
     pub claimed: Option<f64>,
-    /// The peak resident memory during the solve (bytes), if the system reports it.
+    /// The resident memory the solve added at its peak (bytes), if the system reports it.
     pub peak_bytes: Option<u64>,
 }
 

@@ -45,7 +45,7 @@ pub struct OfficeSolve {
     pub seconds: f64,
     /// Occlusion rays cast.
     pub rays: u64,
-    /// The peak resident memory during the solve (bytes), if the system reports it.
+    /// The resident memory the solve added at its peak (bytes), if the system reports it.
     pub peak_bytes: Option<u64>,
 }
 

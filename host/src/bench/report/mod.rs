@@ -341,7 +341,7 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
              leaves); \"vs continuous\" adds the mesh's error. Bytes: {LINK_BYTES} per link (two directions, each a \
              32-bit node index and a 16-bit code), {ENTRY_BYTES} per flat entry; the flat rows' seconds include their \
              adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative. Peak memory \
-             is the process's peak resident set during the solve (the bench's own data included).\n",
+             is what the solve added to the process's resident set at its peak.\n",
             100.0 * SMALL_FACE
         );
     }
@@ -411,7 +411,7 @@ fn office(s: &mut String, o: &super::largescene::OfficeSection) {
          (desks, monitors, chairs, books, desk lamps, all of closed boxes standing 1 mm apart; ceiling panels in two \
          light groups and the lamps in a third), solved by `solve --method hierarchical --refinement brightness \
          --epsilon {}` (the device tables' refinement). No error column: the dense solve does not reach these leaf \
-         counts. Bytes: {LINK_BYTES} per link. Peak memory is the process's peak resident set during the solve.\n",
+         counts. Bytes: {LINK_BYTES} per link. Peak memory is what the solve added to the process's resident set at its peak.\n",
         o.epsilon
     );
     let _ = writeln!(s, "| workstations | triangles | leaves | nodes | links | links per leaf | bytes | seconds | rays | peak memory (MiB) |");
