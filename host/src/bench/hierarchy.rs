@@ -8,7 +8,6 @@ use std::time::Instant;
 pub use super::faces::FaceErrors;
 use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
-use super::peak::with_peak;
 use super::{log, BenchError, BenchOptions};
 use crate::formfactor::{compute_form_factors, FormFactorOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
@@ -65,8 +64,6 @@ pub struct HierarchyRow {
     pub vs_continuous: FaceErrors,
     /// The hierarchy's claimed error (see `HierarchyStats::claimed_error`).
     pub claimed: Option<f64>,
-    /// The resident memory the solve added at its peak (bytes), if the system reports it.
-    pub peak_bytes: Option<u64>,
 }
 
 /// The section's results: the rows, the reference they are judged by, and the fitted growth exponents.
@@ -86,6 +83,8 @@ pub struct HierarchySection {
     /// Device tables of the same scene, flat against hierarchical: error against model instructions
     /// ([`super::hierdevice`]).
     pub device: Vec<super::hierdevice::DeviceCurve>,
+    /// The process's peak resident memory after the section (bytes), if the system reports it.
+    pub peak_rss: Option<u64>,
 }
 
 /// The faces the errors are taken over: lit ones (reference radiosity above zero) not smaller than
@@ -106,6 +105,14 @@ fn refinement_label(refinement: Refinement) -> &'static str {
         Refinement::Budgets => "budgets",
         Refinement::Brightness => "brightness",
     }
+}
+
+/// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
+fn peak_rss() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
 
 /// Runs the section on the Cornell box: the hierarchy with each refinement at several epsilons (quick: one each),
@@ -165,13 +172,11 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         let label = refinement_label(refinement);
         log(options, &format!("hierarchy: {label} refinement, epsilon {epsilon}"));
         let start = Instant::now();
-        let (sol, peak_bytes) = with_peak(|| {
-            solve_hierarchical(
-                &scene,
-                &HierarchyOptions { epsilon, refinement, ..HierarchyOptions::default() },
-            )
-        });
-        let sol = sol.map_err(|e| {
+        let sol = solve_hierarchical(
+            &scene,
+            &HierarchyOptions { epsilon, refinement, ..HierarchyOptions::default() },
+        )
+        .map_err(|e| {
             BenchError::Options(format!("hierarchical solve ({label}) at epsilon {epsilon}: {e}"))
         })?;
         let seconds = start.elapsed().as_secs_f64();
@@ -205,21 +210,16 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             vs_dense,
             vs_continuous: face_errors(&got, &want, &judged),
             claimed: sol.stats.claimed_error,
-            peak_bytes,
         });
     }
     for &max_patches in flat_sizes {
         log(options, &format!("hierarchy: flat solve at {max_patches:?} patches"));
         let start = Instant::now();
-        let (solved, peak_bytes) = with_peak(|| -> Result<_, BenchError> {
-            let prepared =
-                prepare(&path, &PrepareOptions { max_patches, ..PrepareOptions::quiet(false, 16, 16) })?;
-            let l = &prepared.lighting;
-            let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
-            let b = tv.relight(&l.default_intensity)?;
-            Ok((prepared, b))
-        });
-        let (prepared, b) = solved?;
+        let prepared =
+            prepare(&path, &PrepareOptions { max_patches, ..PrepareOptions::quiet(false, 16, 16) })?;
+        let l = &prepared.lighting;
+        let tv = exact_transfer(l, &prepared.form_factors, &Method::for_size(prepared.patches.len()))?;
+        let b = tv.relight(&l.default_intensity)?;
         let seconds = start.elapsed().as_secs_f64();
         let entries = prepared.form_factors.nonzeros();
         rows.push(HierarchyRow {
@@ -235,7 +235,6 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             vs_dense: None,
             vs_continuous: face_errors(&face_means(&prepared.patches, &b, &reference), &want, &judged),
             claimed: None,
-            peak_bytes,
         });
     }
     let mut exponents = Vec::new();
@@ -269,5 +268,6 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
         exponents,
         discretization,
+        peak_rss: peak_rss(),
     })
 }

@@ -1,6 +1,6 @@
 //! The large generated scene of the hierarchy section: the open-plan office of `scenes/make_office.py` at growing
 //! numbers of workstations, solved hierarchically with brightness refinement (the device tables' refinement),
-//! with what each size costs (leaves, links, bytes, seconds, rays, peak memory) and how links and time grow with
+//! with what each size costs (leaves, links, bytes, seconds, rays) and how links and time grow with
 //! the leaves. No error column: the dense solve does not reach these leaf counts, and the continuous reference
 //! would need hours for a hundred thousand faces.
 
@@ -10,7 +10,6 @@ use std::time::Instant;
 
 use super::fit::loglog_slope;
 use super::hierarchy::LINK_BYTES;
-use super::peak::with_peak;
 use super::{log, BenchError, BenchOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
 use crate::scene::Scene;
@@ -45,8 +44,6 @@ pub struct OfficeSolve {
     pub seconds: f64,
     /// Occlusion rays cast.
     pub rays: u64,
-    /// The resident memory the solve added at its peak (bytes), if the system reports it.
-    pub peak_bytes: Option<u64>,
 }
 
 /// The office rows and their growth.
@@ -118,16 +115,10 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
         let _ = std::fs::remove_dir_all(&dir);
         let triangles = scene.faces.len();
         let start = Instant::now();
-        let (solved, peak_bytes) = with_peak(|| {
-            solve_hierarchical(
-                &scene,
-                &HierarchyOptions {
-                    epsilon,
-                    refinement: Refinement::Brightness,
-                    ..HierarchyOptions::default()
-                },
-            )
-        });
+        let solved = solve_hierarchical(
+            &scene,
+            &HierarchyOptions { epsilon, refinement: Refinement::Brightness, ..HierarchyOptions::default() },
+        );
         let seconds = start.elapsed().as_secs_f64();
         let outcome = solved
             .map(|sol| {
@@ -139,7 +130,6 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
                     bytes: links * LINK_BYTES,
                     seconds,
                     rays: sol.stats.rays,
-                    peak_bytes,
                 }
             })
             .map_err(|e| e.to_string());

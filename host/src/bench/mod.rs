@@ -33,7 +33,6 @@ mod growth;
 pub mod hierarchy;
 pub mod hierdevice;
 pub mod largescene;
-pub mod peak;
 pub mod report;
 pub mod roofline;
 mod scenes;

@@ -340,30 +340,28 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
              the hierarchy against the dense f64 solve of its own leaves (what its links get wrong; up to {DENSE_LIMIT} \
              leaves); \"vs continuous\" adds the mesh's error. Bytes: {LINK_BYTES} per link (two directions, each a \
              32-bit node index and a 16-bit code), {ENTRY_BYTES} per flat entry; the flat rows' seconds include their \
-             adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative. Peak memory \
-             is what the solve added to the process's resident set at its peak.\n",
+             adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative.\n",
             100.0 * SMALL_FACE
         );
     }
     let _ = writeln!(
         s,
-        "| method | elements | links / entries | bytes | seconds | rays | peak memory (MiB) | worst face vs dense | worst face vs continuous (face) | mean face vs continuous | claimed |"
+        "| method | elements | links / entries | bytes | seconds | rays | worst face vs dense | worst face vs continuous (face) | mean face vs continuous | claimed |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     for row in &h.rows {
         let dense = row
             .vs_dense
             .map_or("-".to_owned(), |e| format!("{:.2}% (face {})", 100.0 * e.worst, e.worst_face));
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.2} | {} | {} | {} | {:.2}% ({}) | {:.2}% | {} |",
+            "| {} | {} | {} | {} | {:.2} | {} | {} | {:.2}% ({}) | {:.2}% | {} |",
             row.method,
             row.elements,
             row.links,
             row.bytes,
             row.seconds,
             row.rays,
-            mib(row.peak_bytes),
             dense,
             100.0 * row.vs_continuous.worst,
             row.vs_continuous.worst_face,
@@ -394,12 +392,14 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
     }
     office(s, &r.office);
     device_curves(s, &h.device);
+    if let Some(rss) = h.peak_rss {
+        let _ = writeln!(
+            s,
+            "\nPeak resident memory of the bench process after this section: {:.0} MiB.",
+            rss as f64 / 1048576.0
+        );
+    }
     let _ = writeln!(s);
-}
-
-/// Bytes as MiB for a table cell, `-` if unknown.
-fn mib(bytes: Option<u64>) -> String {
-    bytes.map_or("-".to_owned(), |b| format!("{:.0}", b as f64 / 1048576.0))
 }
 
 /// The large generated scene's subsection of the hierarchy section.
@@ -411,18 +411,21 @@ fn office(s: &mut String, o: &super::largescene::OfficeSection) {
          (desks, monitors, chairs, books, desk lamps, all of closed boxes standing 1 mm apart; ceiling panels in two \
          light groups and the lamps in a third), solved by `solve --method hierarchical --refinement brightness \
          --epsilon {}` (the device tables' refinement). No error column: the dense solve does not reach these leaf \
-         counts. Bytes: {LINK_BYTES} per link. Peak memory is what the solve added to the process's resident set at its peak.\n",
+         counts. Bytes: {LINK_BYTES} per link.\n",
         o.epsilon
     );
-    let _ = writeln!(s, "| workstations | triangles | leaves | nodes | links | links per leaf | bytes | seconds | rays | peak memory (MiB) |");
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| workstations | triangles | leaves | nodes | links | links per leaf | bytes | seconds | rays |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
     for row in &o.rows {
         let (r, c) = row.workstations;
         match &row.outcome {
             Ok(x) => {
                 let _ = writeln!(
                     s,
-                    "| {r} x {c} | {} | {} | {} | {} | {:.1} | {} | {:.2} | {} | {} |",
+                    "| {r} x {c} | {} | {} | {} | {} | {:.1} | {} | {:.2} | {} |",
                     row.triangles,
                     x.leaves,
                     x.nodes,
@@ -430,13 +433,12 @@ fn office(s: &mut String, o: &super::largescene::OfficeSection) {
                     x.links as f64 / x.leaves.max(1) as f64,
                     x.bytes,
                     x.seconds,
-                    x.rays,
-                    mib(x.peak_bytes)
+                    x.rays
                 );
             }
             Err(e) => {
                 let _ =
-                    writeln!(s, "| {r} x {c} | {} | stopped: {} |||||||", row.triangles, e.replace('|', "/"));
+                    writeln!(s, "| {r} x {c} | {} | stopped: {} ||||||", row.triangles, e.replace('|', "/"));
             }
         }
     }
