@@ -104,15 +104,10 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
         ));
         std::fs::create_dir_all(&dir)
             .map_err(|e| BenchError::Options(format!("creating {}: {e}", dir.display())))?;
+        // The scene is read whole into memory, so its folder goes before the solve (and on any error).
         let loaded = generate(&options.scenes, &dir, size).and_then(|obj| Ok(Scene::load(&obj)?));
-        let scene = match loaded {
-            Ok(scene) => scene,
-            Err(e) => {
-                let _ = std::fs::remove_dir_all(&dir);
-                return Err(e);
-            }
-        };
         let _ = std::fs::remove_dir_all(&dir);
+        let scene = loaded?;
         let triangles = scene.faces.len();
         let start = Instant::now();
         let solved = solve_hierarchical(
