@@ -17,11 +17,15 @@ use crate::rng::SplitMix64;
 /// Salt of the random streams of cluster links (so they never coincide with surface pairs' visibility streams).
 const CLUSTER_STREAM: u64 = 0x9e37_79b9_7f4a_7c15;
 
-/// Largest relative standard error of a cluster link's Monte Carlo estimate that is accepted. Near a contact
+/// Largest relative standard error of a cluster link's Monte Carlo estimate that is accepted when its ends are
+/// near each other (`A_b / (pi d^2) > 1` either way, `d` the gap between the bounding spheres). Near a contact
 /// (a block standing on the floor, both in one cluster pair) the point kernel `1 / r^2` is heavy-tailed: one
 /// sample pair that lands close dominates the mean, and its relative standard error is then about 1; such an
 /// estimate (which can exceed a form factor of 1) says nothing, and accepting it while the sender is still dark
-/// (pass 1 judges by emission alone) made the iteration diverge.
+/// (pass 1 judges by emission alone) made the iteration diverge. Farther apart every sample is bounded and any
+/// estimate is accepted, however noisy (see [`Estimator::estimate`]'s cluster case): demanding this relative
+/// error there opened every pair of furniture whose surfaces mostly face away or are hidden from each other
+/// (few of 32 sample pairs see each other) down to its polygons.
 pub(super) const MAX_CLUSTER_RELATIVE_ERROR: f64 = 0.25;
 
 /// How far toward its centroid a receiver's vertex is moved to probe the point-wise form factor there (so that a
@@ -216,7 +220,10 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
     /// `F_ab = A_b * mean(cos+ cos+ V / (pi r^2))` (and `F_ba` with `A_a`). The spread is the bound on any point's
     /// form factor to the other end (`A_b / (pi d^2)` with `d` the gap between the bounding spheres, at most 1; 1
     /// if they overlap), which bounds the error of giving every point of a cluster the same value (Smits, Arvo,
-    /// Greenberg 1994), plus two standard errors of the mean.
+    /// Greenberg 1994), plus two standard errors of the mean. Where that bound is at most 1 both ways, each
+    /// sample `A_b k` lies in `[0, A_b / (pi d^2)]`, so the estimate is trusted whatever its relative error;
+    /// nearer, only with a relative standard error of at most [`MAX_CLUSTER_RELATIVE_ERROR`] and a form factor
+    /// of at most 1 both ways.
     fn cluster_pair(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
         let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
         let (lo, hi) = if na.key < nb.key { (a, b) } else { (b, a) };
@@ -249,9 +256,13 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         let mean = values.iter().sum::<f64>() / n as f64;
         let var = values.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n.max(2) - 1) as f64;
         let se = (var / n as f64).sqrt();
-        let trusted =
-            se <= MAX_CLUSTER_RELATIVE_ERROR * mean && nb.area * mean <= 1.0 && na.area * mean <= 1.0;
         let (g_ab, g_ba) = geometric_bounds(tree, a, b);
+        // Far enough apart that no sample can claim more than the whole hemisphere (`A k <= g <= 1` both ways):
+        // the estimate, however few of its pairs see each other, lies in `[0, g]` like the true form factor of
+        // every point, which is the oracle's geometric charge; only nearer pairs need a small relative error.
+        let bounded = g_ab.max(g_ba) <= 1.0;
+        let trusted = bounded
+            || (se <= MAX_CLUSTER_RELATIVE_ERROR * mean && nb.area * mean <= 1.0 && na.area * mean <= 1.0);
         let link = Link {
             a,
             b,
@@ -665,6 +676,41 @@ mod tests {
             }
         }
         assert!(pairs > 0 && cheaper > 0, "{pairs} pairs, {cheaper} charged at most half");
+    }
+
+    /// Every Cornell box pair with a cluster end whose ends are far enough apart (`A / (pi d^2) <= 1` both ways)
+    /// is trusted and estimated within `[0, A / (pi d^2)]` both ways, the range the oracle's geometric charge
+    /// covers, including pairs whose relative standard error is above [`MAX_CLUSTER_RELATIVE_ERROR`] (mostly
+    /// hidden or facing away), which the relative rule alone would reject.
+    #[test]
+    fn a_cluster_pair_far_apart_is_trusted_within_its_geometric_bound() {
+        let (roots, lighting, rules) = cornell_polygons();
+        let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
+        let caster = crate::formfactor::occluder_scene(&roots, true).unwrap();
+        let estimator =
+            Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1, progress: None };
+        let n = tree.nodes.len() as u32;
+        let (mut far, mut noisy) = (0, 0);
+        for a in (0..n).filter(|&a| tree.is_cluster(a)) {
+            for b in (0..n).filter(|&b| !within(&tree, b, a) && !within(&tree, a, b)) {
+                let (g_ab, g_ba) = geometric_bounds(&tree, a, b);
+                if g_ab.max(g_ba) > 1.0 || tree.behind(a, b) || tree.behind(b, a) {
+                    continue;
+                }
+                let est = estimator.estimate(&tree, a, b);
+                let l = est.link;
+                assert!(est.trusted, "({a}, {b})");
+                assert!((0.0..=g_ab).contains(&l.f_ab), "({a}, {b}): f_ab {} above {g_ab}", l.f_ab);
+                assert!((0.0..=g_ba).contains(&l.f_ba), "({a}, {b}): f_ba {} above {g_ba}", l.f_ba);
+                far += 1;
+                // Its standard error, from the spread: two of them above the geometric part.
+                let se = (l.spread_ab - g_ab) / (2.0 * tree.nodes[b as usize].area);
+                noisy += usize::from(
+                    l.f_ab > 0.0 && se * tree.nodes[b as usize].area > MAX_CLUSTER_RELATIVE_ERROR * l.f_ab,
+                );
+            }
+        }
+        assert!(far > 0 && noisy > 0, "{far} pairs far apart, {noisy} of them noisy");
     }
 
     /// A pair of a cluster and a larger surface: with a trusted estimate the larger end (the surface) is split,

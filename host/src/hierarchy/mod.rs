@@ -55,8 +55,8 @@
 //! with many small, nearly touching surfaces (`scenes/make_office.py`) solve only when small: the budget passes
 //! push links down to the leaves (each leaf's chain charges add up), so links grow much faster than leaves, and
 //! a refinement that would exceed [`HierarchyOptions::max_links`] stops with [`HierarchyError::TooManyLinks`]
-//! (the closing notes of issue 18 have the measurements). A cluster link whose point-pair estimate is
-//! untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway is reported
+//! (the closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair
+//! estimate is untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway is reported
 //! as [`HierarchyError::NotConverged`].
 
 //! # Files
