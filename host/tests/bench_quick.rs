@@ -105,6 +105,23 @@ fn quick_bench_writes_a_well_formed_report() {
     let solved = office.outcome.as_ref().expect("the 1 x 1 office solves");
     assert!(office.triangles > 300 && solved.leaves >= office.triangles && solved.links > 0, "{office:?}");
     assert!(solved.nodes > solved.leaves, "{office:?}");
+    // Every non-emitting material of the office (the generator's MTL less its three emitters) against the
+    // continuous reference, each with that reference's own standard error.
+    let names: Vec<&str> = solved.materials.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(names.len(), 13, "{names:?}");
+    for name in ["floor", "wall", "ceiling", "desk", "metal", "book3", "panel"] {
+        assert!(names.contains(&name), "{name} missing from {names:?}");
+    }
+    assert!(!names.iter().any(|n| ["lamp", "panel_a", "panel_b"].contains(n)), "{names:?}");
+    assert!(
+        solved
+            .materials
+            .iter()
+            .all(|m| m.error.is_finite() && m.reference_se > 0.0 && m.reference_se.is_finite()),
+        "{:?}",
+        solved.materials
+    );
+    assert!(md.contains("Every material of the largest solved office (1 x 1)"));
     // Two flat rows at different budgets give the discretization slope (a finite number, reported).
     assert_eq!(h.rows.iter().filter(|r| r.epsilon.is_none()).count(), 2);
     assert!(

@@ -1,8 +1,10 @@
 //! The large generated scene of the hierarchy section: the open-plan office of `scenes/make_office.py` at growing
 //! numbers of workstations, solved hierarchically with brightness refinement (the device tables' refinement),
 //! with what each size costs (leaves, links, bytes, seconds, rays) and how links and time grow with
-//! the leaves. No error column: the dense solve does not reach these leaf counts, and the continuous reference
-//! would need hours for a hundred thousand faces.
+//! the leaves, and how far each material's area-averaged radiosity is from the continuous (path-traced) reference
+//! of the same scene. Per material, not per face: the dense solve does not reach these leaf counts, and a
+//! reference accurate on each of thousands of small faces would take hours, where a few thousand paths per face
+//! pin down every material's average.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -11,12 +13,30 @@ use std::time::Instant;
 use super::fit::loglog_slope;
 use super::hierarchy::LINK_BYTES;
 use super::{log, BenchError, BenchOptions};
-use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
+use crate::hierarchy::{solve_hierarchical, HierarchicalSolution, HierarchyOptions, Refinement};
+use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
+use crate::rgb::Rgb;
 use crate::scene::Scene;
 
 /// The epsilon of every office row (brightness refinement): coarse enough that the larger sizes stay within a
 /// few minutes on two cores.
 pub const OFFICE_EPSILON: f64 = 0.05;
+
+/// Paths per face of the office's continuous reference (full run): the furniture's materials, hundreds of faces
+/// each, are then known to a fraction of a percent, the room's few large faces to a few percent (the report
+/// prints each material's standard error).
+pub const OFFICE_REFERENCE_SAMPLES: u64 = 8192;
+
+/// One material's area-averaged radiosity against the continuous reference.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialError {
+    /// The material's name.
+    pub name: String,
+    /// Signed relative difference `(B - B_ref) / B_ref` of the channel where it is largest in magnitude.
+    pub error: f64,
+    /// The reference's relative standard error of that average (same channel).
+    pub reference_se: f64,
+}
 
 /// One size of the office.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,6 +64,71 @@ pub struct OfficeSolve {
     pub seconds: f64,
     /// Occlusion rays cast.
     pub rays: u64,
+    /// Every material that does not emit, against the continuous reference, in the scene's order.
+    pub materials: Vec<MaterialError>,
+    /// The continuous reference's wall time, seconds.
+    pub reference_seconds: f64,
+}
+
+impl OfficeSolve {
+    /// The material farthest from the reference.
+    #[must_use]
+    pub fn worst_material(&self) -> Option<&MaterialError> {
+        self.materials.iter().max_by(|a, b| a.error.abs().total_cmp(&b.error.abs()))
+    }
+
+    /// The median over the materials of the error's magnitude.
+    #[must_use]
+    pub fn median_material(&self) -> Option<f64> {
+        let mut e: Vec<f64> = self.materials.iter().map(|m| m.error.abs()).collect();
+        e.sort_by(f64::total_cmp);
+        e.get(e.len() / 2).copied()
+    }
+}
+
+/// Each non-emitting material's area-averaged radiosity in `solution` (its leaves) against `reference` (its
+/// faces), with the reference's standard error of that average.
+fn material_errors(
+    scene: &Scene,
+    solution: &HierarchicalSolution,
+    reference: &ContinuousReference,
+) -> Vec<MaterialError> {
+    let n = scene.materials.len();
+    let (mut area, mut got) = (vec![0.0; n], vec![Rgb::ZERO; n]);
+    for (leaf, b) in solution.leaves.iter().zip(&solution.b) {
+        let m = scene.faces[leaf.face].material;
+        area[m] += leaf.area;
+        got[m] += leaf.area * *b;
+    }
+    let (mut ref_area, mut want, mut var) = (vec![0.0; n], vec![Rgb::ZERO; n], vec![Rgb::ZERO; n]);
+    for f in &reference.faces {
+        let m = scene.faces[f.face].material;
+        ref_area[m] += f.area;
+        want[m] += f.area * f.radiosity;
+        let se = f.area * f.standard_error;
+        var[m] += se * se;
+    }
+    let mut out = Vec::new();
+    for (m, material) in scene.materials.iter().enumerate() {
+        if material.is_emitter() || area[m] <= 0.0 || ref_area[m] <= 0.0 {
+            continue;
+        }
+        let (g, w) = (got[m] / area[m], want[m] / ref_area[m]);
+        let se = Rgb::new(var[m].x.sqrt(), var[m].y.sqrt(), var[m].z.sqrt()) / ref_area[m];
+        let mut best: Option<(f64, f64)> = None;
+        for c in 0..3 {
+            if w[c] > 0.0 {
+                let e = (g[c] - w[c]) / w[c];
+                if best.is_none_or(|(b, _)| e.abs() > b.abs()) {
+                    best = Some((e, se[c] / w[c]));
+                }
+            }
+        }
+        if let Some((error, reference_se)) = best {
+            out.push(MaterialError { name: material.name.clone(), error, reference_se });
+        }
+    }
+    out
 }
 
 /// The office rows and their growth.
@@ -51,6 +136,8 @@ pub struct OfficeSolve {
 pub struct OfficeSection {
     /// The epsilon of every row.
     pub epsilon: f64,
+    /// Paths per face of the continuous reference.
+    pub samples: u64,
     /// The rows, smallest first.
     pub rows: Vec<OfficeRow>,
     /// Log-log slopes over the solved rows: links and seconds against leaves.
@@ -91,8 +178,11 @@ fn generate(scenes: &Path, dir: &Path, (rows, columns): (usize, usize)) -> Resul
 /// # Errors
 /// Generating or loading a scene.
 pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
-    let (sizes, epsilon): (&[(usize, usize)], f64) =
-        if options.quick { (&[(1, 1)], 0.5) } else { (&[(1, 1), (2, 2), (3, 4), (5, 6)], OFFICE_EPSILON) };
+    let (sizes, epsilon, samples): (&[(usize, usize)], f64, u64) = if options.quick {
+        (&[(1, 1)], 0.5, 64)
+    } else {
+        (&[(1, 1), (2, 2), (3, 4), (5, 6)], OFFICE_EPSILON, OFFICE_REFERENCE_SAMPLES)
+    };
     let mut rows = Vec::new();
     for &size in sizes {
         log(options, &format!("hierarchy: office with {} x {} workstations", size.0, size.1));
@@ -115,19 +205,32 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
             &HierarchyOptions { epsilon, refinement: Refinement::Brightness, ..HierarchyOptions::default() },
         );
         let seconds = start.elapsed().as_secs_f64();
-        let outcome = solved
-            .map(|sol| {
+        let outcome = match solved {
+            Ok(sol) => {
+                log(options, "hierarchy: office's continuous reference");
+                let reference = continuous_reference(
+                    &scene,
+                    &ReferenceOptions {
+                        samples: SampleCount::PerFace(samples),
+                        progress: false,
+                        ..ReferenceOptions::default()
+                    },
+                )
+                .map_err(|e| BenchError::Options(format!("the office's continuous reference: {e}")))?;
                 let links = sol.stats.surface_links + sol.stats.cluster_links;
-                OfficeSolve {
+                Ok(OfficeSolve {
                     leaves: sol.leaves.len(),
                     nodes: sol.stats.clusters + sol.stats.surfaces,
                     links,
                     bytes: links * LINK_BYTES,
                     seconds,
                     rays: sol.stats.rays,
-                }
-            })
-            .map_err(|e| e.to_string());
+                    materials: material_errors(&scene, &sol, &reference),
+                    reference_seconds: reference.seconds,
+                })
+            }
+            Err(e) => Err(e.to_string()),
+        };
         let failed = outcome.is_err();
         rows.push(OfficeRow { workstations: size, triangles, outcome });
         if failed {
@@ -142,6 +245,7 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
     };
     Ok(OfficeSection {
         epsilon,
+        samples,
         links_exponent: slope(&|s| s.links as f64),
         seconds_exponent: slope(&|s| s.seconds),
         rows,
