@@ -32,7 +32,7 @@ pub fn occluder_scene(patches: &[Patch], robust: bool) -> Result<TriangleScene, 
 }
 
 /// A uniformly random point of a convex polygon: a fan triangle chosen by area, then a uniform point in it.
-fn point_in(p: &Patch, rng: &mut SplitMix64) -> DVec3 {
+pub(super) fn point_in(p: &Patch, rng: &mut SplitMix64) -> DVec3 {
     let v = &p.vertices;
     let tri_area = |k: usize| (v[k] - v[0]).cross(v[k + 1] - v[0]).length() * 0.5;
     let total: f64 = (1..v.len() - 1).map(tri_area).sum();

@@ -33,6 +33,7 @@ mod growth;
 pub mod hierarchy;
 pub mod hierdevice;
 pub mod largescene;
+pub mod linkrate;
 pub mod report;
 pub mod roofline;
 mod scenes;
@@ -407,6 +408,8 @@ pub struct BenchResults {
     pub hierarchy: hierarchy::HierarchySection,
     /// The large generated scene of the hierarchy section (the office at growing sizes).
     pub office: largescene::OfficeSection,
+    /// The hierarchy's link construction against raw Embree (rays per second, thread scaling).
+    pub link_rate: linkrate::LinkRate,
     /// Total wall time of the run, seconds.
     pub total_seconds: f64,
 }
@@ -604,6 +607,7 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
     }
     let hierarchy = hierarchy::section(options)?;
     let office = largescene::section(options)?;
+    let link_rate = linkrate::section(options)?;
     let mut results = BenchResults {
         quick: options.quick,
         reps: options.reps,
@@ -618,6 +622,7 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         growth_limit_note: growth::note(options.quick),
         hierarchy,
         office,
+        link_rate,
         total_seconds: t0.elapsed().as_secs_f64(),
     };
     results.machine.push(load_average("at the end"));

@@ -421,6 +421,10 @@ pub struct HierarchicalSolution {
     pub network: LinkNetwork,
     /// What it took.
     pub stats: HierarchyStats,
+    /// Wall time of link construction (seconds): the tree, every pair's estimate and the splits of every pass,
+    /// without the solves between the passes and after the last. Kept out of [`Self::stats`], which is the same
+    /// for every run of the same options.
+    pub refine_seconds: f64,
 }
 
 /// Solves `scene` hierarchically with every light group at its default intensity, with Embree occluders; the
@@ -553,6 +557,8 @@ fn solve_checked<C: RayCaster + ?Sized>(
     }
     let rules = ElementRules::new(&options.form_factors)?;
     let progress = link::Progress::new();
+    let mut refining = std::time::Instant::now();
+    let mut refine_time = std::time::Duration::ZERO;
     let mut tree = Tree::new(&rules, roots, rho, emission);
     let total_area: f64 = roots.iter().map(|p| p.area).sum();
     let limits = Limits {
@@ -600,6 +606,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
             )
             .map_err(in_pass)?;
         } else {
+            refining = std::time::Instant::now();
             let pass = match options.refinement {
                 Refinement::Budgets => budget::refine_budgets,
                 Refinement::Brightness => refine_brightness_pass,
@@ -607,6 +614,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
             pass(&mut tree, &estimator, &mut spans, &limits, options.epsilon, &mut links, &mut counts)
                 .map_err(in_pass)?;
         }
+        refine_time += refining.elapsed();
         solution = solve_with(&tree, &links, &solve::emission(&tree), options)?;
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
         passes.push(PassStats {
@@ -648,6 +656,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         .zip(solve::propagate(&tree, &links, &persistent, options.solve_tolerance, MAX_SWEEPS));
     let mut out =
         finish(&tree, &links, &solution, bound, counts, passes, &limits, brightest_power, roots.len());
+    out.refine_seconds = refine_time.as_secs_f64();
     if !sources.is_empty() {
         let order = leaf_order(&tree);
         let (mut residual, mut sweeps) = (0.0f64, 0);
@@ -813,6 +822,7 @@ fn finish(
         average_error_bound: bound.as_ref().map(|_| Vec::with_capacity(leaves.len())),
         transfer: None,
         network: LinkNetwork::default(),
+        refine_seconds: 0.0,
         stats: HierarchyStats {
             polygons,
             clusters,
