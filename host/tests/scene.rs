@@ -622,3 +622,31 @@ fn light_groups_without_faces_and_scenes_without_emitters_warn() {
         assert!(s.warnings.iter().all(|w| w.face.is_some()), "{name}: {:?}", s.warnings);
     }
 }
+
+/// Two unit squares facing each other `gap` apart (the second at z = `gap`, wound to face -z, or +z with
+/// `same_way`), the second shifted by `shift` along x.
+fn facing_squares(gap: f64, same_way: bool, shift: f64) -> String {
+    let (a, b) = (shift, 1.0 + shift);
+    let order = if same_way { "f 5 8 7 6" } else { "f 5 6 7 8" };
+    obj_with(&format!("v {a} 0 {gap}\nv {a} 1 {gap}\nv {b} 1 {gap}\nv {b} 0 {gap}\nusemtl lamp\n{order}\n"))
+}
+
+#[test]
+fn faces_facing_across_a_gap_the_rays_cannot_resolve_warn() {
+    // The scene is about 1.4 across: rays keep 1.4 / 8192 = 1.7e-4 off surfaces, so a gap below 3.5e-4 is
+    // narrower than twice that.
+    let s = Scene::load(write_scene(&facing_squares(1e-4, false, 0.0), MTL, None)).unwrap();
+    let text: Vec<String> = s.warnings.iter().map(ToString::to_string).collect();
+    assert_eq!(text.len(), 1, "{text:?}");
+    assert_eq!((s.warnings[0].face, s.warnings[0].line), (Some(0), Some(7)), "{text:?}");
+    for expect in
+        ["1 pair(s) of faces face each other", "twice the rays' offset", "face 1 (line 13)", "apart"]
+    {
+        assert!(text[0].contains(expect), "{expect:?} not in {text:?}");
+    }
+    // Wider than twice the offset, facing the same way, or side by side without overlap: no warning.
+    for (gap, same_way, shift) in [(1e-3, false, 0.0), (1e-4, true, 0.0), (1e-4, false, 1.5)] {
+        let s = Scene::load(write_scene(&facing_squares(gap, same_way, shift), MTL, None)).unwrap();
+        assert!(s.warnings.is_empty(), "{gap} {same_way} {shift}: {:?}", s.warnings);
+    }
+}

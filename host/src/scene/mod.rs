@@ -43,7 +43,8 @@
 //! that overlap with positive area (duplicates included), and a scene whose size or distance from the origin is
 //! outside the supported range (`extent`: [`MIN_SCENE_SIZE`], [`MAX_SCENE_SIZE`], [`MAX_ORIGIN_DISTANCE`]).
 //! It warns ([`Scene::warnings`]) about a non-planar face split into triangles, a light group whose materials no
-//! face uses, and a scene in which no face emits. Nothing in this module panics on any input. The
+//! face uses, a scene in which no face emits, and faces that face each other across a gap narrower than the rays
+//! can resolve (`overlap`: twice the scene's size / 8192). Nothing in this module panics on any input. The
 //! tolerances are relative to each face's size ([`PLANAR_TOLERANCE`], [`NON_PLANAR_LIMIT`],
 //! [`DEGENERATE_TOLERANCE`], [`OVERLAP_TOLERANCE`]; the reasoning behind each is in the submodule that uses it).
 //!
@@ -58,7 +59,7 @@
 //! - `gltf`: a glTF file's nodes, meshes and materials turned into faces and materials with the checks of
 //!   `face` (the glTF path's counterpart of `obj`, `material` and `face`'s `build_faces`).
 //! - `extent`: the scene's size and position against the supported range.
-//! - `overlap`: the coplanar-overlap check between faces.
+//! - `overlap`: the coplanar-overlap check between faces, and the narrow-gap warning.
 //! - `config`: the `NAME.toml` file and its [`MeshingLimits`].
 //! - `light_group`: [`LightGroup`]s from the TOML file and the emitting materials, and the warnings about light
 //!   that cannot be emitted.
@@ -100,7 +101,7 @@ use gltf::{is_gltf, load_gltf};
 use light_group::{build_light_groups, light_warnings};
 use material::check_materials;
 use obj::{load_obj, read_text};
-use overlap::check_overlaps;
+use overlap::{check_overlaps, narrow_gaps};
 
 /// A loaded, validated scene.
 #[derive(Clone, Debug, PartialEq)]
@@ -163,6 +164,7 @@ impl Scene {
         };
         check_extent(obj_path, &faces)?;
         check_overlaps(obj_path, &faces)?;
+        warnings.extend(narrow_gaps(obj_path, &faces));
         let settings = match toml_path {
             Some(p) => parse_config(p, &read_text(p)?)?,
             None => TomlScene::default(),

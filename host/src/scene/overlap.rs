@@ -10,7 +10,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::error::SceneError;
+use super::error::{length, SceneError, SceneWarning};
 use super::face::{Face, PLANAR_TOLERANCE};
 use super::polygon::Polygon;
 
@@ -82,6 +82,76 @@ pub(super) fn check_overlaps(file: &Path, faces: &[Face]) -> Result<(), SceneErr
         }
     }
     Ok(())
+}
+
+/// Cosine between two faces' normals below which they count as facing each other (antiparallel within about
+/// 0.8 degrees).
+const FACING_COSINE: f64 = -0.9999;
+
+/// Warns once if some pairs of faces face each other across a gap narrower than twice the rays' offset (the
+/// scene's size over 8192, [`crate::raycast::offset_for`]): rays between surfaces start and end that far off them,
+/// in the form factors, the hierarchy and the path-traced reference alike, so light in such a gap is resolved
+/// differently by each (a lamp's arm 1 mm under its emitting head got all of its light in one and none in the
+/// other). Parallel facing polygons with a gap in `(0, 2 offset)` whose outlines overlap in projection are
+/// counted; the warning names the narrowest pair.
+pub(super) fn narrow_gaps(file: &Path, faces: &[Face]) -> Option<SceneWarning> {
+    let vertices: Vec<glam::Vec3> = faces
+        .iter()
+        .flat_map(|f| f.polygons.iter())
+        .flat_map(|p| p.vertices.iter().map(|v| v.as_vec3()))
+        .collect();
+    let reach = 2.0 * f64::from(crate::raycast::offset_for(&vertices));
+    let mut items: Vec<PolyRef<'_>> = faces
+        .iter()
+        .flat_map(|f| f.polygons.iter().map(move |p| (f, p)))
+        .map(|(face, poly)| {
+            let min = poly.vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
+            let max = poly.vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+            PolyRef { face, poly, min, max, d: poly.diameter() }
+        })
+        .collect();
+    items.sort_by(|a, b| a.min.x.total_cmp(&b.min.x));
+    let (mut pairs, mut narrowest): (usize, Option<(f64, &Face, &Face)>) = (0, None);
+    for (i, a) in items.iter().enumerate() {
+        for b in items[i + 1..].iter().take_while(|b| b.min.x <= a.max.x + reach) {
+            if std::ptr::eq(a.face, b.face)
+                || (a.min - b.max).max_element() > reach
+                || (b.min - a.max).max_element() > reach
+                || a.poly.normal.dot(b.poly.normal) > FACING_COSINE
+            {
+                continue;
+            }
+            // Each in front of the other, the gap measured along `a`'s normal at `b`'s vertices.
+            let gaps = b.poly.vertices.iter().map(|v| (*v - a.poly.centroid).dot(a.poly.normal));
+            let (lo, hi) = gaps.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| (l.min(g), h.max(g)));
+            if !(lo > 0.0 && hi < reach) {
+                continue;
+            }
+            if overlap_area(a.poly, b.poly) <= OVERLAP_TOLERANCE * a.poly.area.min(b.poly.area) {
+                continue;
+            }
+            pairs += 1;
+            let (x, y) = if a.face.index < b.face.index { (a.face, b.face) } else { (b.face, a.face) };
+            if narrowest.is_none_or(|(g, ..)| lo < g) {
+                narrowest = Some((lo, x, y));
+            }
+        }
+    }
+    let (gap, x, y) = narrowest?;
+    Some(SceneWarning {
+        file: file.to_path_buf(),
+        line: (x.line > 0).then_some(x.line),
+        face: Some(x.index),
+        message: format!(
+            "{pairs} pair(s) of faces face each other across a gap narrower than {} (twice the rays' offset, the \
+             scene's size / 8192), the narrowest this one and face {} ({}) {} apart: rays start and end the offset \
+             off surfaces, so light inside such a gap is not resolved (widen the gap, or join the faces)",
+            length(reach),
+            y.index,
+            y.place(),
+            length(gap)
+        ),
+    })
 }
 
 fn coplanar(a: &Polygon, b: &Polygon, tol: f64) -> bool {
