@@ -25,8 +25,9 @@ struct PolyRef<'a> {
     d: f64,
 }
 
-/// Fails on the first pair of coplanar faces that overlap with positive area.
-pub(super) fn check_overlaps(file: &Path, faces: &[Face]) -> Result<(), SceneError> {
+/// Every polygon of `faces` with its bounding box, in increasing order of the box's smallest x (the sweep's
+/// order).
+fn sweep_order(faces: &[Face]) -> Vec<PolyRef<'_>> {
     let mut items: Vec<PolyRef<'_>> = faces
         .iter()
         .flat_map(|f| f.polygons.iter().map(move |p| (f, p)))
@@ -36,8 +37,14 @@ pub(super) fn check_overlaps(file: &Path, faces: &[Face]) -> Result<(), SceneErr
             PolyRef { face, poly, min, max, d: poly.diameter() }
         })
         .collect();
-    // Sweep along x: only pairs whose bounding boxes meet can overlap.
     items.sort_by(|a, b| a.min.x.total_cmp(&b.min.x));
+    items
+}
+
+/// Fails on the first pair of coplanar faces that overlap with positive area.
+pub(super) fn check_overlaps(file: &Path, faces: &[Face]) -> Result<(), SceneError> {
+    // Sweep along x: only pairs whose bounding boxes meet can overlap.
+    let items = sweep_order(faces);
     let max_d = items.iter().map(|p| p.d).fold(0.0, f64::max);
     for (i, a) in items.iter().enumerate() {
         let reach = a.max.x + PLANAR_TOLERANCE * max_d;
@@ -101,16 +108,7 @@ pub(super) fn narrow_gaps(file: &Path, faces: &[Face]) -> Option<SceneWarning> {
         .flat_map(|p| p.vertices.iter().map(|v| v.as_vec3()))
         .collect();
     let reach = 2.0 * f64::from(crate::raycast::offset_for(&vertices));
-    let mut items: Vec<PolyRef<'_>> = faces
-        .iter()
-        .flat_map(|f| f.polygons.iter().map(move |p| (f, p)))
-        .map(|(face, poly)| {
-            let min = poly.vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-            let max = poly.vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
-            PolyRef { face, poly, min, max, d: poly.diameter() }
-        })
-        .collect();
-    items.sort_by(|a, b| a.min.x.total_cmp(&b.min.x));
+    let items = sweep_order(faces);
     let (mut pairs, mut narrowest): (usize, Option<(f64, &Face, &Face)>) = (0, None);
     for (i, a) in items.iter().enumerate() {
         for b in items[i + 1..].iter().take_while(|b| b.min.x <= a.max.x + reach) {
