@@ -114,7 +114,7 @@ fn material_errors(
             continue;
         }
         let (g, w) = (got[m] / area[m], want[m] / ref_area[m]);
-        let se = Rgb::new(var[m].x.sqrt(), var[m].y.sqrt(), var[m].z.sqrt()) / ref_area[m];
+        let se = var[m].map(f64::sqrt) / ref_area[m];
         let mut best: Option<(f64, f64)> = None;
         for c in 0..3 {
             if w[c] > 0.0 {

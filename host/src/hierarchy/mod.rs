@@ -56,8 +56,8 @@
 //! push links down to the leaves (each leaf's chain charges add up), so links grow much faster than leaves, and
 //! a refinement that would exceed [`HierarchyOptions::max_links`] stops with [`HierarchyError::TooManyLinks`]
 //! (the closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair
-//! estimate is untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway is reported
-//! as [`HierarchyError::NotConverged`].
+//! estimate is untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway
+//! is reported as [`HierarchyError::NotConverged`].
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a

@@ -119,7 +119,8 @@ pub(super) fn narrow_gaps(file: &Path, faces: &[Face]) -> Option<SceneWarning> {
             {
                 continue;
             }
-            // Each in front of the other, the gap measured along `a`'s normal at `b`'s vertices.
+            // `b` wholly in front of `a` within the reach (with antiparallel normals, `a` is then in front of
+            // `b`), the gap measured along `a`'s normal at `b`'s vertices.
             let gaps = b.poly.vertices.iter().map(|v| (*v - a.poly.centroid).dot(a.poly.normal));
             let (lo, hi) = gaps.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| (l.min(g), h.max(g)));
             if !(lo > 0.0 && hi < reach) {
@@ -142,9 +143,10 @@ pub(super) fn narrow_gaps(file: &Path, faces: &[Face]) -> Option<SceneWarning> {
         face: Some(x.index),
         message: format!(
             "{pairs} pair(s) of faces face each other across a gap narrower than {} (twice the rays' offset, the \
-             scene's size / 8192), the narrowest this one and face {} ({}) {} apart: rays start and end the offset \
+             scene's size / {}), the narrowest this one and face {} ({}) {} apart: rays start and end the offset \
              off surfaces, so light inside such a gap is not resolved (widen the gap, or join the faces)",
             length(reach),
+            1.0 / crate::raycast::RELATIVE_OFFSET,
             y.index,
             y.place(),
             length(gap)
