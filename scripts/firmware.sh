@@ -6,7 +6,7 @@
 #   scripts/firmware.sh            check (logs and the cost report go to $CARGO_TARGET_DIR/firmware/)
 #   scripts/firmware.sh --update   also rewrite the committed firmware-sim/COST.md
 # Table and scripts: RADIOSITY_TABLE / RADIOSITY_SCRIPTS (default: the committed synthetic table and
-# scenes/cornell-box.relight.toml). The committed hierarchical (format version 4) table,
+# scenes/cornell-box.relight.toml). The committed hierarchical (format version 5) table,
 # firmware-sim/tables/hierarchical-enclosure.rft, is run on all builds as well, and its cost model and
 # instructions per link and per node visit are appended to the report. Tables with a transfer basis (all three
 # committed ones) are also relit from it; the four-light enclosure (firmware-sim/tables/four-lights.rft, its
@@ -59,7 +59,7 @@ done
 "$sim" cost "${hier_args[@]}" --log "$out/hier-m4-f32.log" --log "$out/hier-m4-fixed.log" \
     --log "$out/hier-m0-fixed.log" --out "$out/COST-hier.md"
 {
-    printf '\n# Hierarchical table (format version 4): %s\n' "$hier"
+    printf '\n# Hierarchical table (format version 5): %s\n' "$hier"
     # The same report for the hierarchical table's logs, its title replaced by the one above.
     tail -n +2 "$out/COST-hier.md" | sed 's/^## /### /'
     printf '\n### Sizes and stack high-water mark\n\n'
@@ -77,7 +77,7 @@ echo "--- m4-f32 (the Cornell box as a hierarchical table)"
     | tee "$out/cornell-hier-m4-f32.txt"
 "$sim" cost --table "$cornell" --log "$out/cornell-hier-m4-f32.log" --out "$out/COST-cornell.md"
 {
-    printf '\n# Hierarchical table of representative size (format version 4): %s\n' "$cornell"
+    printf '\n# Hierarchical table of representative size (format version 5): %s\n' "$cornell"
     printf '\nThe Cornell box baked as `make demo` bakes it (`radiosity bake scenes/cornell-box.obj --method hierarchical --epsilon 0.02 --transfer`), run on the f32 build.\n'
     tail -n +2 "$out/COST-cornell.md" | sed 's/^## /### /'
     printf '\n### Size and stack high-water mark\n\n'

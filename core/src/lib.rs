@@ -16,7 +16,7 @@
 //! | 3. arithmetic | [`scalar`] | [`Scalar`] (sealed): `f32` and [`Fixed`] | a new number type |
 //! | 4. static base | [`base`] | [`static_radiosity`]: `E_s + rho G_s`, for the solver and the transfer relight | |
 //! | 5. solver | [`solver`] (`buffers`, `config`, state in `mod`, `selection`, `shoot`, `sweep`, `relight`) | [`Solver`] holding its [`Table`], buffers sized by [`BufferSizes::of`] (`OwnedBuffers` on a host, `std` feature, [`StaticBuffers`] on a device), bounded steps ([`Solver::step`], [`Solver::step_gauss_seidel`], [`Solver::step_jacobi`]) reporting an [`Outcome`], relighting ([`Solver::set_light`], [`Solver::set_reflectance`]) | a new step, selection rule or state |
-//! | 5b. hierarchical solver | [`hier`] (`buffers`, state and steps in `mod`) | [`HierSolver`] over a [`HierTable`] (format version 4): incident power per leaf, unshot power per node, pending power and reflected power per inner node, shots in rounds that leave power pending at inner receivers (leaf receivers take it at once), one sweep over the tree per round (chain sums down and subtree sums up on a path of [`SweepFrame`]s), leaf power computed on readout, bounded resumable steps; buffers by [`HierBufferSizes::of`]. Uses the solver's [`Config`], [`Outcome`] and [`SolverError`] | hierarchical stepping |
+//! | 5b. hierarchical solver | [`hier`] (`buffers`, state and steps in `mod`) | [`HierSolver`] over a [`HierTable`] (format version 5): incident power per leaf, unshot power per node, pending power and reflected power per inner node, shots in rounds that leave power pending at inner receivers (leaf receivers take it at once), one sweep over the tree per round (chain sums down and subtree sums up on a path of [`SweepFrame`]s), leaf power computed on readout, bounded resumable steps; buffers by [`HierBufferSizes::of`]. Uses the solver's [`Config`], [`Outcome`] and [`SolverError`] | hierarchical stepping |
 //! | 6. transfer relight | [`transfer`] | [`relight_transfer`]: `B = B_static + sum_g I_g T_g` in one bounded pass, the peer of shooting | |
 //!
 //! The solver holds a copy of the parsed [`Table`] (a handful of slices into the blob, which stays in
@@ -90,7 +90,7 @@
 //! # Table layout
 //! The byte layout is specified in `docs/format.md`, rendered in [`format`](mod@format)'s docs: flat tables
 //! (patch rows, [`Table`]) are format version 3, hierarchical tables (a node tree in preorder and links grouped
-//! by sender, [`HierTable`], written by [`write_hier_table`]) are version 4. Each reader refuses the other's
+//! by sender, [`HierTable`], written by [`write_hier_table`]) are version 5. Each reader refuses the other's
 //! version naming the right one.
 //!
 //! # Hierarchical tables and solver

@@ -194,12 +194,16 @@ fn corrupt(f: impl FnOnce(&mut Vec<u8>), fix: bool) -> Result<(), TableError> {
 fn named_corruptions_map_to_their_errors() {
     use TableError as E;
     assert_eq!(corrupt(|b| b[0] = b'X', false), Err(E::BadMagic { found: *b"XFT\x1a" }));
-    // Version 4 is the hierarchical layout: the flat reader points at its reader; later versions are unknown.
-    assert_eq!(corrupt(|b| b[4] = 4, false), Err(E::HierarchicalTable));
-    assert_eq!(
-        corrupt(|b| b[4] = 5, false),
-        Err(E::UnsupportedVersion { found: 5, expected: FORMAT_VERSION })
-    );
+    // HIER_FORMAT_VERSION is the hierarchical layout: the flat reader points at its reader; other versions
+    // (the hierarchical layout's earlier version 4, later ones) are unknown.
+    let hier = radiosity_core::HIER_FORMAT_VERSION as u8;
+    assert_eq!(corrupt(|b| b[4] = hier, false), Err(E::HierarchicalTable));
+    for v in [4, hier + 1] {
+        assert_eq!(
+            corrupt(|b| b[4] = v, false),
+            Err(E::UnsupportedVersion { found: u16::from(v), expected: FORMAT_VERSION })
+        );
+    }
     // Real version-1 and version-2 blobs (CRC intact) get the version error, not a header or length error.
     assert_eq!(Table::parse(&GOLDEN_V1).err(), Some(E::UnsupportedVersion { found: 1, expected: 3 }));
     assert_eq!(Table::parse(&GOLDEN_V2).err(), Some(E::UnsupportedVersion { found: 2, expected: 3 }));

@@ -1,4 +1,4 @@
-//! Hierarchical tables (format version 4) and the hierarchical shooting solver: hand-made hierarchies against
+//! Hierarchical tables (format version 5) and the hierarchical shooting solver: hand-made hierarchies against
 //! a dense f64 solve of the same linear system, budgets, bit-identical resumption, golden bytes, named
 //! corruptions, and parse never panicking.
 
@@ -758,13 +758,13 @@ fn tiny() -> Hier {
 }
 
 const HEADER: usize = 17;
-const TOTAL: usize = HEADER + 149 + 4;
+const TOTAL: usize = HEADER + 155 + 4;
 
 #[rustfmt::skip]
 const GOLDEN: [u8; TOTAL] = [
-    // header (postcard): magic, version 4, 2 leaves, 3 nodes, 1 material, 1 group, 1 member, 2 links,
+    // header (postcard): magic, version 5, 2 leaves, 3 nodes, 1 material, 1 group, 1 member, 2 links,
     // 16-bit codes, 4 exponent bits, 2-byte indices, base not solved, fingerprint 7, no transfer basis
-    0x52, 0x46, 0x54, 0x1a, 0x04, 0x02, 0x03, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00, 0x07, 0x00,
+    0x52, 0x46, 0x54, 0x1a, 0x05, 0x02, 0x03, 0x01, 0x01, 0x01, 0x02, 0x10, 0x04, 0x02, 0x00, 0x07, 0x00,
     // leaf materials: 0, 0
     0x00, 0x00, 0x00, 0x00,
     // static emission codes (2 leaves x 3): zero
@@ -793,12 +793,16 @@ const GOLDEN: [u8; TOTAL] = [
     0x00, 0x00, 0x80, 0x40, 0x00, 0x00, 0x80, 0x3f, 0x00, 0x00, 0x40, 0x40,
     // leaf nodes: 1, 2
     0x01, 0x00, 0x02, 0x00,
-    // run starts (u32, nodes + 1): 0, 1, 2, 2
-    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
-    // run exponents: 2 (0.25 in [2^-2, 2^-1)), 1 (0.5), 0 (empty)
-    0x02, 0x01, 0x00,
-    // link receivers: 0, 2
-    0x00, 0x00, 0x02, 0x00,
+    // leaf parents (inner indices): 0, 0
+    0x00, 0x00, 0x00, 0x00,
+    // inner nodes: 0 (slots: leaves 0, 1 are nodes 1, 2; slot 2 is node 0)
+    0x00, 0x00,
+    // run starts by slot (u32, nodes + 1): 0, 1 (node 1: one link), 1 (node 2: none), 2 (node 0: one link)
+    0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x02, 0x00, 0x00, 0x00,
+    // run exponents by slot: 1 (0.5 in [2^-1, 1)), 0 (empty), 2 (0.25)
+    0x01, 0x00, 0x02,
+    // link receivers (slots): 1 (node 2), 2 (node 0)
+    0x01, 0x00, 0x02, 0x00,
     // link codes: a row's largest entry at the top binade's base, 2^-e: x = 15, m = 0 -> 0xf000
     0x00, 0xf0, 0x00, 0xf0,
     // CRC-32 (checked separately)
@@ -819,13 +823,17 @@ fn golden_bytes_pin_the_layout() {
     assert_eq!(t.leaf_range(0), Some(0..2));
     assert_eq!(t.leaf_node(1), Some(2));
     assert_eq!(t.node_area(0), Some(4.0));
-    assert_eq!(t.link(1, 1).map(|(r, f)| (r, f.to_f32())), Some((2, 0.5)));
-    assert_eq!(t.link(0, 0).map(|(r, f)| (r, f.to_f32())), Some((0, 0.25)));
+    assert_eq!(t.link(1, 0).map(|(r, f)| (r, f.to_f32())), Some((2, 0.5)));
+    assert_eq!(t.link(0, 1).map(|(r, f)| (r, f.to_f32())), Some((0, 0.25)));
+    assert_eq!((t.run(1), t.run(2), t.run(0)), (Some(0..1), Some(1..1), Some(1..2)));
+    assert_eq!([0, 1, 2, 3].map(|k| t.slot(k)), [Some(2), Some(0), Some(1), None]);
+    assert_eq!([0, 1, 2, 3].map(|s| t.slot_node(s)), [Some(1), Some(2), Some(0), None]);
+    assert_eq!(t.inner_count(), 1);
     assert_eq!(t.fingerprint(), 7);
     assert_eq!(t.find_group(0xabcd), Some(0));
     assert_eq!(t.node_area(3), None);
     assert_eq!(t.leaf_node(2), None);
-    assert!(t.run_view(1).unwrap().entries().map(|(r, _)| r).eq([2]));
+    assert!(t.run_view(1).unwrap().entries().map(|(r, _)| r).eq([1]));
 }
 
 /// The golden table with a solved base and a transfer basis: leaf 0's response (0.75, 0.5, 0) and leaf 1's
@@ -965,7 +973,7 @@ fn flat_and_hierarchical_readers_name_each_other() {
     );
     assert_eq!(
         TableError::HierarchicalTable.to_string(),
-        "a hierarchical table (format version 4): read it with HierTable::parse"
+        "a hierarchical table (format version 5): read it with HierTable::parse"
     );
 }
 
@@ -991,7 +999,9 @@ const END: usize = PARENT + 6;
 const LEAF_START: usize = END + 12;
 const AREA: usize = LEAF_START + 16;
 const LEAF_NODE: usize = AREA + 12;
-const RUN_EXPONENT: usize = LEAF_NODE + 4 + 16;
+const LEAF_PARENT: usize = LEAF_NODE + 4;
+const INNER_NODE: usize = LEAF_PARENT + 4;
+const RUN_EXPONENT: usize = INNER_NODE + 2 + 16;
 const RECEIVER: usize = RUN_EXPONENT + 3;
 const CODE: usize = RECEIVER + 4;
 
@@ -1023,6 +1033,11 @@ fn named_corruptions_map_to_their_errors() {
     assert_eq!(corrupt(|b| b[END + 4] = 3), Err(E::BadTree { node: 2, fault: TreeFault::Parent }));
     assert_eq!(corrupt(|b| b[LEAF_START + 8] = 0), Err(E::BadTree { node: 2, fault: TreeFault::LeafStart }));
     assert_eq!(corrupt(|b| b[LEAF_NODE] = 0), Err(E::BadTree { node: 1, fault: TreeFault::LeafNode }));
+    assert_eq!(
+        corrupt(|b| b[LEAF_PARENT + 2] = 1),
+        Err(E::BadTree { node: 2, fault: TreeFault::LeafParent })
+    );
+    assert_eq!(corrupt(|b| b[INNER_NODE] = 1), Err(E::BadTree { node: 0, fault: TreeFault::InnerNode }));
     // Root area 4.5 instead of 1 + 3.
     assert_eq!(corrupt(|b| b[AREA + 2] = 0x90), Err(E::NodeAreaMismatch { node: 0 }));
     assert_eq!(corrupt(|b| b[AREA + 7] = 0xff), Err(E::BadArea { patch: 1 }));
@@ -1030,14 +1045,15 @@ fn named_corruptions_map_to_their_errors() {
         corrupt(|b| b[RECEIVER + 2] = 3),
         Err(E::IndexOutOfRange { array: IndexArray::LinkReceiver, position: 1, index: 3, bound: 3 })
     );
-    // Run 1 -> 2 raised to its largest code: 0.5 + 0.25 stays <= 1 only up to 0.75.
-    assert_eq!(corrupt(|b| b[CODE + 3] = 0xff), Err(E::ChainSumExceedsOne { leaf: 0 }));
-    // The root's self-link raised to 0.5 (run exponent 1): leaf 0's chain is exactly 1, accepted; to 1.0
-    // (exponent 0) it is 1.5.
-    assert_eq!(corrupt(|b| b[RUN_EXPONENT] = 1), Ok(()));
-    assert_eq!(corrupt(|b| b[RUN_EXPONENT] = 0), Err(E::ChainSumExceedsOne { leaf: 0 }));
+    // Run 1 -> 2 (the first link, slot 0's run) raised to its largest code: 0.5 + 0.25 stays <= 1 only up to
+    // 0.75.
+    assert_eq!(corrupt(|b| b[CODE + 1] = 0xff), Err(E::ChainSumExceedsOne { leaf: 0 }));
+    // The root's self-link (slot 2's run) raised to 0.5 (run exponent 1): leaf 0's chain is exactly 1,
+    // accepted; to 1.0 (exponent 0) it is 1.5.
+    assert_eq!(corrupt(|b| b[RUN_EXPONENT + 2] = 1), Ok(()));
+    assert_eq!(corrupt(|b| b[RUN_EXPONENT + 2] = 0), Err(E::ChainSumExceedsOne { leaf: 0 }));
     assert_eq!(
-        corrupt(|b| b[RUN_EXPONENT] = 65),
+        corrupt(|b| b[RUN_EXPONENT + 2] = 65),
         Err(E::BadQuantParams { param: radiosity_core::format::QuantParam::RowExponent, value: 0 })
     );
 }

@@ -2,7 +2,7 @@
 //!
 //! - `RADIOSITY_TABLE` (default `../tables/uniform-enclosure.rft`): the table, `include_bytes!`-ed into flash.
 //!   Either format: a flat table (version 3) is parsed here with core's `Table::parse` and core's
-//!   `BufferSizes::of` gives the capacities of the solver's `StaticBuffers`; a hierarchical one (version 4,
+//!   `BufferSizes::of` gives the capacities of the solver's `StaticBuffers`; a hierarchical one (version 5,
 //!   which `Table::parse` reports as `TableError::HierarchicalTable`) is parsed with `HierTable::parse` and
 //!   `HierBufferSizes::of` sizes `HierStaticBuffers`. The generated code names the table type
 //!   (`FirmwareTable`) and the buffers (`DeviceBuffers<S>`); the firmware's `main` is the same for both, so a

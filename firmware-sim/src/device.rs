@@ -11,7 +11,7 @@
 //! The loop is written once over two small traits: [`DeviceTable`] (what a table gives the loop: its light
 //! groups, [`DeviceTable::unit_light_power`], and a solver on caller buffers) and [`DeviceSolver`] (what the
 //! loop asks of a solver). Both are implemented for the flat format (version 3: [`Table`], [`Solver`]) and the
-//! hierarchical one (version 4: [`HierTable`], [`HierSolver`]). The loop's **elements** are the flat table's
+//! hierarchical one (version 5: [`HierTable`], [`HierSolver`]). The loop's **elements** are the flat table's
 //! patches and the hierarchical table's leaves: the elements whose radiosity the device shows.
 //!
 //! The trace line ([`write_trace`]) is the firmware's semihosting output and the host simulator's comparison
@@ -209,7 +209,7 @@ impl<S: Scalar> DeviceSolver for HierSolver<'_, S> {
 }
 
 /// What the device loop asks of a table: implemented for the flat [`Table`] (version 3) and the hierarchical
-/// [`HierTable`] (version 4). `'a` is the lifetime of the table's bytes, which its solver's buffers share.
+/// [`HierTable`] (version 5). `'a` is the lifetime of the table's bytes, which its solver's buffers share.
 pub trait DeviceTable<'a> {
     /// The solver's buffers for arithmetic `S` (core's [`Buffers`] or [`HierBuffers`]).
     type Buffers<S: Scalar + 'a>;

@@ -37,7 +37,7 @@ enum Command {
         /// Output path of the table.
         #[arg(value_name = "OUT.rft")]
         out: PathBuf,
-        /// Write the hierarchical (format version 4) enclosure instead
+        /// Write the hierarchical (format version 5) enclosure instead
         /// (firmware-sim/tables/hierarchical-enclosure.rft).
         #[arg(long, conflicts_with = "four_lights")]
         hierarchical: bool,
@@ -318,7 +318,7 @@ fn qemu_run(target: Target, loaded: &Loaded, timeout: u32, log: Option<&Path>) -
         "table: format version {}, {} {}, solver buffers {} bytes of the static RAM",
         table.version(),
         table.element_count(),
-        if table.version() == 4 { "leaves" } else { "patches" },
+        if table.version() == u32::from(radiosity_core::HIER_FORMAT_VERSION) { "leaves" } else { "patches" },
         table.buffer_bytes(target.arith)
     );
     if let Some((expected, measured)) = checked.log.calibration {

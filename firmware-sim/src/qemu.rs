@@ -530,7 +530,7 @@ pub fn check_buffers_fit(target: Target, table: &crate::sim::AnyTable<'_>) -> Re
     if buffers > board_ram {
         let (what, formula) = match table {
             crate::sim::AnyTable::Flat(_) => ("flat (version 3)", "BufferSizes::bytes"),
-            crate::sim::AnyTable::Hier(_) => ("hierarchical (version 4)", "HierBufferSizes::bytes"),
+            crate::sim::AnyTable::Hier(_) => ("hierarchical (version 5)", "HierBufferSizes::bytes"),
         };
         return Err(format!(
             "the {what} table's solver buffers need {buffers} bytes of RAM in {} ({formula}, {} elements), more \

@@ -63,7 +63,7 @@ impl core::str::FromStr for Arith {
     }
 }
 
-/// A parsed table of either format: flat (version 3) or hierarchical (version 4).
+/// A parsed table of either format: flat (version 3) or hierarchical (version 5).
 #[derive(Clone, Copy, Debug)]
 pub enum AnyTable<'a> {
     /// A flat table ([`Table`]): the elements are its patches.
@@ -90,8 +90,8 @@ impl<'a> AnyTable<'a> {
     #[must_use]
     pub fn version(&self) -> u32 {
         match self {
-            AnyTable::Flat(_) => 3,
-            AnyTable::Hier(_) => 4,
+            AnyTable::Flat(_) => u32::from(radiosity_core::FORMAT_VERSION),
+            AnyTable::Hier(_) => u32::from(radiosity_core::HIER_FORMAT_VERSION),
         }
     }
 

@@ -237,7 +237,7 @@ pub fn hierarchical_links() -> Vec<(u32, u32, f32)> {
     links
 }
 
-/// The **hierarchical enclosure**, a hierarchical (version 4) test table: 6 faces of area `4 leaf_area`,
+/// The **hierarchical enclosure**, a hierarchical (version 5) test table: 6 faces of area `4 leaf_area`,
 /// each a tree of 7 nodes (face, two halves, two leaves per half: 42 nodes, 24 leaves), every face sending
 /// its power equally to the 5 others (`1/5` each), as in [`uniform_enclosure`] with one patch per face, but
 /// through links at three levels ([`hierarchical_links`]): a face shoots to the faces of its first two

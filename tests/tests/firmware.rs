@@ -84,7 +84,7 @@ fn cortex_m4_fixed_point_matches_host_bit_for_bit() {
     run(qemu::M4_FIXED);
 }
 
-/// The committed hierarchical (format version 4) table, `firmware-sim/tables/hierarchical-enclosure.rft`: the
+/// The committed hierarchical (format version 5) table, `firmware-sim/tables/hierarchical-enclosure.rft`: the
 /// firmware's build script sizes `HierStaticBuffers` from it and every frame agrees with the host simulator.
 fn run_hierarchical(target: Target) {
     let scripts = root().join("scenes/cornell-box.relight.toml");

@@ -55,7 +55,7 @@ pub fn exercise(data: &[u8]) -> Option<TableError> {
     None
 }
 
-/// [`exercise`] for a hierarchical table (format version 4): `HierTable::parse`, every accessor, bounded
+/// [`exercise`] for a hierarchical table (format version 5): `HierTable::parse`, every accessor, bounded
 /// hierarchical shooting steps and relighting.
 pub fn exercise_hier(data: &[u8]) -> Option<TableError> {
     let t = match HierTable::parse(data) {

@@ -119,10 +119,11 @@ impl RowDecoder {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct F32RowDecoder {
     row: RowDecoder,
-    /// `126 + M - base`: added to a normal code's exponent field gives the f32's exponent field.
-    exponent_bias: u32,
-    /// `2^-base`, the step of the codes with exponent field 0.
-    step: f32,
+    /// `2^(126 + M - base)`: the f32 whose bits are a code shifted into the f32's exponent and mantissa
+    /// fields, times this, is the code's value.
+    scale: f32,
+    /// `23 - M`: the shift that puts a code's mantissa at the top of the f32's mantissa field.
+    shift: u32,
     /// Whether the bit path is exact for every code of the row.
     fast: bool,
 }
@@ -132,11 +133,12 @@ impl F32RowDecoder {
     #[must_use]
     pub fn new(row: RowDecoder) -> Self {
         let largest_x = (row.max_code >> row.m_bits) as i32;
-        // Shifts of the normal codes run from `base + 1 - largest_x` (largest code) to `base` (x = 1).
-        let fast = row.m_bits <= 23 && row.base + 1 - largest_x >= 0 && row.base <= 126;
-        let exponent_bias = if fast { (126 + row.m_bits as i32 - row.base) as u32 } else { 0 };
-        let step = pow2_f32(-row.base.max(0));
-        F32RowDecoder { row, exponent_bias, step, fast }
+        // Shifts of the normal codes run from `base + 1 - largest_x` (largest code) to `base` (x = 1), so
+        // every value is an f32 without rounding; the scale `2^(126 + M - base)` must be one too.
+        let k = 126 + row.m_bits as i32 - row.base;
+        let fast = row.m_bits <= 23 && row.base + 1 - largest_x >= 0 && row.base <= 126 && k <= 127;
+        let scale = if fast { pow2_f32(k) } else { 0.0 };
+        F32RowDecoder { row, scale, shift: 23u32.saturating_sub(row.m_bits), fast }
     }
 
     /// The value of `code` (codes above the largest are clamped), bit for bit `row.decode(code).to_f32()`.
@@ -158,19 +160,15 @@ impl F32RowDecoder {
     /// [`F32RowDecoder::decode`] without its checks, for rows where [`F32RowDecoder::is_fast`] holds and codes
     /// no larger than the codec's largest (every code read at the codec's own width): then the same bits. Any
     /// other use gives some value, never a panic.
+    ///
+    /// The code's exponent `x` and mantissa `m`, shifted into an f32's fields, make the f32 `(2^M + m)
+    /// 2^(x - 127 - M)` for `x >= 1` and, as an f32 subnormal, `m 2^(-126 - M)` for `x = 0`: the code's values
+    /// `(2^M + m) 2^(x - 1 - base)` and `m 2^-base` over one power of two, `2^(126 + M - base)` (the codes share
+    /// IEEE 754's subnormal rule). So one shift and one exact multiply, without a branch for `x = 0`.
     #[must_use]
     #[inline(always)]
     pub fn decode_fast(self, code: u32) -> f32 {
-        let m_bits = self.row.m_bits;
-        let x = code.wrapping_shr(m_bits);
-        let m = code & 1u32.wrapping_shl(m_bits).wrapping_sub(1);
-        if x == 0 {
-            m as f32 * self.step
-        } else {
-            f32::from_bits(
-                (x.wrapping_add(self.exponent_bias) << 23) | m.wrapping_shl(23u32.wrapping_sub(m_bits)),
-            )
-        }
+        f32::from_bits(code.wrapping_shl(self.shift)) * self.scale
     }
 }
 

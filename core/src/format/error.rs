@@ -166,6 +166,10 @@ pub enum TreeFault {
     LeafStart,
     /// The leaf-node map does not list the leaf nodes in node order, or the leaf count differs from the header.
     LeafNode,
+    /// A leaf's stored parent inner index is not its parent's inner index (the inner count for a root leaf).
+    LeafParent,
+    /// The inner-node map does not list the inner nodes in node order.
+    InnerNode,
 }
 
 /// The quantization parameter a [`TableError::BadQuantParams`] refers to.
@@ -336,7 +340,11 @@ impl fmt::Display for TableError {
                 write!(f, "light-group member {position}: patch {patch} has no run-time state")
             }
             TableError::HierarchicalTable => {
-                write!(f, "a hierarchical table (format version 4): read it with HierTable::parse")
+                write!(
+                    f,
+                    "a hierarchical table (format version {}): read it with HierTable::parse",
+                    super::HIER_FORMAT_VERSION
+                )
             }
             TableError::FlatTable => write!(f, "a flat table (format version 3): read it with Table::parse"),
             TableError::BadTree { node, fault } => write!(f, "node tree: node {node}: {fault:?}"),

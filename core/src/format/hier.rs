@@ -1,9 +1,14 @@
-//! Hierarchical tables (format version 4, `docs/format.md`, "Hierarchical tables"): the header,
+//! Hierarchical tables (format version 5, `docs/format.md`, "Hierarchical tables"): the header,
 //! [`HierTable::parse`] (the one checked constructor: after it succeeds no accessor panics) and the read views.
 //!
 //! The node tree is stored in preorder (every parent before its children, every subtree a contiguous range of
 //! nodes `node..subtree_end`), so the leaves below any node are a contiguous range of leaves too: a push from
 //! a node to its leaves is one loop over a range, and the chain of a leaf is a walk over parent indices.
+//!
+//! Links are stored by **slot**: the leaves first (slot `l` is leaf `l`), then the inner nodes in node order
+//! (slot `n + i` is inner node `i`, `n` the leaf count). Runs are in slot order and receivers are slots, so
+//! shooting tells a leaf receiver from an inner one by one comparison and indexes the solver's per-leaf and
+//! per-inner-node buffers directly, and a run's leaf receivers (smaller slots) come before its inner ones.
 
 use serde::{Deserialize, Serialize};
 
@@ -72,11 +77,15 @@ pub struct HierSectionSizes {
     pub node_area: usize,
     /// Node of each leaf (an index per leaf).
     pub leaf_node: usize,
-    /// Link run starts (`u32` per node, plus one).
+    /// Inner index of each leaf's parent, the inner count for a root leaf (an index per leaf).
+    pub leaf_parent: usize,
+    /// Node of each inner node (an index per inner node).
+    pub inner_node: usize,
+    /// Link run starts (`u32` per slot, plus one).
     pub run_start: usize,
-    /// Link run exponents (`u8` per node).
+    /// Link run exponents (`u8` per slot).
     pub run_exponent: usize,
-    /// Link receivers (an index per link).
+    /// Link receivers (a slot per link).
     pub link_receiver: usize,
     /// Link form-factor codes.
     pub link_code: usize,
@@ -97,6 +106,8 @@ impl HierSectionSizes {
         let ib = usize::from(h.index_bytes);
         // The optional transfer basis: per group 3 exponents, per (leaf, group) 3 codes of 2 bytes.
         let (tg, tn) = if h.transfer { (g, n) } else { (0, 0) };
+        // More leaves than nodes is a bad tree (parse reports it); the inner section is then empty.
+        let inner = nn.saturating_sub(n);
         let sizes = HierSectionSizes {
             header: header_len,
             leaf_material: n.checked_mul(2)?,
@@ -113,6 +124,8 @@ impl HierSectionSizes {
             node_leaf_start: nn.checked_add(1)?.checked_mul(4)?,
             node_area: nn.checked_mul(4)?,
             leaf_node: n.checked_mul(ib)?,
+            leaf_parent: n.checked_mul(ib)?,
+            inner_node: inner.checked_mul(ib)?,
             run_start: nn.checked_add(1)?.checked_mul(4)?,
             run_exponent: nn,
             link_receiver: (h.link_count as usize).checked_mul(ib)?,
@@ -125,7 +138,7 @@ impl HierSectionSizes {
         Some(sizes)
     }
 
-    fn parts(&self) -> [usize; 22] {
+    fn parts(&self) -> [usize; 24] {
         [
             self.header,
             self.leaf_material,
@@ -142,6 +155,8 @@ impl HierSectionSizes {
             self.node_leaf_start,
             self.node_area,
             self.leaf_node,
+            self.leaf_parent,
+            self.inner_node,
             self.run_start,
             self.run_exponent,
             self.link_receiver,
@@ -186,6 +201,8 @@ pub struct HierTable<'a> {
     node_leaf_start: &'a [u8],
     node_area: &'a [u8],
     leaf_node: &'a [u8],
+    leaf_parent: &'a [u8],
+    inner_node: &'a [u8],
     run_start: &'a [u8],
     run_exponent: &'a [u8],
     link_receiver: &'a [u8],
@@ -194,14 +211,14 @@ pub struct HierTable<'a> {
     transfer_code: &'a [u8],
 }
 
-/// The node sections of a [`HierTable`] that resolve a link's receiver (hierarchical shooting's inner loop):
-/// reads with the same results as the table's accessors ([`HierTable::leaf_start`], [`HierTable::is_leaf`],
-/// [`HierTable::parent`], [`HierTable::material`]) for nodes and leaves in range,
-/// without the count checks a receiver validated by parse does not need (out of range still reads 0).
+/// The node sections of a [`HierTable`] that hierarchical shooting's inner loops read (a leaf receiver's
+/// material and parent, a sweep's leaf starts): reads with the same results as the table's accessors
+/// ([`HierTable::leaf_start`], [`HierTable::material`]) for nodes and leaves in range, without the count checks
+/// an index validated by parse does not need (out of range still reads 0).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct NodeSections<'a> {
     leaf_start: &'a [u8],
-    parent: &'a [u8],
+    leaf_parent: &'a [u8],
     material: &'a [u8],
 }
 
@@ -225,13 +242,7 @@ fn pair(s: &[u8], i: u32) -> (u32, u32) {
     }
 }
 
-impl NodeSections<'_> {
-    /// Leaves before `node` in preorder.
-    #[inline(always)]
-    pub(crate) fn leaf_start(&self, node: u32) -> u32 {
-        entry::<4>(self.leaf_start, node)
-    }
-
+impl<'a> NodeSections<'a> {
     /// `(leaf_start(node), leaf_start(node + 1))` with one comparison (`(0, 0)` past the section): they differ
     /// exactly when `node` is a leaf (leaf starts count the leaves before each node, validated by parse), so
     /// this tells a leaf from an inner node and gives its leaf or inner index without the subtree end.
@@ -240,10 +251,16 @@ impl NodeSections<'_> {
         pair(self.leaf_start, node)
     }
 
-    /// Stored parent of `node` (itself for a root), from an index section of `IB` bytes per entry.
+    /// The leaves' parents as inner indices (the inner count for a root leaf), entries of `IB` bytes.
     #[inline(always)]
-    pub(crate) fn parent<const IB: usize>(&self, node: u32) -> u32 {
-        entry::<IB>(self.parent, node)
+    pub(crate) fn leaf_parents<const IB: usize>(&self) -> &'a [[u8; IB]] {
+        self.leaf_parent.as_chunks::<IB>().0
+    }
+
+    /// The leaves' materials, 2-byte entries.
+    #[inline(always)]
+    pub(crate) fn materials(&self) -> &'a [[u8; 2]] {
+        self.material.as_chunks::<2>().0
     }
 
     /// Material of `leaf`.
@@ -385,6 +402,8 @@ impl<'a> HierTable<'a> {
             node_leaf_start: take(sizes.node_leaf_start),
             node_area: take(sizes.node_area),
             leaf_node: take(sizes.leaf_node),
+            leaf_parent: take(sizes.leaf_parent),
+            inner_node: take(sizes.inner_node),
             run_start: take(sizes.run_start),
             run_exponent: take(sizes.run_exponent),
             link_receiver: take(sizes.link_receiver),
@@ -433,6 +452,15 @@ impl<'a> HierTable<'a> {
             |k| le_u32(self.node_end, k as usize),
             |k| le_u32(self.node_leaf_start, k as usize),
             |l| self.index(self.leaf_node, l),
+        )?;
+        check_slots(
+            nn,
+            n,
+            |k| self.index(self.node_parent, k),
+            |k| le_u32(self.node_end, k as usize),
+            |k| le_u32(self.node_leaf_start, k as usize),
+            |l| self.index(self.leaf_parent, l),
+            |i| self.index(self.inner_node, i),
         )?;
         self.check_areas()?;
         check_offsets(self.run_start, nn, self.header.link_count, OffsetArray::RowStart)?;
@@ -495,9 +523,9 @@ impl<'a> HierTable<'a> {
         Ok(())
     }
 
-    /// Decoded sum of `node`'s run (exact units), checking its exponent, receivers and order.
+    /// Decoded sum of `node`'s run (exact units), checking its exponent, receivers (slots) and order.
     fn checked_run_sum(&self, node: u32) -> Result<u128, TableError> {
-        let e = self.run_exponent.get(node as usize).copied().unwrap_or(0);
+        let e = self.run_exponent.get(self.slot_unchecked(node) as usize).copied().unwrap_or(0);
         if e > MAX_ROW_EXPONENT {
             return Err(TableError::BadQuantParams { param: QuantParam::RowExponent, value: node });
         }
@@ -534,6 +562,49 @@ impl<'a> HierTable<'a> {
     fn subtree_end_raw(&self, node: u32) -> u32 {
         le_u32(self.node_end, node as usize)
     }
+
+    /// The slot of `node` (leaf index for a leaf, leaf count plus inner index for an inner node), from two
+    /// adjacent leaf starts; some value out of range.
+    #[inline]
+    pub(crate) fn slot_unchecked(&self, node: u32) -> u32 {
+        let (l, next) = pair(self.node_leaf_start, node);
+        if next != l {
+            l
+        } else {
+            self.header.leaf_count.wrapping_add(node.wrapping_sub(l))
+        }
+    }
+}
+
+/// The slot checks of [`HierTable::parse`] (and of the writer, on what it wrote), after [`check_tree`]: the
+/// leaf-parent section gives every leaf its parent's inner index (`node - leaf_start(node)`, the inner count
+/// for a root leaf) and the inner-node section lists the inner nodes in node order. Cost `O(nodes)`.
+pub(crate) fn check_slots(
+    nodes: u32,
+    leaves: u32,
+    parent: impl Fn(u32) -> u32,
+    end: impl Fn(u32) -> u32,
+    leaf_start: impl Fn(u32) -> u32,
+    leaf_parent: impl Fn(u32) -> u32,
+    inner_node: impl Fn(u32) -> u32,
+) -> Result<(), TableError> {
+    let inner = nodes.saturating_sub(leaves);
+    let mut i = 0u32;
+    for k in 0..nodes {
+        if end(k) == k + 1 {
+            let p = parent(k);
+            let want = if p == k { inner } else { p.wrapping_sub(leaf_start(p)) };
+            if leaf_parent(leaf_start(k)) != want {
+                return Err(TableError::BadTree { node: k, fault: TreeFault::LeafParent });
+            }
+        } else {
+            if inner_node(i) != k {
+                return Err(TableError::BadTree { node: k, fault: TreeFault::InnerNode });
+            }
+            i += 1;
+        }
+    }
+    Ok(())
 }
 
 /// The tree checks of [`HierTable::parse`] (and of the writer, on what it wrote), over accessors of the
@@ -800,12 +871,39 @@ impl<'a> HierTable<'a> {
         })
     }
 
+    /// Number of inner nodes (nodes with children): `node_count - leaf_count`.
+    #[must_use]
+    pub fn inner_count(&self) -> u32 {
+        self.header.node_count - self.header.leaf_count
+    }
+
+    /// The slot of `node`: its leaf index for a leaf, `leaf_count` plus its inner index (the inner nodes
+    /// before it) for an inner node. Runs are stored in slot order and link receivers are slots.
+    #[must_use]
+    #[inline]
+    pub fn slot(&self, node: u32) -> Option<u32> {
+        (node < self.node_count()).then(|| self.slot_unchecked(node))
+    }
+
+    /// The node of `slot` (the inverse of [`HierTable::slot`]).
+    #[must_use]
+    #[inline]
+    pub fn slot_node(&self, slot: u32) -> Option<u32> {
+        if slot < self.leaf_count() {
+            Some(self.index(self.leaf_node, slot))
+        } else if slot < self.node_count() {
+            Some(self.index(self.inner_node, slot - self.leaf_count()))
+        } else {
+            None
+        }
+    }
+
     /// Range of link positions of sender `node`'s run.
     #[must_use]
     #[inline]
     pub fn run(&self, node: u32) -> Option<core::ops::Range<u32>> {
-        (node < self.node_count())
-            .then(|| le_u32(self.run_start, node as usize)..le_u32(self.run_start, node as usize + 1))
+        let s = self.slot(node)? as usize;
+        Some(le_u32(self.run_start, s)..le_u32(self.run_start, s + 1))
     }
 
     /// Whether sender `node` has links.
@@ -818,15 +916,19 @@ impl<'a> HierTable<'a> {
     /// Exponent of sender `node`'s run.
     #[must_use]
     pub fn run_exponent(&self, node: u32) -> Option<u8> {
-        (node < self.node_count()).then(|| self.run_exponent.get(node as usize).copied().unwrap_or(0))
+        let s = self.slot(node)? as usize;
+        Some(self.run_exponent.get(s).copied().unwrap_or(0))
     }
 
     /// Receiver node and decoded shooter form factor `F_sender->receiver` of link `position` in `sender`'s run.
     #[must_use]
     pub fn link(&self, sender: u32, position: u32) -> Option<(u32, Frac)> {
         let e = self.run_exponent(sender)?;
-        (position < self.link_count())
-            .then(|| (self.index(self.link_receiver, position), self.codec.decode(self.code(position), e)))
+        if position >= self.link_count() {
+            return None;
+        }
+        let receiver = self.slot_node(self.index(self.link_receiver, position))?;
+        Some((receiver, self.codec.decode(self.code(position), e)))
     }
 
     /// Decoded sum of `node`'s run as f32 (for reports).
@@ -863,9 +965,9 @@ impl<'a> HierTable<'a> {
     }
 
     /// The receiver and code bytes of the links at table positions `from..end` (empty when the range is empty or
-    /// not inside the link sections), with the decoder of `sender`'s run exponent: the entries
-    /// [`HierTable::run_view`]'s [`Row::entries_from`] reads for positions inside `sender`'s run, without
-    /// reading the run's bounds again.
+    /// not inside the link sections), with the decoder of the run exponent of the sender in slot `sender`: the
+    /// entries [`HierTable::run_view`]'s [`Row::entries_from`] reads for positions inside the sender's run,
+    /// without reading the run's bounds again.
     #[must_use]
     #[inline]
     pub(crate) fn link_bytes(&self, sender: u32, from: u32, end: u32) -> (&'a [u8], &'a [u8], RowDecoder) {
@@ -878,12 +980,12 @@ impl<'a> HierTable<'a> {
         (receivers, codes, self.codec.row_decoder(exponent))
     }
 
-    /// `node`'s run as table positions `(start, end)` (what [`HierTable::run`] gives for a node in range), read
-    /// with one comparison each; for a round's judging of every node.
+    /// The run of the sender in `slot` as table positions `(start, end)` (what [`HierTable::run`] gives for
+    /// its node), read with one comparison; for a round's judging of every slot.
     #[must_use]
     #[inline(always)]
-    pub(crate) fn run_bounds(&self, node: u32) -> (u32, u32) {
-        pair(self.run_start, node)
+    pub(crate) fn run_bounds(&self, slot: u32) -> (u32, u32) {
+        pair(self.run_start, slot)
     }
 
     /// The end of `node`'s subtree, read without `node`'s own range check (0 past the section).
@@ -904,7 +1006,7 @@ impl<'a> HierTable<'a> {
     pub(crate) fn node_sections(&self) -> NodeSections<'a> {
         NodeSections {
             leaf_start: self.node_leaf_start,
-            parent: self.node_parent,
+            leaf_parent: self.leaf_parent,
             material: self.leaf_material,
         }
     }
@@ -916,7 +1018,8 @@ impl<'a> HierTable<'a> {
         self.header.index_bytes
     }
 
-    /// Sender `node`'s run as a [`Row`] whose entries (receiver node, decoded factor) need no further checks.
+    /// Sender `node`'s run as a [`Row`] whose entries (receiver **slot**, [`HierTable::slot_node`] gives its
+    /// node; decoded factor) need no further checks.
     #[must_use]
     #[inline]
     pub fn run_view(&self, node: u32) -> Option<Row<'a>> {
@@ -929,7 +1032,7 @@ impl<'a> HierTable<'a> {
             self.link_code.get(s.checked_mul(cb)?..e.checked_mul(cb)?)?,
             ib,
             self.codec,
-            self.run_exponent.get(node as usize).copied().unwrap_or(0),
+            self.run_exponent(node).unwrap_or(0),
             range.start,
         ))
     }

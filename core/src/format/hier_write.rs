@@ -4,7 +4,9 @@
 //! Std-free, no allocation: what the writer derives per node (subtree ends, leaf starts, inner node areas) it
 //! computes in place in the output buffer.
 
-use super::hier::{check_tree, read_index, HierHeader, HierSectionSizes, PathSum, MAX_HIER_HEADER_LEN};
+use super::hier::{
+    check_slots, check_tree, read_index, HierHeader, HierSectionSizes, PathSum, MAX_HIER_HEADER_LEN,
+};
 use super::layout::{le_f32, le_u32};
 use super::write::{
     check_groups, check_patches, check_row_offsets, check_transfer, check_value, count, emission_codes,
@@ -119,7 +121,8 @@ fn write_u32(buf: &mut [u8], at: usize, i: u32, v: u32) {
 /// Each sender's run is quantized with `spec.codec` by the row rounding of [`crate::codec`], against a target
 /// capped so that the decoded sums along every leaf's chain stay `<= 1` (the bound
 /// [`HierTable::parse`](super::HierTable::parse) checks): nodes are visited in preorder and a run's target
-/// is `min(its true sum, 1 - the decoded sums of its ancestors' runs)`.
+/// is `min(its true sum, 1 - the decoded sums of its ancestors' runs)`. The runs are stored in slot order and
+/// their receivers as slots, each run's leaf receivers first (in the spec's order), then its inner ones.
 ///
 /// # Errors
 /// A [`WriteError`] naming the first bad field, or [`WriteError::BufferTooSmall`].
@@ -279,6 +282,45 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
         }
     }
     o.at = leaf_node_at + usize::from(ib) * n;
+    let is_leaf = |buf: &[u8], k: u32| read_u32(buf, end_at, k) == k + 1;
+    let slot = |buf: &[u8], k: u32| {
+        let l = read_u32(buf, leaf_start_at, k);
+        if is_leaf(buf, k) {
+            l
+        } else {
+            (n as u32).wrapping_add(k.wrapping_sub(l))
+        }
+    };
+    // Each leaf's parent as an inner index (the inner count for a root leaf), then the inner nodes.
+    let leaf_parent_at = o.at;
+    for k in 0..nn as u32 {
+        if is_leaf(o.buf, k) {
+            let p = parent_of(spec, k);
+            let v = if p == k { (nn - n) as u32 } else { p - read_u32(o.buf, leaf_start_at, p) };
+            o.index(v, ib);
+        }
+    }
+    let inner_node_at = o.at;
+    for k in 0..nn as u32 {
+        if !is_leaf(o.buf, k) {
+            o.index(k, ib);
+        }
+    }
+    let slots = {
+        let buf = &*o.buf;
+        check_slots(
+            nn as u32,
+            n as u32,
+            |k| read_index(buf.get(parent_at..).unwrap_or(&[]), ib, k),
+            |k| read_u32(buf, end_at, k),
+            |k| read_u32(buf, leaf_start_at, k),
+            |l| read_index(buf.get(leaf_parent_at..).unwrap_or(&[]), ib, l),
+            |i| read_index(buf.get(inner_node_at..).unwrap_or(&[]), ib, i),
+        )
+    };
+    if slots.is_err() {
+        return Err(WriteError::BadTree { node: nn });
+    }
 
     // The chain bound on the true factors, before quantizing.
     let one = 1u128 << EXACT_SHIFT;
@@ -299,23 +341,37 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
         }
     }
 
-    for &s in links.row_start {
-        o.u32(s);
+    // Run starts in slot order: the leaves' runs, then the inner nodes'.
+    let run_at = o.at;
+    let len = |k: u32| links.row_start[k as usize + 1] - links.row_start[k as usize];
+    let mut start = 0u32;
+    o.u32(0);
+    for leaves_first in [true, false] {
+        for k in 0..nn as u32 {
+            if is_leaf(o.buf, k) == leaves_first {
+                start += len(k);
+                o.u32(start);
+            }
+        }
     }
     let exps_at = o.at;
     o.at += nn;
-    for &r in links.receiver {
-        o.index(r, ib);
-    }
+    let receivers_at = o.at;
+    o.at += usize::from(ib) * links.receiver.len();
     let codes_at = o.at;
     let codec = spec.codec;
+    let cb = codec.code_bytes();
+    // Where node `k`'s run starts in the link sections, and its slot.
+    let placed = |buf: &[u8], k: u32| {
+        let s = slot(buf, k);
+        (read_u32(buf, run_at, s) as usize, s as usize)
+    };
     // Decoded sum of a run already written (its exponent and codes are in the buffer).
     let decoded = |buf: &[u8], j: u32| -> Result<u128, WriteError> {
-        let e = buf.get(exps_at + j as usize).copied().unwrap_or(0);
-        let (s, t) = (links.row_start[j as usize] as usize, links.row_start[j as usize + 1] as usize);
-        let cb = codec.code_bytes();
+        let (p, sj) = placed(buf, j);
+        let e = buf.get(exps_at + sj).copied().unwrap_or(0);
         let mut sum = 0u128;
-        for k in s..t {
+        for k in p..p + len(j) as usize {
             let code = match buf.get(codes_at + k * cb..codes_at + (k + 1) * cb) {
                 Some(&[a]) => u16::from(a),
                 Some(&[a, b]) => u16::from_le_bytes([a, b]),
@@ -329,16 +385,41 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
     for k in 0..nn as u32 {
         path.pop_to_parent_of(k, |j| parent_of(spec, j), |j| decoded(o.buf, j))?;
         let (s, e) = (links.row_start[k as usize] as usize, links.row_start[k as usize + 1] as usize);
+        let (p, sk) = placed(o.buf, k);
         let target = true_sum(k)?.min(one.saturating_sub(path.sum));
-        let at = codes_at + s * codec.code_bytes();
+        let at = codes_at + p * cb;
         let exponent =
             quantize_row_into(codec, &links.form_factor[s..e], &links.receiver[s..e], k, target, &mut o, at);
-        if let Some(b) = o.buf.get_mut(exps_at + k as usize) {
+        if let Some(b) = o.buf.get_mut(exps_at + sk) {
             *b = exponent;
+        }
+        // Receivers as slots, leaves first; the codes (written in the spec's order) moved along, stably.
+        let receivers = &links.receiver[s..e];
+        let mut w = 0usize;
+        for (j, &r) in receivers.iter().enumerate() {
+            if is_leaf(o.buf, r) {
+                if let Some(run) = o.buf.get_mut(at + w * cb..at + (j + 1) * cb) {
+                    run.rotate_right(cb);
+                }
+                w += 1;
+            }
+        }
+        let mut q = receivers_at + usize::from(ib) * p;
+        for leaves_first in [true, false] {
+            for &r in receivers {
+                if is_leaf(o.buf, r) != leaves_first {
+                    continue;
+                }
+                let v = slot(o.buf, r).to_le_bytes();
+                if let Some(d) = o.buf.get_mut(q..q + usize::from(ib)) {
+                    d.copy_from_slice(v.get(..usize::from(ib)).unwrap_or(&[]));
+                }
+                q += usize::from(ib);
+            }
         }
         path.push(k, decoded(o.buf, k)?);
     }
-    o.at = codes_at + links.receiver.len() * codec.code_bytes();
+    o.at = codes_at + links.receiver.len() * cb;
     if let Some(t) = spec.transfer {
         write_transfer(t, spec.groups.len(), &mut o);
     }

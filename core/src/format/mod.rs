@@ -54,7 +54,7 @@ pub const fn group_id(name: &str) -> u32 {
 pub const FORMAT_VERSION: u16 = 3;
 
 /// The format version of hierarchical tables ([`HierTable`], `docs/format.md`, "Hierarchical tables").
-pub const HIER_FORMAT_VERSION: u16 = 4;
+pub const HIER_FORMAT_VERSION: u16 = 5;
 
 #[cfg(test)]
 mod tests {

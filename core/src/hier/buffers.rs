@@ -5,7 +5,8 @@
 //! What is stored, and why nothing else (the module docs of [`hier`](super) say how it is used):
 //! - per leaf, its incident power `H_l` (reflectance edits need it; the leaf's power is computed from it on
 //!   readout, `Phi_l = E_l A_l + rho_l H_l`, so it is not stored);
-//! - per node, its unshot power (read for the nodes with links only);
+//! - per node, its unshot power (read for the nodes with links only), indexed by slot (leaves first, then the
+//!   inner nodes, `docs/format.md`), so a link to a leaf writes the leaf's entries at one index;
 //! - per inner node (a node with children), the irradiance its incoming links left pending for its subtree,
 //!   and the power reflected by its children from links that reached them directly, pending for its chain;
 //! - per level of the tree, one [`SweepFrame`]: a sweep's path from a root to the node it visits, which
@@ -18,11 +19,11 @@
 use crate::format::HierTable;
 use crate::scalar::Scalar;
 
-/// One node on the path of a sweep (root first): the node, the irradiance summed down its chain since the
-/// last sweep, and the power reflected in the part of its subtree visited so far.
+/// One node on the path of a sweep (root first): the node's slot, the irradiance summed down its chain since
+/// the last sweep, and the power reflected in the part of its subtree visited so far.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SweepFrame<S> {
-    pub(crate) node: u32,
+    pub(crate) slot: u32,
     /// The end of `node`'s subtree (the sweep leaves the node when it reaches it).
     pub(crate) end: u32,
     pub(crate) irradiance: [S; 3],
@@ -32,7 +33,7 @@ pub struct SweepFrame<S> {
 impl<S: Scalar> SweepFrame<S> {
     /// An unused frame (what buffers start with; a sweep overwrites a frame before it reads it).
     pub const EMPTY: SweepFrame<S> =
-        SweepFrame { node: 0, end: 0, irradiance: [S::ZERO; 3], reflected: [S::ZERO; 3] };
+        SweepFrame { slot: 0, end: 0, irradiance: [S::ZERO; 3], reflected: [S::ZERO; 3] };
 }
 
 /// Caller-supplied buffers of a [`HierSolver`](super::HierSolver). Every slice must hold at least the count
@@ -41,8 +42,9 @@ impl<S: Scalar> SweepFrame<S> {
 pub struct HierBuffers<'b, S> {
     /// Incident power `H_l` received so far (RGB) per leaf, before reflection: [`HierBufferSizes::leaves`].
     pub incident: &'b mut [[S; 3]],
-    /// Unshot power `U_n` (RGB) per node: power reflected or emitted in the node's subtree and not yet shot
-    /// through its links (read only for nodes with links): [`HierBufferSizes::nodes`].
+    /// Unshot power `U_n` (RGB) per node, indexed by slot ([`HierTable::slot`]): power reflected or emitted in
+    /// the node's subtree and not yet shot through its links (read only for nodes with links):
+    /// [`HierBufferSizes::nodes`].
     pub unshot: &'b mut [[S; 3]],
     /// Pending power (RGB) per inner node: what the node's incoming links delivered since the last sweep
     /// entered it (the sweep spreads it over the node's area): [`HierBufferSizes::inner`].

@@ -1,7 +1,12 @@
 //! Hierarchical shooting's inner loops: a run of links applied to their receivers ([`apply_run`]), with the
 //! receiver's table sections and the solver's buffers held in locals for the whole run and the entries read at
-//! the table's fixed index and code widths; and a round's judging of nodes until one shoots ([`judge`]). The
+//! the table's fixed index and code widths; and a round's judging of slots until one shoots ([`judge`]). The
 //! rules are the solver's (module docs of [`hier`](super), "The scheme" and "Rounds").
+//!
+//! Receivers are slots (`docs/format.md`, "Hierarchical tables"): leaves below the leaf count, inner nodes
+//! above it, and a run lists its leaf receivers first. So a run is applied as two loops without a per-link
+//! test: its leaves (each link indexes the per-leaf buffers and its parent's entry directly), then its inner
+//! nodes (each link indexes the per-inner-node buffer).
 
 use super::{add3, magnitude, HierBuffers};
 use crate::format::{le, HierTable, NodeSections};
@@ -42,7 +47,8 @@ fn add_at<S: Scalar>(buf: &mut [[S; 3]], i: usize, d: [S; 3]) {
 }
 
 impl<S: Scalar> Targets<'_, '_, S> {
-    /// Applies the entries of `receivers` and `codes` (widths `IB` and `CB` bytes).
+    /// Applies the entries of `receivers` and `codes` (widths `IB` and `CB` bytes; receivers are slots, those
+    /// below `leaves` first).
     #[inline(always)]
     fn run<const IB: usize, const CB: usize>(
         &mut self,
@@ -50,49 +56,103 @@ impl<S: Scalar> Targets<'_, '_, S> {
         codes: &[u8],
         decoder: S::LinkDecoder,
         power: [S; 3],
+        leaves: u32,
     ) {
         let (receivers, _) = receivers.as_chunks::<IB>();
         let (codes, _) = codes.as_chunks::<CB>();
+        // Parse checked that a run's receivers increase, so its leaves are a prefix.
+        let split = receivers.partition_point(|r| le::<IB>(r) < leaves);
+        let (leaf_r, inner_r) = receivers.split_at(split);
+        let (leaf_c, inner_c) = codes.split_at(split.min(codes.len()));
         // The products' path chosen once per run: codes read at the codec's width need no clamp, and the
         // shooter's power and the row's shifts decide once whether fixed point's products can skip their checks.
         if S::link_fast(&decoder, &power) {
-            for (r, c) in receivers.iter().zip(codes) {
-                self.link::<IB>(le::<IB>(r), S::link_products_fast(power, le::<CB>(c), decoder));
+            self.leaf_links(leaf_r, leaf_c, leaves, |c| S::link_products_fast(power, le::<CB>(c), decoder));
+            for (r, c) in inner_r.iter().zip(inner_c) {
+                let x = S::link_products_fast(power, le::<CB>(c), decoder);
+                add_at(self.pending, le::<IB>(r).wrapping_sub(leaves) as usize, x);
             }
         } else {
-            for (r, c) in receivers.iter().zip(codes) {
-                self.link::<IB>(le::<IB>(r), S::link_products(power, le::<CB>(c), decoder));
+            self.leaf_links(leaf_r, leaf_c, leaves, |c| S::link_products(power, le::<CB>(c), decoder));
+            for (r, c) in inner_r.iter().zip(inner_c) {
+                let x = S::link_products(power, le::<CB>(c), decoder);
+                add_at(self.pending, le::<IB>(r).wrapping_sub(leaves) as usize, x);
             }
         }
     }
 
-    /// Link `(r, F)` delivers the power `x = F U_s` to node `r`. An inner receiver adds it to its pending
-    /// power (spread over its subtree by the next sweep). A leaf takes it at once: into its incident power, and the
-    /// reflected `rho_l F U_s` into its own unshot power and, pending for the rest of its chain, into its
-    /// parent's reflected entry.
+    /// Links to leaves (receiver slots below `leaves`, each with its code): link `(l, F)` delivers the power
+    /// `x = product(code) = F U_s` into leaf `l`'s incident power, and the reflected `rho_l F U_s` into its own
+    /// unshot power and, pending for the rest of its chain, into its parent's reflected entry (a root leaf's
+    /// parent index is the inner count, past the buffer: nothing). A link to an inner node adds `x` to its
+    /// pending power instead (spread over its subtree by the next sweep; [`Targets::run`]).
+    ///
+    /// A run's leaves are in leaf order, so neighbours mostly share a parent and a material: the parent's
+    /// reflected entry is held in registers while the parent stays the same (added to link by link, so the
+    /// sums round exactly as entry-by-entry additions would, however a budget splits the run), and the
+    /// reflectance while the material stays the same.
     #[inline(always)]
-    fn link<const IB: usize>(&mut self, r: u32, x: [S; 3]) {
-        let n = &self.nodes;
-        let (l, next) = n.leaf_starts(r);
-        if next == l {
-            add_at(self.pending, r.wrapping_sub(l) as usize, x);
+    fn leaf_links<const IB: usize, const CB: usize>(
+        &mut self,
+        receivers: &[[u8; IB]],
+        codes: &[[u8; CB]],
+        leaves: u32,
+        product: impl Fn(&[u8; CB]) -> [S; 3],
+    ) {
+        let n = leaves as usize;
+        let (Some(incident), Some(unshot), Some(materials), Some(parents)) = (
+            self.incident.get_mut(..n),
+            self.unshot.get_mut(..n),
+            self.nodes.materials().get(..n),
+            self.nodes.leaf_parents::<IB>().get(..n),
+        ) else {
+            // Parse and the solver's buffer check make every one of them hold the leaves.
             return;
+        };
+        let mut material = u32::MAX;
+        let mut rho = [S::Rho::default(); 3];
+        // The parent entry held: its index (the inner count, past the buffer, when none) and its value.
+        let mut parent = usize::MAX;
+        let mut held = [S::ZERO; 3];
+        for (r, c) in receivers.iter().zip(codes) {
+            let l = le::<IB>(r) as usize;
+            let (Some(h), Some(u), Some(m), Some(p)) =
+                (incident.get_mut(l), unshot.get_mut(l), materials.get(l), parents.get(l))
+            else {
+                continue;
+            };
+            let x = product(c);
+            let m = le::<2>(m);
+            if m != material {
+                material = m;
+                rho = cached_rho::<S>(self.rho_cache, self.reflectance, m as usize);
+            }
+            let reflected = [x[0].mul_rho(rho[0]), x[1].mul_rho(rho[1]), x[2].mul_rho(rho[2])];
+            *h = add3(*h, x);
+            *u = add3(*u, reflected);
+            let p = le::<IB>(p) as usize;
+            if p != parent {
+                put_at(self.reflected, parent, held);
+                parent = p;
+                held = self.reflected.get(p).copied().unwrap_or([S::ZERO; 3]);
+            }
+            held = add3(held, reflected);
         }
-        let m = n.material(l) as usize;
-        let rho = cached_rho::<S>(self.rho_cache, self.reflectance, m);
-        let reflected = [x[0].mul_rho(rho[0]), x[1].mul_rho(rho[1]), x[2].mul_rho(rho[2])];
-        add_at(self.incident, l as usize, x);
-        add_at(self.unshot, r as usize, reflected);
-        let p = n.parent::<IB>(r);
-        if p != r {
-            add_at(self.reflected, p.wrapping_sub(n.leaf_start(p)) as usize, reflected);
-        }
+        put_at(self.reflected, parent, held);
     }
 }
 
-/// Applies the links at table positions `from..end` of `sender`'s run, each delivering `F power` to its
-/// receiver (the solver's link rule), in one loop specialized for the table's index and code widths. Not
-/// inlined: called once per shot (or budget), it keeps the stepping loop small.
+/// Stores `v` as entry `i` of `buf` (nothing past its end).
+#[inline(always)]
+fn put_at<S: Copy>(buf: &mut [[S; 3]], i: usize, v: [S; 3]) {
+    if let Some(e) = buf.get_mut(i) {
+        *e = v;
+    }
+}
+
+/// Applies the links at table positions `from..end` of the run of the sender in slot `sender`, each delivering
+/// `F power` to its receiver (the solver's link rule), in loops specialized for the table's index and code
+/// widths. Not inlined: called once per shot (or budget), it keeps the stepping loop small.
 #[inline(never)]
 pub(super) fn apply_run<S: Scalar>(
     table: &HierTable<'_>,
@@ -112,20 +172,21 @@ pub(super) fn apply_run<S: Scalar>(
         reflectance: &*buf.reflectance,
         rho_cache,
     };
+    let leaves = table.leaf_count();
     match (table.index_bytes(), table.codec().code_bytes()) {
-        (2, 1) => t.run::<2, 1>(receivers, codes, decoder, power),
-        (2, 2) => t.run::<2, 2>(receivers, codes, decoder, power),
-        (4, 1) => t.run::<4, 1>(receivers, codes, decoder, power),
-        (4, 2) => t.run::<4, 2>(receivers, codes, decoder, power),
+        (2, 1) => t.run::<2, 1>(receivers, codes, decoder, power, leaves),
+        (2, 2) => t.run::<2, 2>(receivers, codes, decoder, power, leaves),
+        (4, 1) => t.run::<4, 1>(receivers, codes, decoder, power, leaves),
+        (4, 2) => t.run::<4, 2>(receivers, codes, decoder, power, leaves),
         // Parse accepts no other widths.
         _ => {}
     }
 }
 
-/// Judges the nodes `from..stop` of a round in order, one work unit each, until one shoots: a node with links
+/// Judges the slots `from..stop` of a round in order, one work unit each, until one shoots: a node with links
 /// whose unshot magnitude is neither below `threshold` nor within `tolerance` (the round rule, module docs of
-/// [`hier`](super), "Rounds"). Returns the nodes judged (the shooter included) and the shooter with its unshot
-/// power and its run's table positions, or `None` when none of them shoots.
+/// [`hier`](super), "Rounds"). Returns the slots judged (the shooter included) and the shooter's slot with its
+/// unshot power and its run's table positions, or `None` when none of them shoots.
 #[allow(clippy::type_complexity)]
 pub(super) fn judge<S: Scalar>(
     table: &HierTable<'_>,

@@ -376,7 +376,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         let mut walked = 0u32;
         // Bounded by the depth (parents precede children, checked by parse).
         for _ in 0..self.table.max_depth() {
-            self.add_unshot(node, d);
+            self.add_unshot(self.table.slot_unchecked(node), d);
             walked += 1;
             match self.table.parent(node) {
                 Some(p) => node = p,
@@ -386,23 +386,29 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         walked
     }
 
-    /// Adds `d` to `node`'s unshot power if it has links (a node without links never shoots).
-    fn add_unshot(&mut self, node: u32, d: [S; 3]) {
-        if !self.table.has_links(node) {
+    /// Whether the sender in `slot` has links.
+    fn slot_has_links(&self, slot: u32) -> bool {
+        let (start, end) = self.table.run_bounds(slot);
+        end > start
+    }
+
+    /// Adds `d` to the unshot power of the node in `slot` if it has links (a node without links never shoots).
+    fn add_unshot(&mut self, slot: u32, d: [S; 3]) {
+        if !self.slot_has_links(slot) {
             return;
         }
-        if let Some(u) = self.buf.unshot.get_mut(node as usize) {
+        if let Some(u) = self.buf.unshot.get_mut(slot as usize) {
             *u = add3(*u, d);
         }
     }
 
-    /// The unshot power of `node` (zero for a node without links: what links reaching such a leaf add to its
-    /// entry is never read).
-    fn unshot_of(&self, node: u32) -> [S; 3] {
-        if !self.table.has_links(node) {
+    /// The unshot power of the node in `slot` (zero for a node without links: what links reaching such a leaf
+    /// add to its entry is never read).
+    fn unshot_of(&self, slot: u32) -> [S; 3] {
+        if !self.slot_has_links(slot) {
             return [S::ZERO; 3];
         }
-        self.buf.unshot.get(node as usize).copied().unwrap_or([S::ZERO; 3])
+        self.buf.unshot.get(slot as usize).copied().unwrap_or([S::ZERO; 3])
     }
 
     /// Runs actions (module docs) until convergence or until `budget` work units are spent. Every action
@@ -511,7 +517,8 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     }
 
     /// A sweep enters `node` (preorder; the path's top frame, at `depth - 1`, is its parent's, or the path is
-    /// empty for a root) and pushes its frame (with the node's subtree end, which says when to leave it). An
+    /// empty for a root) and pushes its frame (with the node's slot, and its subtree end, which says when to
+    /// leave it). An
     /// inner node's chain irradiance is its parent's plus its own pending power over its area, and its subtree
     /// sum starts with its reflected entry (both taken, leaving zeros). A leaf takes
     /// its parent's chain irradiance, the irradiance of every link above it since the last sweep: incident
@@ -525,6 +532,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         let nodes = self.table.node_sections();
         let (l, next) = nodes.leaf_starts(node);
         let leaf = next != l;
+        let slot = if leaf { l } else { self.table.leaf_count().wrapping_add(node.wrapping_sub(l)) };
         let end = if leaf { node.wrapping_add(1) } else { self.table.subtree_end_unchecked(node) };
         let area = S::from_f32(self.table.node_area_unchecked(node));
         let (e, reflected) = if leaf {
@@ -544,7 +552,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             (add3(above, pending), take(self.buf.reflected.get_mut(i)))
         };
         if let Some(f) = self.buf.path.get_mut(depth as usize) {
-            *f = SweepFrame { node, end, irradiance: e, reflected };
+            *f = SweepFrame { slot, end, irradiance: e, reflected };
         }
     }
 
@@ -557,11 +565,11 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         if let Some(parent) = top.checked_sub(1).and_then(|d| self.buf.path.get_mut(d as usize)) {
             parent.reflected = add3(parent.reflected, frame.reflected);
         }
-        let (start, end) = self.table.run_bounds(frame.node);
+        let (start, end) = self.table.run_bounds(frame.slot);
         if end <= start {
             return None;
         }
-        let u = self.buf.unshot.get_mut(frame.node as usize)?;
+        let u = self.buf.unshot.get_mut(frame.slot as usize)?;
         *u = add3(*u, frame.reflected);
         Some(magnitude(*u))
     }
@@ -705,7 +713,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     /// the power reflected from what is still pending (shot since the last sweep entered the receiver).
     #[must_use]
     pub fn unshot(&self, node: u32) -> Option<[S; 3]> {
-        (node < self.table.node_count()).then(|| self.unshot_of(node))
+        self.table.slot(node).map(|slot| self.unshot_of(slot))
     }
 
     /// Shots started since the last cold start (saturating).

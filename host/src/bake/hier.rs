@@ -1,4 +1,4 @@
-//! Baking a hierarchical device table (core's format version 4) from a hierarchical solution: the solve's tree
+//! Baking a hierarchical device table (core's format version 5) from a hierarchical solution: the solve's tree
 //! and links ([`LinkNetwork`]) become the table's nodes and sender runs, the leaves carry their materials and the
 //! static base, and the dynamic light groups' members are leaves.
 //!

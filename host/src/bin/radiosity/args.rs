@@ -331,7 +331,7 @@ pub enum Command {
         #[arg(long)]
         threshold: Option<f64>,
         /// `flat` (the default): a table of patch-to-patch form factors over the adaptive mesh (format version
-        /// 3); `hierarchical`: the hierarchical solve's tree and links (format version 4), relit by core's
+        /// 3); `hierarchical`: the hierarchical solve's tree and links (format version 5), relit by core's
         /// hierarchical solver; the summary then measures a cold relight of it on the host.
         #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
         method: SolveMethod,

@@ -784,7 +784,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
     Ok(())
 }
 
-/// Whether the file at `path` starts like a hierarchical table (format version 4); `false` if it cannot be read
+/// Whether the file at `path` starts like a hierarchical table (format version 5); `false` if it cannot be read
 /// (the flat inspection then reports why).
 fn is_hierarchical_table(path: &std::path::Path) -> bool {
     std::fs::read(path).is_ok_and(|bytes| {
@@ -826,7 +826,7 @@ fn inspect_hierarchical(
             writeln!(out)?;
         }
         ReportFormat::Text => {
-            writeln!(out, "{}: hierarchical table (format version 4), valid", path.display())?;
+            writeln!(out, "{}: hierarchical table (format version 5), valid", path.display())?;
             for (key, value) in &fields {
                 writeln!(out, "{key:<16} {value}")?;
             }
@@ -1086,7 +1086,7 @@ fn demo_hierarchical(
     writeln!(
         out,
         "\n== hierarchical device table: links between clusters and elements (epsilon {DEMO_HIER_EPSILON}, \
-         brightness refinement), format version 4"
+         brightness refinement), format version 5"
     )?;
     let options = HierarchyOptions {
         epsilon: DEMO_HIER_EPSILON,
