@@ -336,6 +336,9 @@ pub struct HierFrameWork {
     pub script: String,
     /// Links applied (one unit each): `HierSolver::links` after the frame minus before.
     pub links: u64,
+    /// Shots started (`HierSolver::shots`): each sets up its run (the shooter's power, its table bytes, the
+    /// split between its leaf and inner receivers) before its links.
+    pub shots: u64,
     /// The step's other units: nodes judged in rounds and visited by sweeps' pushes and pulls.
     pub nodes: u64,
     /// Units of the frame's light changes (outside the budget).
@@ -343,7 +346,8 @@ pub struct HierFrameWork {
 }
 
 /// Runs every script of `file` on the hierarchical `table` with arithmetic `S` on the host and splits every
-/// frame's units into links and node visits ([`HierFrameWork`]), in frame order (the QEMU log's order).
+/// frame's units into links and node visits, with its shots ([`HierFrameWork`]), in frame order (the QEMU
+/// log's order).
 ///
 /// # Errors
 /// The device loop's error, as text.
@@ -356,13 +360,14 @@ pub fn hier_work<S: Bits>(table: &HierTable<'_>, file: &ScriptFile) -> Result<Ve
             let mut solver = table.solver(memory.buffers(), config).map_err(|e| e.to_string())?;
             device::boot(&mut solver, script).map_err(|e| format!("{}: {e}", script.name))?;
             for (index, frame) in (0u32..).zip(script.frames) {
-                let before = solver.links();
+                let before = (solver.links(), solver.shots());
                 let (light, outcome) = device::run_frame(&mut solver, frame, index)
                     .map_err(|e| format!("{}: {e}", script.name))?;
-                let links = solver.links() - before;
+                let links = solver.links() - before.0;
                 out.push(HierFrameWork {
                     script: script.name.to_string(),
                     links,
+                    shots: u64::from(solver.shots() - before.1),
                     nodes: u64::from(outcome.used()).saturating_sub(links),
                     light_units: u64::from(light),
                 });
@@ -373,58 +378,109 @@ pub fn hier_work<S: Bits>(table: &HierTable<'_>, file: &ScriptFile) -> Result<Ve
     Ok(out)
 }
 
-/// Least squares `y = x . beta` (normal equations, Gaussian elimination with partial pivoting); `None` if they
-/// are singular.
+/// Least squares `y = x . beta` over rows whose first column is 1 (an intercept, unconstrained) with the other
+/// coefficients (rates) `>= 0`: of the fits on every subset of the rate columns (the others held at 0), the
+/// one of least squared residual whose rates are all `>= 0`. Exact non-negative least squares for these few
+/// columns (the optimum is the plain fit on its set of positive rates). Work kinds whose counts move together
+/// over the calibration frames (a table whose runs all hold the same few links: links and shots in proportion)
+/// make the plain fit trade one rate against another, even below 0, and a negative rate prices a frame with
+/// more of that work as cheaper; held at 0 instead, the kinds left carry the cost. `None` if no subset fits.
 #[must_use]
-pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K]> {
-    let mut a = [[0.0f64; K]; K];
-    let mut b = [0.0f64; K];
+pub fn nonnegative_rates<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K]> {
+    let mut best: Option<([f64; K], f64)> = None;
+    for mask in 0u32..1 << (K - 1) {
+        // The intercept and the rate columns of `mask`, as a dense system of their own.
+        let cols: Vec<usize> = (0..K).filter(|&j| j == 0 || mask >> (j - 1) & 1 == 1).collect();
+        let Some(beta) = least_squares_dyn(rows, &cols) else { continue };
+        if beta.iter().skip(1).any(|&b| b < 0.0) {
+            continue;
+        }
+        let mut full = [0.0f64; K];
+        for (&j, &b) in cols.iter().zip(&beta) {
+            full[j] = b;
+        }
+        let sq: f64 = rows
+            .iter()
+            .map(|(x, y)| (y - x.iter().zip(&full).map(|(a, b)| a * b).sum::<f64>()).powi(2))
+            .sum();
+        if best.is_none_or(|(_, s)| sq < s) {
+            best = Some((full, sq));
+        }
+    }
+    best.map(|(b, _)| b)
+}
+
+/// [`least_squares`] on the columns `cols` of `rows` only.
+fn least_squares_dyn<const K: usize>(rows: &[([f64; K], f64)], cols: &[usize]) -> Option<Vec<f64>> {
+    let k = cols.len();
+    let mut a = vec![vec![0.0f64; k]; k];
+    let mut b = vec![0.0f64; k];
     for (x, y) in rows {
-        for i in 0..K {
-            b[i] += x[i] * y;
-            for j in 0..K {
-                a[i][j] += x[i] * x[j];
+        for (i, &ci) in cols.iter().enumerate() {
+            b[i] += x[ci] * y;
+            for (j, &cj) in cols.iter().enumerate() {
+                a[i][j] += x[ci] * x[cj];
             }
         }
     }
+    solve_normal(a, b)
+}
+
+/// Solves the normal equations `a beta = b` by Gaussian elimination with partial pivoting; `None` if they are
+/// singular.
+fn solve_normal(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let k = b.len();
     let scale = a.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-    for col in 0..K {
-        let pivot = (col..K).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
-        // A pivot no larger than the elimination's rounding (about K^2 operations on entries up to `scale`)
+    for col in 0..k {
+        let pivot = (col..k).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        // A pivot no larger than the elimination's rounding (about k^2 operations on entries up to `scale`)
         // means the columns are dependent.
-        if a[pivot][col].abs() <= (K * K) as f64 * f64::EPSILON * scale {
+        if a[pivot][col].abs() <= (k * k) as f64 * f64::EPSILON * scale {
             return None;
         }
         a.swap(col, pivot);
         b.swap(col, pivot);
-        for row in col + 1..K {
+        for row in col + 1..k {
             let f = a[row][col] / a[col][col];
-            let pivot_row = a[col];
+            let pivot_row = a[col].clone();
             for (x, p) in a[row][col..].iter_mut().zip(&pivot_row[col..]) {
                 *x -= f * p;
             }
             b[row] -= f * b[col];
         }
     }
-    let mut beta = [0.0f64; K];
-    for i in (0..K).rev() {
-        let tail: f64 = (i + 1..K).map(|j| a[i][j] * beta[j]).sum();
+    let mut beta = vec![0.0f64; k];
+    for i in (0..k).rev() {
+        let tail: f64 = (i + 1..k).map(|j| a[i][j] * beta[j]).sum();
         beta[i] = (b[i] - tail) / a[i][i];
     }
     Some(beta)
 }
 
+/// Least squares `y = x . beta` (normal equations, Gaussian elimination with partial pivoting); `None` if they
+/// are singular.
+#[must_use]
+pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K]> {
+    let cols: Vec<usize> = (0..K).collect();
+    least_squares_dyn(rows, &cols)?.try_into().ok()
+}
+
 /// Instructions of a hierarchical table's frames split by kind of work: the least-squares fit
-/// `instructions = overhead + per_link * links + per_node * node visits` over the frames of one calibration
-/// script that change no light (frames with different shares of links and node visits separate the two
-/// costs), and the two-rate bound built on it.
+/// `instructions = overhead + per_link * links + per_node * node visits + per_shot * shots` over the frames of
+/// one calibration script that change no light (frames with different shares of the three separate their
+/// costs), and the rate bound built on it. A shot's setup (the shooter's power, its run's bytes and decoder,
+/// the split between its leaf and inner receivers) is paid once per run: where runs are short, or a frame
+/// shoots many nodes with few links each, it is a large part of the work, so without its own rate the link
+/// and node rates fitted on one mix of shots do not bound frames of another (a coarser Cornell table broke
+/// such a two-rate bound on 6 frames).
 ///
-/// The **two-rate bound** of a frame is the larger of a scaled and a shifted envelope of the fit's rates over
+/// The **rate bound** of a frame is the larger of a scaled and a shifted envelope of the fit's rates over
 /// the calibration frames: `max(bound_overhead + bound_scale * w, bound_shift + w)`, with the frame's fitted
-/// work `w = per_link * links + per_node * nodes + max(per_link, per_node) * light_units` (negative fitted
-/// rates count as 0; light-change units, member and chain walks, are neither kind and too few frames carry
-/// them to fit a rate of their own, so they take the larger one). So a frame heavy in links is not held to
-/// the rate of a frame heavy in node visits. The scaled form is built as the one-slope bound ([`calibrate`]):
+/// work `w = per_link * links + per_node * nodes + per_shot * shots + max(per_link, per_node + per_shot) *
+/// light_units` (negative fitted rates count as 0; light-change units, member and chain walks, are no kind of
+/// the three and too few frames carry them to fit a rate of their own, so they take the largest). So a frame
+/// heavy in links is not held to the rate of a frame heavy in node visits. The scaled form is built as
+/// the one-slope bound ([`calibrate`]):
 /// `bound_overhead` is the largest of the fitted overhead, 0 and an idle calibration frame's instructions, and
 /// `bound_scale` the largest ratio of a calibration frame's instructions over `bound_overhead` to its fitted
 /// work (at least 1). The shifted form's `bound_shift` is the largest excess of a calibration frame's
@@ -432,8 +488,8 @@ pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K
 /// fixed costs (a sweep's end, the convergence test) the scaled form, tight at large frames, does not. Each
 /// form covers every calibration frame, so their maximum does too. It is checked on every frame of every
 /// script, with each frame's counts from the host simulator's bit-identical run. Before a frame runs, its
-/// links and node visits are at most its budget, so the same maximum with
-/// `w = max(per_link, per_node) * (budget + light_units)` bounds it.
+/// links and node visits are at most its budget and every shot follows a node visit (the judging of its node),
+/// so the same maximum with `w = max(per_link, per_node + per_shot) * (budget + light_units)` bounds it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HierSplit {
     /// The build (log name).
@@ -446,17 +502,19 @@ pub struct HierSplit {
     pub per_link: f64,
     /// Instructions per node visit (judged in a round, pushed or pulled in a sweep).
     pub per_node: f64,
+    /// Instructions per shot (besides its links and the visit that judged its node).
+    pub per_shot: f64,
     /// Root-mean-square residual of the fit relative to the root-mean-square instructions of its frames.
     pub residual: f64,
-    /// Overhead of the two-rate bound.
+    /// Overhead of the rate bound.
     pub bound_overhead: f64,
-    /// Factor of the two-rate bound's scaled form on the fitted rates.
+    /// Factor of the rate bound's scaled form on the fitted rates.
     pub bound_scale: f64,
-    /// Overhead of the two-rate bound's shifted form (the fitted rates unscaled).
+    /// Overhead of the rate bound's shifted form (the fitted rates unscaled).
     pub bound_shift: f64,
-    /// Frames checked against the two-rate bound (all scripts).
+    /// Frames checked against the rate bound (all scripts).
     pub checked: usize,
-    /// Frames whose measurement exceeded the two-rate bound.
+    /// Frames whose measurement exceeded the rate bound.
     pub violations: usize,
     /// Smallest `1 - measured / bound` over the checked frames.
     pub worst_margin: f64,
@@ -465,14 +523,20 @@ pub struct HierSplit {
 }
 
 impl HierSplit {
-    /// The two-rate bound of a frame with `links` links, `nodes` node visits and `light_units` light-change
-    /// units.
+    /// The fitted work of a frame (negative rates as 0): its links, node visits, shots and light-change units
+    /// (at the largest rate of a unit).
+    fn work(&self, w: &HierFrameWork) -> f64 {
+        let (link, node, shot) = (self.per_link.max(0.0), self.per_node.max(0.0), self.per_shot.max(0.0));
+        link * w.links as f64
+            + node * w.nodes as f64
+            + shot * w.shots as f64
+            + link.max(node + shot) * w.light_units as f64
+    }
+
+    /// The rate bound of a frame with the work `w`.
     #[must_use]
-    pub fn bound(&self, links: u64, nodes: u64, light_units: u64) -> f64 {
-        let (link_rate, node_rate) = (self.per_link.max(0.0), self.per_node.max(0.0));
-        let work = link_rate * links as f64
-            + node_rate * nodes as f64
-            + link_rate.max(node_rate) * light_units as f64;
+    pub fn bound(&self, w: &HierFrameWork) -> f64 {
+        let work = self.work(w);
         (self.bound_overhead + self.bound_scale * work).max(self.bound_shift + work)
     }
 }
@@ -499,46 +563,49 @@ pub fn hier_split(
     // separate; they are left out.
     let cal: Vec<(&QemuFrame, &HierFrameWork)> =
         log.frames.iter().zip(work).filter(|(f, w)| f.script == calibrate && w.light_units == 0).collect();
-    let rows: Vec<([f64; 3], f64)> =
-        cal.iter().map(|(f, w)| ([1.0, w.links as f64, w.nodes as f64], f.instructions as f64)).collect();
-    let [overhead, per_link, per_node] = least_squares(&rows).ok_or_else(|| {
-        format!("{build}: the frames of {calibrate:?} do not separate links from node visits")
+    let rows: Vec<([f64; 4], f64)> = cal
+        .iter()
+        .map(|(f, w)| ([1.0, w.links as f64, w.nodes as f64, w.shots as f64], f.instructions as f64))
+        .collect();
+    let [overhead, per_link, per_node, per_shot] = nonnegative_rates(&rows).ok_or_else(|| {
+        format!("{build}: the frames of {calibrate:?} do not separate links, node visits and shots")
     })?;
     let (mut sq, mut total) = (0.0f64, 0.0f64);
     for (x, y) in &rows {
-        let r = y - (overhead + per_link * x[1] + per_node * x[2]);
+        let r = y - (overhead + per_link * x[1] + per_node * x[2] + per_shot * x[3]);
         sq += r * r;
         total += y * y;
     }
     let residual = if total > 0.0 { (sq / total).sqrt() } else { 0.0 };
-    let idle = rows.iter().filter(|(x, _)| x[1] + x[2] == 0.0).map(|r| r.1).fold(0.0f64, f64::max);
-    let bound_overhead = overhead.max(idle);
-    let (link_rate, node_rate) = (per_link.max(0.0), per_node.max(0.0));
-    let bound_shift =
-        rows.iter().map(|(x, y)| y - link_rate * x[1] - node_rate * x[2]).fold(0.0f64, f64::max).max(idle);
-    let bound_scale = rows
-        .iter()
-        .map(|(x, y)| (y - bound_overhead, link_rate * x[1] + node_rate * x[2]))
-        .filter(|&(_, w)| w > 0.0)
-        .map(|(excess, w)| excess / w)
-        .fold(1.0f64, f64::max);
     let mut m = HierSplit {
         build: build.to_string(),
         samples: cal.len(),
         overhead,
         per_link,
         per_node,
+        per_shot,
         residual,
-        bound_overhead,
-        bound_scale,
-        bound_shift,
+        bound_overhead: 0.0,
+        bound_scale: 1.0,
+        bound_shift: 0.0,
         checked: 0,
         violations: 0,
         worst_margin: f64::INFINITY,
         worst_frame: (String::new(), 0, 0),
     };
+    let idle = cal.iter().filter(|(_, w)| w.links + w.nodes == 0).map(|(f, _)| f.instructions as f64);
+    let idle = idle.fold(0.0f64, f64::max);
+    m.bound_overhead = overhead.max(idle);
+    m.bound_shift =
+        cal.iter().map(|(f, w)| f.instructions as f64 - m.work(w)).fold(0.0f64, f64::max).max(idle);
+    m.bound_scale = cal
+        .iter()
+        .map(|(f, w)| (f.instructions as f64 - m.bound_overhead, m.work(w)))
+        .filter(|&(_, w)| w > 0.0)
+        .map(|(excess, w)| excess / w)
+        .fold(1.0f64, f64::max);
     for (f, w) in log.frames.iter().zip(work) {
-        let bound = m.bound(w.links, w.nodes, w.light_units);
+        let bound = m.bound(w);
         let margin = 1.0 - f.instructions as f64 / bound;
         m.checked += 1;
         // As in `calibrate`: a calibration frame on the envelope may evaluate a few ulps above its bound.
@@ -554,7 +621,7 @@ pub fn hier_split(
 }
 
 /// The markdown section of [`hier_split`] for every log (`(name, log)`) of a hierarchical table and its
-/// scripts, and the number of frames over their two-rate bound; the arithmetic of each log is read from its
+/// scripts, and the number of frames over their rate bound; the arithmetic of each log is read from its
 /// frame lines.
 ///
 /// # Errors
@@ -569,24 +636,27 @@ pub fn hier_split_report(
     let _ = writeln!(
         md,
         "\n## Hierarchical table: instructions per link and per node visit\n\n\
-         Least squares `instructions = overhead + per link * links + per node * node visits` over the frames of \
-         `{calibrate}` that change no light; each frame's links and node visits (judged in a round, pushed or \
-         pulled in a sweep) are counted by the host simulator's bit-identical run (`firmware-sim/src/cost.rs`, \
-         `hier_split`). Residual: RMS of the fit's residuals over RMS instructions. Two-rate bound of a frame: \
-         `bound overhead + scale * (per link * links + per node * node visits + max(per link, per node) * light units)`, \
-         the fitted rates
-         scaled to the upper envelope of the calibration frames (bound overhead = max(overhead, 0, an idle \
-         calibration frame), scale = largest (instructions - bound overhead) / (per link * links + per node * \
-         node visits) of a calibration frame, at least 1), or the fitted rates shifted up by the largest excess of \
-         a calibration frame (bound shift), whichever is larger, checked on every frame of every script with the \
-         host run's counts.\n"
+         Least squares `instructions = overhead + per link * links + per node * node visits + per shot * shots` \
+         over the frames of `{calibrate}` that change no light; each frame's links, node visits (judged in a \
+         round, pushed or pulled in a sweep) and shots (each run's setup) are counted by the host simulator's \
+         bit-identical run (`firmware-sim/src/cost.rs`, `hier_split`). The rates are fitted non-negative: a rate \
+         of 0 means that work moved in step with another kind over the calibration frames (a table whose runs all \
+         hold a few links: links and shots), which then carries the cost of both. Residual: RMS of the fit's \
+         residuals over RMS instructions. Rate bound of a frame: `bound overhead + scale * w`, `w = per link * links + per node * \
+         node visits + per shot * shots + max(per link, per node + per shot) * light units`, the fitted rates \
+         scaled to the upper envelope of the \
+         calibration frames (bound overhead = max(overhead, 0, an idle calibration frame), scale = largest \
+         (instructions - bound overhead) / w of a calibration frame, at least 1), or `bound shift + w`, the fitted \
+         rates shifted up by the largest excess of a calibration frame, whichever is larger, checked on every frame \
+         of every script with the host run's counts.\n"
     );
     let _ = writeln!(
         md,
-        "| build | frames | overhead | instr. per link | instr. per node visit | residual | bound overhead | \
-         bound scale | bound shift | frames checked | over bound | worst margin | worst frame (script, budget, measured) |"
+        "| build | frames | overhead | instr. per link | instr. per node visit | instr. per shot | residual | \
+         bound overhead | bound scale | bound shift | frames checked | over bound | worst margin | worst frame \
+         (script, budget, measured) |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut violations = 0;
     for (name, log) in logs {
         let arith = log
@@ -603,12 +673,13 @@ pub fn hier_split_report(
         violations += m.violations;
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1e} | {:.0} | {:.3} | {:.0} | {} | {} | {:.1} % | {}, {}, {} |",
+            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1e} | {:.0} | {:.3} | {:.0} | {} | {} | {:.1} % | {}, {}, {} |",
             m.build,
             m.samples,
             m.overhead,
             m.per_link,
             m.per_node,
+            m.per_shot,
             m.residual,
             m.bound_overhead,
             m.bound_scale,
@@ -674,5 +745,35 @@ mod tests {
         let collinear: Vec<([f64; 3], f64)> =
             (0..6).map(|k| ([1.0, f64::from(k), 2.0 * f64::from(k)], f64::from(k))).collect();
         assert!(least_squares(&collinear).is_none());
+    }
+
+    #[test]
+    fn nonnegative_rates_hold_a_negative_rate_at_zero() {
+        // Exact non-negative data: the plain fit's rates.
+        let rows: Vec<([f64; 3], f64)> = (0..6)
+            .map(|k| {
+                let (u, v) = (f64::from(k), f64::from(k * k % 5));
+                ([1.0, u, v], 10.0 + 3.0 * u + 7.0 * v)
+            })
+            .collect();
+        let b = nonnegative_rates(&rows).unwrap();
+        for (got, want) in b.iter().zip([10.0, 3.0, 7.0]) {
+            assert!((got - want).abs() < 1e-9, "{b:?}");
+        }
+        // The second kind moves almost in step with the first (u + small noise) and the data has a cost in the
+        // first only: the plain fit trades them and one rate comes out negative; the non-negative fit holds it
+        // at 0 and the other rate carries the cost.
+        let rows: Vec<([f64; 3], f64)> = (0..8)
+            .map(|k| {
+                let u = f64::from(k);
+                let v = u + [0.1, -0.1, 0.2, 0.0, -0.2, 0.1, 0.0, -0.1][k as usize];
+                ([1.0, u, v], 5.0 + 4.0 * u + [1.0, -1.0, 0.5, -0.5, 1.0, -1.0, 0.5, -0.5][k as usize])
+            })
+            .collect();
+        let plain = least_squares(&rows).unwrap();
+        assert!(plain[1] < 0.0 || plain[2] < 0.0, "the plain fit should trade the rates: {plain:?}");
+        let b = nonnegative_rates(&rows).unwrap();
+        assert!(b[1] >= 0.0 && b[2] >= 0.0 && (b[1] == 0.0 || b[2] == 0.0), "{b:?}");
+        assert!((b[1] + b[2] - 4.0).abs() < 0.5, "{b:?}");
     }
 }

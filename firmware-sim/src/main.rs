@@ -99,6 +99,10 @@ enum Command {
         /// The relight scripts the logs ran (default: scenes/cornell-box.relight.toml); used with --table.
         #[arg(long, value_name = "S")]
         scripts: Option<PathBuf>,
+        /// Report frames over the bound (in the report and on stderr) without failing: for measuring rates on
+        /// a table the device does not ship, where a frame over the bound is a finding, not a broken build.
+        #[arg(long)]
+        report_over_bound: bool,
     },
 }
 
@@ -247,7 +251,16 @@ fn run(command: Command) -> Result<(), String> {
         Command::Qemu { input, target, timeout, log } => {
             qemu_run(target.target(), &input.load()?, timeout, log.as_deref())
         }
-        Command::Cost { logs, transfer_logs, calibrate, clock_mhz, out, table, scripts } => {
+        Command::Cost {
+            logs,
+            transfer_logs,
+            calibrate,
+            clock_mhz,
+            out,
+            table,
+            scripts,
+            report_over_bound,
+        } => {
             let parse = |paths: &[PathBuf]| -> Result<Vec<(String, QemuLog)>, String> {
                 paths
                     .iter()
@@ -269,14 +282,14 @@ fn run(command: Command) -> Result<(), String> {
                 if let AnyTable::Hier(t) = AnyTable::parse(&loaded.bytes).map_err(|e| e.to_string())? {
                     let (section, over) = cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?;
                     markdown.push_str(&section);
-                    // A hierarchical frame's units are links and node visits of different costs, so a frame
-                    // whose mix differs from the calibration's can pass the one-rate bound; the two-rate bound
+                    // A hierarchical frame's units are links, node visits and shots of different costs, so a
+                    // frame whose mix differs from the calibration's can pass the one-rate bound; the rate bound
                     // is the one checked, and the one-rate table above stays as information.
                     if report.violations > 0 {
                         markdown.push_str(&format!(
                             "\nThe one-rate model's bound (first table) is exceeded by {} frames of this hierarchical \
-                             table: its units mix links and node visits, whose costs differ; frames are checked \
-                             against the two-rate bound above instead.\n",
+                             table: its units mix links, node visits and shots, whose costs differ; frames are \
+                             checked against the rate bound above instead.\n",
                             report.violations
                         ));
                     }
@@ -287,7 +300,11 @@ fn run(command: Command) -> Result<(), String> {
                 Some(p) => std::fs::write(p, &markdown).map_err(file_err(p))?,
                 None => print!("{markdown}"),
             }
-            if violations > 0 {
+            if violations > 0 && report_over_bound {
+                eprintln!(
+                    "warning: {violations} frames exceed the cost model's bounds (reported, not failed)"
+                );
+            } else if violations > 0 {
                 return Err(format!("{violations} frames exceed the cost model's bounds"));
             }
             Ok(())

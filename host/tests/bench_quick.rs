@@ -159,12 +159,13 @@ fn quick_bench_writes_a_well_formed_report() {
         assert!(c.points.windows(2).all(|w| w[0].units < w[1].units), "{}: units not increasing", c.name);
         for p in &c.points {
             assert!(
-                (p.instructions - c.model.instructions(p.units, p.links)).abs() <= 1e-9 * p.instructions,
+                (p.instructions - c.model.instructions(p.units, p.links, p.shots)).abs()
+                    <= 1e-9 * p.instructions,
                 "{}",
                 c.name
             );
             assert!(p.links.is_none_or(|l| l <= p.units), "{}: {p:?}", c.name);
-            // Links are counted for the hierarchical table (its two-rate bound needs them), not for the flat one.
+            // Links are counted for the hierarchical table (its rate bound needs them), not for the flat one.
             assert_eq!(p.links.is_some(), c.name.starts_with("hierarchical"), "{}: {p:?}", c.name);
             assert!(p.faces.worst.is_finite() && p.faces.mean <= p.faces.worst, "{}: {p:?}", c.name);
         }

@@ -505,14 +505,14 @@ pub fn bound_per_unit(cost_md: &str, build: &str) -> Result<f64, BenchError> {
         .ok_or_else(|| BenchError::Options(format!("COST.md: bad bound per unit for {build}")))
 }
 
-/// The two-rate bound of firmware build `build` from the table of instructions per link and per node visit in
-/// `firmware-sim/COST.md`: `(per link, per node visit, bound scale)`.
+/// The rate bound of firmware build `build` from the table of instructions per link, per node visit and per
+/// shot in `firmware-sim/COST.md`: `(per link, per node visit, per shot, bound scale)`.
 ///
 /// # Errors
 /// If that table, its columns or a row for `build` are missing, or a value does not parse.
-pub fn two_rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64), BenchError> {
-    let bad = |what: &str| BenchError::Options(format!("COST.md: {what} (two-rate bound of {build})"));
-    // The build's row in a table whose header has the two-rate columns (a build has rows in other tables too).
+pub fn rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64, f64), BenchError> {
+    let bad = |what: &str| BenchError::Options(format!("COST.md: {what} (rate bound of {build})"));
+    // The build's row in a table whose header has the rate columns (a build has rows in other tables too).
     let lines: Vec<&str> = cost_md.lines().collect();
     let row_in_table = |k: usize| {
         let rows = lines.get(k + 1..).unwrap_or(&[]).iter().take_while(|l| l.starts_with('|'));
@@ -527,12 +527,13 @@ pub fn two_rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64), Ben
     let col = |name: &str| {
         header.split('|').position(|c| c.trim() == name).ok_or_else(|| bad(&format!("no `{name}` column")))
     };
-    let (link, node, scale) = (col("instr. per link")?, col("instr. per node visit")?, col("bound scale")?);
+    let (link, node) = (col("instr. per link")?, col("instr. per node visit")?);
+    let (shot, scale) = (col("instr. per shot")?, col("bound scale")?);
     let cells: Vec<&str> = row.split('|').collect();
     let value = |k: usize| {
         cells.get(k).and_then(|c| c.trim().parse::<f64>().ok()).ok_or_else(|| bad("a value does not parse"))
     };
-    Ok((value(link)?, value(node)?, value(scale)?))
+    Ok((value(link)?, value(node)?, value(shot)?, value(scale)?))
 }
 
 /// The cost model as built in.
@@ -636,26 +637,26 @@ mod tests {
 
     #[test]
     fn cost_bounds_are_read_from_their_own_tables() {
-        // A cost report of the committed shape: sections, each a one-rate table and then a two-rate table. Build
-        // `x` has rows only in the second section, its one-rate row after the first two-rate table's header.
+        // A cost report of the committed shape: sections, each a one-rate table and then a rate table. Build
+        // `x` has rows only in the second section, its one-rate row after the first rate table's header.
         let one_rate =
             "| build | calibration frames | LS overhead (instr.) | LS instr. per unit | bound overhead | \
                         bound instr. per unit |\n|---|---|---|---|---|---|\n";
-        let two_rate = "| build | frames | overhead | instr. per link | instr. per node visit | residual | bound overhead \
-                        | bound scale |\n|---|---|---|---|---|---|---|---|\n";
+        let rates = "| build | frames | overhead | instr. per link | instr. per node visit | instr. per shot | residual \
+                     | bound overhead | bound scale |\n|---|---|---|---|---|---|---|---|---|\n";
         let md = format!(
-            "{one_rate}| y | 37 | 10 | 70.0 | 10 | 80.0 |\n\n{two_rate}| y | 33 | 5 | 99.0 | 1.0 | 0.1 | 5 | 1.5 |\n\n\
+            "{one_rate}| y | 37 | 10 | 70.0 | 10 | 80.0 |\n\n{rates}| y | 33 | 5 | 99.0 | 1.0 | 7.5 | 0.1 | 5 | 1.5 |\n\n\
              {one_rate}| x | 37 | 2227 | 74.19 | 2227 | 82.58 |\n\n\
-             {two_rate}| x | 33 | 12121 | 82.5 | 65.2 | 3.4e-3 | 12121 | 1.204 |\n"
+             {rates}| x | 33 | 12121 | 82.5 | 65.2 | 70.5 | 3.4e-3 | 12121 | 1.204 |\n"
         );
         assert_eq!(bound_per_unit(&md, "x").unwrap(), 82.58);
-        assert_eq!(two_rate_bound(&md, "x").unwrap(), (82.5, 65.2, 1.204));
-        assert_eq!(two_rate_bound(&md, "y").unwrap(), (99.0, 1.0, 1.5));
-        assert!(two_rate_bound(&md, "z").is_err());
-        assert!(two_rate_bound("| build | a |\n| x | 1 |\n", "x").is_err());
-        // The built-in report: the Cornell table's rates are those of the last row of its build (the two-rate
+        assert_eq!(rate_bound(&md, "x").unwrap(), (82.5, 65.2, 70.5, 1.204));
+        assert_eq!(rate_bound(&md, "y").unwrap(), (99.0, 1.0, 7.5, 1.5));
+        assert!(rate_bound(&md, "z").is_err());
+        assert!(rate_bound("| build | a |\n| x | 1 |\n", "x").is_err());
+        // The built-in report: the Cornell table's rates are those of the last row of its build (the rate
         // table closes the section that names the table).
-        let (link, node, scale) = two_rate_bound(COST_MD, "cornell-hier-m4-f32").unwrap();
+        let (link, node, _, scale) = rate_bound(COST_MD, "cornell-hier-m4-f32").unwrap();
         let row = COST_MD.lines().rfind(|l| l.starts_with("| cornell-hier-m4-f32 |")).unwrap();
         let cells: Vec<&str> = row.split('|').map(str::trim).collect();
         assert_eq!(
