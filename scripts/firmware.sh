@@ -84,7 +84,7 @@ echo "--- m4-f32 (the Cornell box as a hierarchical table)"
     printf '\n### Size and stack high-water mark\n\n'
     grep -h '^size:' "$out/cornell-hier-m4-f32.txt" | sed "s/^size: /- m4-f32: /"
 } >>"$out/COST.md"
-# The Cornell box baked coarser (epsilon 0.1, 561 leaves), whose fixed-point buffers fit the M4's 64 KiB: its runs
+# The Cornell box baked coarser (epsilon 0.1), whose fixed-point buffers fit the M4's 64 KiB: its runs
 # are a real scene's too, so its fixed-point rates (and its f32 rates, on the same frames) are the ones a device
 # sees, where the test table's runs of at most 4 links mostly measure each shot's setup. A measurement, not a
 # table the device ships: frames over its bound are reported, not failed.

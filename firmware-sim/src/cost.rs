@@ -472,7 +472,7 @@ pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K
 /// the split between its leaf and inner receivers) is paid once per run: where runs are short, or a frame
 /// shoots many nodes with few links each, it is a large part of the work, so without its own rate the link
 /// and node rates fitted on one mix of shots do not bound frames of another (a coarser Cornell table broke
-/// such a two-rate bound on 6 frames).
+/// such a two-rate bound).
 ///
 /// The **rate bound** of a frame is the larger of a scaled and a shifted envelope of the fit's rates over
 /// the calibration frames: `max(bound_overhead + bound_scale * w, bound_shift + w)`, with the frame's fitted

@@ -568,11 +568,19 @@ impl<'a> HierTable<'a> {
     #[inline]
     pub(crate) fn slot_unchecked(&self, node: u32) -> u32 {
         let (l, next) = pair(self.node_leaf_start, node);
-        if next != l {
-            l
-        } else {
-            self.header.leaf_count.wrapping_add(node.wrapping_sub(l))
-        }
+        slot_of(node, l, next != l, self.header.leaf_count)
+    }
+}
+
+/// The slot of `node` (`docs/format.md`, "Slots") from its leaf start `l` (the leaves before it), whether it
+/// is a leaf, and the leaf count: `l` for a leaf, `leaves + node - l` (its inner index after the leaves) for an
+/// inner node. The one place the numbering is written; the parser, the writer and the solver's sweep call it.
+#[inline(always)]
+pub(crate) fn slot_of(node: u32, l: u32, leaf: bool, leaves: u32) -> u32 {
+    if leaf {
+        l
+    } else {
+        leaves.wrapping_add(node.wrapping_sub(l))
     }
 }
 
@@ -593,7 +601,8 @@ pub(crate) fn check_slots(
     for k in 0..nodes {
         if end(k) == k + 1 {
             let p = parent(k);
-            let want = if p == k { inner } else { p.wrapping_sub(leaf_start(p)) };
+            // A parent's inner index is its slot less the leaf count.
+            let want = if p == k { inner } else { slot_of(p, leaf_start(p), false, 0) };
             if leaf_parent(leaf_start(k)) != want {
                 return Err(TableError::BadTree { node: k, fault: TreeFault::LeafParent });
             }

@@ -5,7 +5,7 @@
 //! computes in place in the output buffer.
 
 use super::hier::{
-    check_slots, check_tree, read_index, HierHeader, HierSectionSizes, PathSum, MAX_HIER_HEADER_LEN,
+    check_slots, check_tree, read_index, slot_of, HierHeader, HierSectionSizes, PathSum, MAX_HIER_HEADER_LEN,
 };
 use super::layout::{le_f32, le_u32};
 use super::write::{
@@ -283,20 +283,13 @@ pub fn write_hier_table(spec: &HierSpec<'_>, out: &mut [u8]) -> Result<usize, Wr
     }
     o.at = leaf_node_at + usize::from(ib) * n;
     let is_leaf = |buf: &[u8], k: u32| read_u32(buf, end_at, k) == k + 1;
-    let slot = |buf: &[u8], k: u32| {
-        let l = read_u32(buf, leaf_start_at, k);
-        if is_leaf(buf, k) {
-            l
-        } else {
-            (n as u32).wrapping_add(k.wrapping_sub(l))
-        }
-    };
+    let slot = |buf: &[u8], k: u32| slot_of(k, read_u32(buf, leaf_start_at, k), is_leaf(buf, k), n as u32);
     // Each leaf's parent as an inner index (the inner count for a root leaf), then the inner nodes.
     let leaf_parent_at = o.at;
     for k in 0..nn as u32 {
         if is_leaf(o.buf, k) {
             let p = parent_of(spec, k);
-            let v = if p == k { (nn - n) as u32 } else { p - read_u32(o.buf, leaf_start_at, p) };
+            let v = if p == k { (nn - n) as u32 } else { slot(o.buf, p) - n as u32 };
             o.index(v, ib);
         }
     }

@@ -18,7 +18,7 @@ mod view;
 pub mod write;
 
 pub use error::{IndexArray, OffsetArray, QuantParam, TableError, TreeFault};
-pub(crate) use hier::NodeSections;
+pub(crate) use hier::{slot_of, NodeSections};
 pub use hier::{HierMember, HierSectionSizes, HierTable};
 pub use hier_write::{hier_required_len, write_hier_table, HierSpec, NodeSpec};
 pub use layout::{SectionSizes, TransferSection};

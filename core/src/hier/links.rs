@@ -67,17 +67,28 @@ impl<S: Scalar> Targets<'_, '_, S> {
         // The products' path chosen once per run: codes read at the codec's width need no clamp, and the
         // shooter's power and the row's shifts decide once whether fixed point's products can skip their checks.
         if S::link_fast(&decoder, &power) {
-            self.leaf_links(leaf_r, leaf_c, leaves, |c| S::link_products_fast(power, le::<CB>(c), decoder));
-            for (r, c) in inner_r.iter().zip(inner_c) {
-                let x = S::link_products_fast(power, le::<CB>(c), decoder);
-                add_at(self.pending, le::<IB>(r).wrapping_sub(leaves) as usize, x);
-            }
+            let product = |c: &[u8; CB]| S::link_products_fast(power, le::<CB>(c), decoder);
+            self.leaf_links(leaf_r, leaf_c, leaves, product);
+            self.inner_links(inner_r, inner_c, leaves, product);
         } else {
-            self.leaf_links(leaf_r, leaf_c, leaves, |c| S::link_products(power, le::<CB>(c), decoder));
-            for (r, c) in inner_r.iter().zip(inner_c) {
-                let x = S::link_products(power, le::<CB>(c), decoder);
-                add_at(self.pending, le::<IB>(r).wrapping_sub(leaves) as usize, x);
-            }
+            let product = |c: &[u8; CB]| S::link_products(power, le::<CB>(c), decoder);
+            self.leaf_links(leaf_r, leaf_c, leaves, product);
+            self.inner_links(inner_r, inner_c, leaves, product);
+        }
+    }
+
+    /// Links to inner nodes (receiver slots from `leaves` on): each adds `product(code) = F U_s` to its
+    /// receiver's pending power, spread over its subtree by the next sweep.
+    #[inline(always)]
+    fn inner_links<const IB: usize, const CB: usize>(
+        &mut self,
+        receivers: &[[u8; IB]],
+        codes: &[[u8; CB]],
+        leaves: u32,
+        product: impl Fn(&[u8; CB]) -> [S; 3],
+    ) {
+        for (r, c) in receivers.iter().zip(codes) {
+            add_at(self.pending, le::<IB>(r).wrapping_sub(leaves) as usize, product(c));
         }
     }
 
@@ -85,7 +96,7 @@ impl<S: Scalar> Targets<'_, '_, S> {
     /// `x = product(code) = F U_s` into leaf `l`'s incident power, and the reflected `rho_l F U_s` into its own
     /// unshot power and, pending for the rest of its chain, into its parent's reflected entry (a root leaf's
     /// parent index is the inner count, past the buffer: nothing). A link to an inner node adds `x` to its
-    /// pending power instead (spread over its subtree by the next sweep; [`Targets::run`]).
+    /// pending power instead ([`Targets::inner_links`]).
     ///
     /// A run's leaves are in leaf order, so neighbours mostly share a parent and a material: the parent's
     /// reflected entry is held in registers while the parent stays the same (added to link by link, so the

@@ -143,7 +143,7 @@ pub use buffers::{HierBufferSizes, HierBuffers, HierStaticBuffers, SweepFrame};
 
 use crate::base::emission;
 use crate::codec::{decode_reflectance, encode_reflectance, Frac};
-use crate::format::HierTable;
+use crate::format::{slot_of, HierTable};
 use crate::scalar::Scalar;
 use crate::solver::{Config, NoProgressReason, Outcome, SolverError, MAX_PATCHES, RHO_CACHE};
 
@@ -532,7 +532,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         let nodes = self.table.node_sections();
         let (l, next) = nodes.leaf_starts(node);
         let leaf = next != l;
-        let slot = if leaf { l } else { self.table.leaf_count().wrapping_add(node.wrapping_sub(l)) };
+        let slot = slot_of(node, l, leaf, self.table.leaf_count());
         let end = if leaf { node.wrapping_add(1) } else { self.table.subtree_end_unchecked(node) };
         let area = S::from_f32(self.table.node_area_unchecked(node));
         let (e, reflected) = if leaf {
