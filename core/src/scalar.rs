@@ -303,6 +303,35 @@ fn round_shift_product(x: i64, m: i64, s: u32) -> i64 {
     x.wrapping_mul(m).wrapping_add(1i64.wrapping_shl(s.wrapping_sub(1))).wrapping_shr(s)
 }
 
+/// `floor(n 2^32 / (m 2^s))` for a divisor of at most 24 significant bits (`m < 2^24`, `s < 64`), or `None`
+/// when it is `2^63` or more: `Fixed::div`'s magnitude. Flooring by `2^s` first does not change the quotient
+/// (`floor(floor(x / a) / b) = floor(x / (a b))` for positive integers), so the dividend is the up to 96-bit
+/// `N = floor(n 2^(32 - s))`, divided by `m` as a long division in base `2^8`: its top word by one 32-bit
+/// division, then one byte at a time, each partial dividend `(r << 8) | byte` below `2^32` because the
+/// remainder `r` is below `m < 2^24`. Nine 32-bit divisions whatever the operands (one instruction each on a
+/// Cortex-M3/M4), where a 64-bit or 128-bit division is a library loop whose length depends on them.
+#[inline(always)]
+fn div_short(n: u64, m: core::num::NonZeroU32, s: u32) -> Option<u64> {
+    // N = top 2^64 + low.
+    let (top, low) = if s >= FIXED_FRAC_BITS {
+        (0u32, n >> (s - FIXED_FRAC_BITS))
+    } else {
+        ((n >> (FIXED_FRAC_BITS + s)) as u32, n << (FIXED_FRAC_BITS - s))
+    };
+    let mut r = top % m;
+    let q_top = top / m;
+    let mut halves = [0u32; 2];
+    for (h, word) in halves.iter_mut().zip([(low >> 32) as u32, low as u32]) {
+        for byte in word.to_be_bytes() {
+            let x = (r << 8) | u32::from(byte);
+            *h = (*h << 8) | (x / m);
+            r = x % m;
+        }
+    }
+    let q = (u64::from(halves[0]) << 32) | u64::from(halves[1]);
+    (q_top == 0 && q >> 63 == 0).then_some(q)
+}
+
 impl Fixed {
     /// [`Scalar::mul_frac`] through the 128-bit product (the operands its 32-bit path does not take): kept out
     /// of line, so the inlined products stay small.
@@ -327,7 +356,18 @@ impl Scalar for Fixed {
         Fixed(self.0.saturating_sub(other.0))
     }
     fn mul(self, other: Fixed) -> Fixed {
-        Fixed::saturate((i128::from(self.0) * i128::from(other.0)) >> FIXED_FRAC_BITS)
+        // The magnitudes' product (zero-extended 64-bit operands: four 32 x 32-bit products, where the signed
+        // 128-bit product also multiplies the sign extensions), then the signed product's floor by 2^32: for a
+        // negative product `-ceil(P / 2^32)`. Saturated as `(a b) >> 32` in 128 bits would be.
+        let p = u128::from(self.0.unsigned_abs()) * u128::from(other.0.unsigned_abs());
+        if (self.0 < 0) != (other.0 < 0) {
+            // P < 2^126, so the sum does not overflow; -2^63 itself is i64::MIN, below it saturates there too.
+            let q = (p + ((1 << FIXED_FRAC_BITS) - 1)) >> FIXED_FRAC_BITS;
+            Fixed(if q >> 63 == 0 { -(q as i64) } else { i64::MIN })
+        } else {
+            let q = p >> FIXED_FRAC_BITS;
+            Fixed(if q >> 63 == 0 { q as i64 } else { i64::MAX })
+        }
     }
     fn div(self, other: Fixed) -> Fixed {
         if other.0 == 0 {
@@ -338,6 +378,17 @@ impl Scalar for Fixed {
         // `|self| / |other|`, and `r 2^32` fits since `r < |other| < 2^32`. Truncated toward zero and, when
         // `q < 2^31`, not saturated, as the 128-bit quotient below: the same bits.
         let (n, d) = (self.0.unsigned_abs(), other.0.unsigned_abs());
+        // Divisors of at most 24 significant bits (every area, an f32 converted) take a long division by
+        // 32-bit divisions, whose cost does not depend on the operands (`div_short`).
+        let zeros = d.trailing_zeros();
+        let m = d >> zeros;
+        if let Some(m) = core::num::NonZeroU32::new(m as u32).filter(|_| m >> 24 == 0) {
+            return match div_short(n, m, zeros) {
+                Some(q) => Fixed(if (self.0 < 0) != (other.0 < 0) { -(q as i64) } else { q as i64 }),
+                None if (self.0 < 0) != (other.0 < 0) => Fixed::MIN,
+                None => Fixed::MAX,
+            };
+        }
         if d >> FIXED_FRAC_BITS == 0 {
             let (q, r) = (n / d, n % d);
             if q >> 31 == 0 {
@@ -430,8 +481,13 @@ impl sealed::Internal for Fixed {
     fn rho(code: u16) -> u16 {
         code
     }
+    /// `mul_frac`'s one 64-bit product path is taken for every `|self| < 2^46` (a reflectance's mantissa is
+    /// below 2^16 and its shift 16): tested here on the magnitude alone, the shift a constant.
     #[inline(always)]
     fn mul_rho(self, rho: u16) -> Fixed {
+        if self.0.unsigned_abs() >> 46 == 0 {
+            return Fixed(round_shift_product(self.0, i64::from(rho), 16));
+        }
         self.mul_frac(decode_reflectance(rho))
     }
     /// A magnitude is a saturating sum of saturating absolute values: in `0..=i64::MAX`, the unusable one
@@ -588,8 +644,9 @@ mod tests {
     }
 
     #[test]
-    fn fixed_div_matches_the_128_bit_quotient() {
-        // The two-division path (divisors below 1.0) against the 128-bit quotient, signs and edges included.
+    fn fixed_div_and_mul_match_the_128_bit_quotient_and_product() {
+        // The division's paths (short divisors, divisors below 1.0) against the 128-bit quotient, and the product
+        // against the signed 128-bit product, signs, edges and saturation included.
         let values = [
             0i64,
             1,
@@ -613,14 +670,34 @@ mod tests {
             seed ^= seed << 17;
             *v = (seed as i64) >> (seed % 48);
         }
+        // Divisors of at most 24 significant bits (the short long division): areas as the solver converts them,
+        // the edges of its premise (2^24 - 1 and 2^24 at every shift), and random ones.
+        let mut short: Vec<i64> = [1e-9f32, 3.7e-5, 0.01, 0.3, 1.0, 1.5, 2.0, 343.0, 1.3e4, 5.5e5, 2.1e8]
+            .iter()
+            .flat_map(|&a| [Fixed::from_f32(a).0, -Fixed::from_f32(a).0])
+            .collect();
+        for k in [0u32, 1, 8, 31, 32, 33, 38, 39] {
+            short.extend([((1i64 << 24) - 1) << k, (1i64 << 24) << k, -(((1i64 << 24) - 3) << k)]);
+        }
+        for _ in 0..64 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            short.push(((seed & 0xff_ffff) as i64 | 1) << (seed >> 58));
+        }
+        assert!(short.iter().all(|&d| d != 0));
+        assert!(short.iter().filter(|&&d| (d.unsigned_abs() >> d.trailing_zeros()) >> 24 == 0).count() > 100);
         for &a in values.iter().chain(&more) {
-            for &b in values.iter().chain(&more) {
+            for &b in values.iter().chain(&more).chain(&short) {
                 let expected = if b == 0 {
                     Fixed(0)
                 } else {
                     Fixed::saturate((i128::from(a) << FIXED_FRAC_BITS) / i128::from(b))
                 };
                 assert_eq!(Fixed(a).div(Fixed(b)), expected, "{a} / {b}");
+                // The product from the magnitudes' product against the signed 128-bit one, on the same pairs.
+                let product = Fixed::saturate((i128::from(a) * i128::from(b)) >> FIXED_FRAC_BITS);
+                assert_eq!(Fixed(a).mul(Fixed(b)), product, "{a} * {b}");
             }
         }
     }
@@ -786,6 +863,11 @@ mod tests {
                 assert_eq!(x.mul_rho(f32::rho(code)).to_bits(), x.mul_frac(frac).to_bits(), "{x} * {code}");
                 let fx = Fixed::from_f32(x);
                 assert_eq!(fx.mul_rho(Fixed::rho(code)), fx.mul_frac(frac), "{x} * {code} (fixed)");
+            }
+            // Both sides of the 64-bit path's bound, 2^46 raw.
+            for raw in [(1i64 << 46) - 1, 1 << 46, -((1i64 << 46) - 1), -(1i64 << 46), i64::MIN, i64::MAX] {
+                let fx = Fixed(raw);
+                assert_eq!(fx.mul_rho(Fixed::rho(code)), fx.mul_frac(frac), "{raw} * {code} (fixed)");
             }
         }
     }
