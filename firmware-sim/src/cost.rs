@@ -339,14 +339,18 @@ pub struct HierFrameWork {
     /// Shots started (`HierSolver::shots`): each sets up its run (the shooter's power, its table bytes, the
     /// split between its leaf and inner receivers) before its links.
     pub shots: u64,
-    /// The step's other units: nodes judged in rounds and visited by sweeps' pushes and pulls.
-    pub nodes: u64,
+    /// Nodes judged in rounds (`HierSolver::judged`, one unit each): a run's bounds and an unshot magnitude
+    /// read and compared.
+    pub judged: u64,
+    /// The step's other units: nodes entered and left by sweeps (chain irradiance pushed, reflected and unshot
+    /// power pulled), each dearer than a judging.
+    pub swept: u64,
     /// Units of the frame's light changes (outside the budget).
     pub light_units: u64,
 }
 
 /// Runs every script of `file` on the hierarchical `table` with arithmetic `S` on the host and splits every
-/// frame's units into links and node visits, with its shots ([`HierFrameWork`]), in frame order (the QEMU
+/// frame's units into links, nodes judged and nodes swept, with its shots ([`HierFrameWork`]), in frame order (the QEMU
 /// log's order).
 ///
 /// # Errors
@@ -360,15 +364,17 @@ pub fn hier_work<S: Bits>(table: &HierTable<'_>, file: &ScriptFile) -> Result<Ve
             let mut solver = table.solver(memory.buffers(), config).map_err(|e| e.to_string())?;
             device::boot(&mut solver, script).map_err(|e| format!("{}: {e}", script.name))?;
             for (index, frame) in (0u32..).zip(script.frames) {
-                let before = (solver.links(), solver.shots());
+                let before = (solver.links(), solver.shots(), solver.judged());
                 let (light, outcome) = device::run_frame(&mut solver, frame, index)
                     .map_err(|e| format!("{}: {e}", script.name))?;
                 let links = solver.links() - before.0;
+                let judged = solver.judged() - before.2;
                 out.push(HierFrameWork {
                     script: script.name.to_string(),
                     links,
                     shots: u64::from(solver.shots() - before.1),
-                    nodes: u64::from(outcome.used()).saturating_sub(links),
+                    judged,
+                    swept: u64::from(outcome.used()).saturating_sub(links + judged),
                     light_units: u64::from(light),
                 });
             }
@@ -466,20 +472,25 @@ pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K
 }
 
 /// Instructions of a hierarchical table's frames split by kind of work: the least-squares fit
-/// `instructions = overhead + per_link * links + per_node * node visits + per_shot * shots` over the frames of
-/// one calibration script that change no light (frames with different shares of the three separate their
-/// costs), and the rate bound built on it. A shot's setup (the shooter's power, its run's bytes and decoder,
-/// the split between its leaf and inner receivers) is paid once per run: where runs are short, or a frame
-/// shoots many nodes with few links each, it is a large part of the work, so without its own rate the link
-/// and node rates fitted on one mix of shots do not bound frames of another (a coarser Cornell table broke
-/// such a two-rate bound).
+/// `instructions = overhead + per_link * links + per_judged * nodes judged + per_swept * nodes swept +
+/// per_shot * shots` over the frames of one calibration script that change no light (frames with different
+/// shares of the four separate their costs), and the rate bound built on it. A shot's setup (the shooter's
+/// power, its run's bytes and decoder, the split between its leaf and inner receivers) is paid once per run:
+/// where runs are short, or a frame shoots many nodes with few links each, it is a large part of the work, so
+/// without its own rate the link and node rates fitted on one mix of shots do not bound frames of another (a
+/// coarser Cornell table broke such a two-rate bound). Likewise a node judged in a round (a run's bounds and a
+/// magnitude compared) is much cheaper than a node entered or left by a sweep (products and sums of its
+/// chain's and its children's powers), and a budget cuts a frame anywhere in a round or a sweep, so one node
+/// rate fitted on one mix of the two does not bound frames of another (shooting at a smaller round share
+/// broke such a bound on fixed point, whose sweep visits are dearest).
 ///
 /// The **rate bound** of a frame is the larger of a scaled and a shifted envelope of the fit's rates over
 /// the calibration frames: `max(bound_overhead + bound_scale * w, bound_shift + w)`, with the frame's fitted
-/// work `w = per_link * links + per_node * nodes + per_shot * shots + max(per_link, per_node + per_shot) *
-/// light_units` (negative fitted rates count as 0; light-change units, member and chain walks, are no kind of
-/// the three and too few frames carry them to fit a rate of their own, so they take the largest). So a frame
-/// heavy in links is not held to the rate of a frame heavy in node visits. The scaled form is built as
+/// work `w = per_link * links + per_judged * judged + per_swept * swept + per_shot * shots + u * light_units`,
+/// `u = max(per_link, per_swept, per_judged + per_shot)` the largest rate of a unit (negative fitted rates
+/// count as 0; light-change units, member and chain walks, are no kind of the four and too few frames carry
+/// them to fit a rate of their own, so they take the largest). So a frame heavy in links is not held to the
+/// rate of a frame heavy in node visits. The scaled form is built as
 /// the one-slope bound ([`calibrate`]):
 /// `bound_overhead` is the largest of the fitted overhead, 0 and an idle calibration frame's instructions, and
 /// `bound_scale` the largest ratio of a calibration frame's instructions over `bound_overhead` to its fitted
@@ -488,8 +499,8 @@ pub fn least_squares<const K: usize>(rows: &[([f64; K], f64)]) -> Option<[f64; K
 /// fixed costs (a sweep's end, the convergence test) the scaled form, tight at large frames, does not. Each
 /// form covers every calibration frame, so their maximum does too. It is checked on every frame of every
 /// script, with each frame's counts from the host simulator's bit-identical run. Before a frame runs, its
-/// links and node visits are at most its budget and every shot follows a node visit (the judging of its node),
-/// so the same maximum with `w = max(per_link, per_node + per_shot) * (budget + light_units)` bounds it.
+/// links and node visits are at most its budget and every shot follows a judging (of its node), so the same
+/// maximum with `w = u * (budget + light_units)` bounds it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HierSplit {
     /// The build (log name).
@@ -500,9 +511,11 @@ pub struct HierSplit {
     pub overhead: f64,
     /// Instructions per link applied.
     pub per_link: f64,
-    /// Instructions per node visit (judged in a round, pushed or pulled in a sweep).
-    pub per_node: f64,
-    /// Instructions per shot (besides its links and the visit that judged its node).
+    /// Instructions per node judged in a round.
+    pub per_judged: f64,
+    /// Instructions per node visited by a sweep (entered or left).
+    pub per_swept: f64,
+    /// Instructions per shot (besides its links and the judging of its node).
     pub per_shot: f64,
     /// Root-mean-square residual of the fit relative to the root-mean-square instructions of its frames.
     pub residual: f64,
@@ -523,14 +536,17 @@ pub struct HierSplit {
 }
 
 impl HierSplit {
-    /// The fitted work of a frame (negative rates as 0): its links, node visits, shots and light-change units
-    /// (at the largest rate of a unit).
+    /// The fitted work of a frame (negative rates as 0): its links, nodes judged and swept, shots and
+    /// light-change units (at the largest rate of a unit).
     fn work(&self, w: &HierFrameWork) -> f64 {
-        let (link, node, shot) = (self.per_link.max(0.0), self.per_node.max(0.0), self.per_shot.max(0.0));
+        let link = self.per_link.max(0.0);
+        let (judged, swept, shot) =
+            (self.per_judged.max(0.0), self.per_swept.max(0.0), self.per_shot.max(0.0));
         link * w.links as f64
-            + node * w.nodes as f64
+            + judged * w.judged as f64
+            + swept * w.swept as f64
             + shot * w.shots as f64
-            + link.max(node + shot) * w.light_units as f64
+            + link.max(swept).max(judged + shot) * w.light_units as f64
     }
 
     /// The rate bound of a frame with the work `w`.
@@ -563,16 +579,19 @@ pub fn hier_split(
     // separate; they are left out.
     let cal: Vec<(&QemuFrame, &HierFrameWork)> =
         log.frames.iter().zip(work).filter(|(f, w)| f.script == calibrate && w.light_units == 0).collect();
-    let rows: Vec<([f64; 4], f64)> = cal
+    let rows: Vec<([f64; 5], f64)> = cal
         .iter()
-        .map(|(f, w)| ([1.0, w.links as f64, w.nodes as f64, w.shots as f64], f.instructions as f64))
+        .map(|(f, w)| {
+            let x = [1.0, w.links as f64, w.judged as f64, w.swept as f64, w.shots as f64];
+            (x, f.instructions as f64)
+        })
         .collect();
-    let [overhead, per_link, per_node, per_shot] = nonnegative_rates(&rows).ok_or_else(|| {
-        format!("{build}: the frames of {calibrate:?} do not separate links, node visits and shots")
+    let [overhead, per_link, per_judged, per_swept, per_shot] = nonnegative_rates(&rows).ok_or_else(|| {
+        format!("{build}: the frames of {calibrate:?} do not separate links, nodes judged, nodes swept and shots")
     })?;
     let (mut sq, mut total) = (0.0f64, 0.0f64);
     for (x, y) in &rows {
-        let r = y - (overhead + per_link * x[1] + per_node * x[2] + per_shot * x[3]);
+        let r = y - (overhead + per_link * x[1] + per_judged * x[2] + per_swept * x[3] + per_shot * x[4]);
         sq += r * r;
         total += y * y;
     }
@@ -582,7 +601,8 @@ pub fn hier_split(
         samples: cal.len(),
         overhead,
         per_link,
-        per_node,
+        per_judged,
+        per_swept,
         per_shot,
         residual,
         bound_overhead: 0.0,
@@ -593,7 +613,8 @@ pub fn hier_split(
         worst_margin: f64::INFINITY,
         worst_frame: (String::new(), 0, 0),
     };
-    let idle = cal.iter().filter(|(_, w)| w.links + w.nodes == 0).map(|(f, _)| f.instructions as f64);
+    let idle =
+        cal.iter().filter(|(_, w)| w.links + w.judged + w.swept == 0).map(|(f, _)| f.instructions as f64);
     let idle = idle.fold(0.0f64, f64::max);
     m.bound_overhead = overhead.max(idle);
     m.bound_shift =
@@ -621,8 +642,9 @@ pub fn hier_split(
 }
 
 /// The markdown section of [`hier_split`] for every log (`(name, log)`) of a hierarchical table and its
-/// scripts, and the number of frames over their rate bound; the arithmetic of each log is read from its
-/// frame lines.
+/// scripts, the number of frames over their rate bound, and every frame's work, instructions, rate bound and
+/// margin as CSV (one line per frame of every log, after a header); the arithmetic of each log is read from
+/// its frame lines.
 ///
 /// # Errors
 /// As [`hier_work`] and [`hier_split`].
@@ -631,20 +653,23 @@ pub fn hier_split_report(
     table: &HierTable<'_>,
     file: &ScriptFile,
     calibrate: &str,
-) -> Result<(String, usize), String> {
+) -> Result<(String, usize, String), String> {
     let mut md = String::new();
+    let mut csv = String::from(
+        "build,script,frame,budget,instructions,links,judged,swept,shots,light_units,bound,margin\n",
+    );
     let _ = writeln!(
         md,
-        "\n## Hierarchical table: instructions per link and per node visit\n\n\
-         Least squares `instructions = overhead + per link * links + per node * node visits + per shot * shots` \
-         over the frames of `{calibrate}` that change no light; each frame's links, node visits (judged in a \
-         round, pushed or pulled in a sweep) and shots (each run's setup) are counted by the host simulator's \
-         bit-identical run (`firmware-sim/src/cost.rs`, `hier_split`). The rates are fitted non-negative: a rate \
-         of 0 means that work moved in step with another kind over the calibration frames (a table whose runs all \
-         hold a few links: links and shots), which then carries the cost of both. Residual: RMS of the fit's \
-         residuals over RMS instructions. Rate bound of a frame: `bound overhead + scale * w`, `w = per link * links + per node * \
-         node visits + per shot * shots + max(per link, per node + per shot) * light units`, the fitted rates \
-         scaled to the upper envelope of the \
+        "\n## Hierarchical table: instructions per link, per node judged, per node swept and per shot\n\n\
+         Least squares `instructions = overhead + per link * links + per judged * nodes judged + per swept * nodes \
+         swept + per shot * shots` over the frames of `{calibrate}` that change no light; each frame's links, nodes \
+         judged in a round, nodes entered or left by a sweep and shots (each run's setup) are counted by the host \
+         simulator's bit-identical run (`firmware-sim/src/cost.rs`, `hier_split`). The rates are fitted \
+         non-negative: a rate of 0 means that work moved in step with another kind over the calibration frames (a \
+         table whose runs all hold a few links: links and shots), which then carries the cost of both. Residual: \
+         RMS of the fit's residuals over RMS instructions. Rate bound of a frame: `bound overhead + scale * w`, \
+         `w = per link * links + per judged * judged + per swept * swept + per shot * shots + u * light units`, `u \
+         = max(per link, per swept, per judged + per shot)`, the fitted rates scaled to the upper envelope of the \
          calibration frames (bound overhead = max(overhead, 0, an idle calibration frame), scale = largest \
          (instructions - bound overhead) / w of a calibration frame, at least 1), or `bound shift + w`, the fitted \
          rates shifted up by the largest excess of a calibration frame, whichever is larger, checked on every frame \
@@ -652,11 +677,11 @@ pub fn hier_split_report(
     );
     let _ = writeln!(
         md,
-        "| build | frames | overhead | instr. per link | instr. per node visit | instr. per shot | residual | \
-         bound overhead | bound scale | bound shift | frames checked | over bound | worst margin | worst frame \
-         (script, budget, measured) |"
+        "| build | frames | overhead | instr. per link | instr. per node judged | instr. per node swept | instr. per \
+         shot | residual | bound overhead | bound scale | bound shift | frames checked | over bound | worst margin | \
+         worst frame (script, budget, measured) |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut violations = 0;
     for (name, log) in logs {
         let arith = log
@@ -671,14 +696,31 @@ pub fn hier_split_report(
         };
         let m = hier_split(name, log, &work, calibrate)?;
         violations += m.violations;
+        for (k, (f, w)) in log.frames.iter().zip(&work).enumerate() {
+            let bound = m.bound(w);
+            let _ = writeln!(
+                csv,
+                "{name},{},{k},{},{},{},{},{},{},{},{bound:.0},{:.4}",
+                f.script,
+                f.budget,
+                f.instructions,
+                w.links,
+                w.judged,
+                w.swept,
+                w.shots,
+                w.light_units,
+                1.0 - f.instructions as f64 / bound
+            );
+        }
         let _ = writeln!(
             md,
-            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1e} | {:.0} | {:.3} | {:.0} | {} | {} | {:.1} % | {}, {}, {} |",
+            "| {} | {} | {:.0} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1e} | {:.0} | {:.3} | {:.0} | {} | {} | {:.1} % | {}, {}, {} |",
             m.build,
             m.samples,
             m.overhead,
             m.per_link,
-            m.per_node,
+            m.per_judged,
+            m.per_swept,
             m.per_shot,
             m.residual,
             m.bound_overhead,
@@ -692,7 +734,7 @@ pub fn hier_split_report(
             m.worst_frame.2
         );
     }
-    Ok((md, violations))
+    Ok((md, violations, csv))
 }
 
 #[cfg(test)]

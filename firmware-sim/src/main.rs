@@ -93,7 +93,7 @@ enum Command {
         #[arg(long, value_name = "COST.md")]
         out: Option<PathBuf>,
         /// The table the logs ran (with --scripts): a hierarchical one adds the split of instructions into
-        /// per link and per node visit, from the host's count of each frame's work.
+        /// per link, per node judged, per node swept and per shot, from the host's count of each frame's work.
         #[arg(long, value_name = "T")]
         table: Option<PathBuf>,
         /// The relight scripts the logs ran (default: scenes/cornell-box.relight.toml); used with --table.
@@ -103,6 +103,10 @@ enum Command {
         /// a table the device does not ship, where a frame over the bound is a finding, not a broken build.
         #[arg(long)]
         report_over_bound: bool,
+        /// With a hierarchical --table: write every frame's work (links, nodes judged and swept, shots, light
+        /// units), instructions, rate bound and margin to this CSV file, to see which frames come near the bound.
+        #[arg(long, value_name = "CSV")]
+        frames: Option<PathBuf>,
     },
 }
 
@@ -260,6 +264,7 @@ fn run(command: Command) -> Result<(), String> {
             table,
             scripts,
             report_over_bound,
+            frames,
         } => {
             let parse = |paths: &[PathBuf]| -> Result<Vec<(String, QemuLog)>, String> {
                 paths
@@ -277,23 +282,32 @@ fn run(command: Command) -> Result<(), String> {
             let report = cost::report(&parsed, &parse(&transfer_logs)?, &calibrate, clock_mhz)?;
             let mut markdown = report.markdown.clone();
             let mut violations = report.violations;
+            if frames.is_some() && table.is_none() {
+                return Err("--frames needs the hierarchical --table the logs ran".to_string());
+            }
             if table.is_some() {
                 let loaded = Input { table, scripts }.load()?;
                 if let AnyTable::Hier(t) = AnyTable::parse(&loaded.bytes).map_err(|e| e.to_string())? {
-                    let (section, over) = cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?;
+                    let (section, over, csv) =
+                        cost::hier_split_report(&parsed, &t, &loaded.scripts, &calibrate)?;
                     markdown.push_str(&section);
-                    // A hierarchical frame's units are links, node visits and shots of different costs, so a
-                    // frame whose mix differs from the calibration's can pass the one-rate bound; the rate bound
-                    // is the one checked, and the one-rate table above stays as information.
+                    if let Some(p) = &frames {
+                        std::fs::write(p, csv).map_err(file_err(p))?;
+                    }
+                    // A hierarchical frame's units are links, nodes judged and swept and shots of different
+                    // costs, so a frame whose mix differs from the calibration's can pass the one-rate bound; the
+                    // rate bound is the one checked, and the one-rate table above stays as information.
                     if report.violations > 0 {
                         markdown.push_str(&format!(
                             "\nThe one-rate model's bound (first table) is exceeded by {} frames of this hierarchical \
-                             table: its units mix links, node visits and shots, whose costs differ; frames are \
-                             checked against the rate bound above instead.\n",
+                             table: its units mix links, nodes judged, nodes swept and shots, whose costs differ; \
+                             frames are checked against the rate bound above instead.\n",
                             report.violations
                         ));
                     }
                     violations = over;
+                } else if frames.is_some() {
+                    return Err("--frames needs a hierarchical --table (format version 5)".to_string());
                 }
             }
             match &out {

@@ -143,10 +143,11 @@ fn quick_bench_writes_a_well_formed_report() {
         assert!(h.rows.iter().any(|r| r.method.starts_with(label)), "no {label} row");
     }
     // The device curves: the flat and the hierarchical table, each from a cold start to convergence, work
-    // strictly increasing, instructions = the build's bound applied to the work (per unit; per link and per node
-    // visit for the hierarchical table, with links counted and never more than the units), and the converged error against
-    // the table's own answer within 1% (the 16-bit codes' floor is about 2^-12 per form factor and 2^-11 per
-    // emission code, far below; the flat table's own answer is the scene matrix's, so its sparsification enters).
+    // strictly increasing, instructions = the build's bound applied to the work (per unit; per link, per node
+    // judged, per node swept and per shot for the hierarchical table, with its kinds counted and never more than
+    // the units), and the converged error against the table's own answer within 1% (the 16-bit codes' floor is
+    // about 2^-12 per form factor and 2^-11 per emission code, far below; the flat table's own answer is the
+    // scene matrix's, so its sparsification enters).
     assert_eq!(h.device.len(), 2, "{:?}", h.device.iter().map(|c| &c.name).collect::<Vec<_>>());
     for c in &h.device {
         assert!(
@@ -159,14 +160,13 @@ fn quick_bench_writes_a_well_formed_report() {
         assert!(c.points.windows(2).all(|w| w[0].units < w[1].units), "{}: units not increasing", c.name);
         for p in &c.points {
             assert!(
-                (p.instructions - c.model.instructions(p.units, p.links, p.shots)).abs()
-                    <= 1e-9 * p.instructions,
+                (p.instructions - c.model.instructions(p.units, p.work)).abs() <= 1e-9 * p.instructions,
                 "{}",
                 c.name
             );
-            assert!(p.links.is_none_or(|l| l <= p.units), "{}: {p:?}", c.name);
-            // Links are counted for the hierarchical table (its rate bound needs them), not for the flat one.
-            assert_eq!(p.links.is_some(), c.name.starts_with("hierarchical"), "{}: {p:?}", c.name);
+            assert!(p.work.is_none_or(|w| w.links + w.judged <= p.units), "{}: {p:?}", c.name);
+            // The kinds are counted for the hierarchical table (its rate bound needs them), not for the flat one.
+            assert_eq!(p.work.is_some(), c.name.starts_with("hierarchical"), "{}: {p:?}", c.name);
             assert!(p.faces.worst.is_finite() && p.faces.mean <= p.faces.worst, "{}: {p:?}", c.name);
         }
         let (first, last) = (c.points.first().unwrap(), c.points.last().unwrap());

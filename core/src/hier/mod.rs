@@ -59,7 +59,7 @@
 //! magnitude `|r| + |g| + |b|`, `M`. If `M` is within the tolerance, the solver has converged: every node's
 //! unshot magnitude is `<= tolerance` and nothing is pending, the flat solver's convergence, so its remainder
 //! bound holds. Otherwise a round judges the nodes in index order and shoots every node whose unshot
-//! magnitude is at least `M / 4` (and above the tolerance), then sweeps. During a round a shot changes the
+//! magnitude is at least `M / 64` (and above the tolerance), then sweeps. During a round a shot changes the
 //! shooter's unshot power and, for links that reach leaves, those leaves' own unshot power; what reaches
 //! inner nodes, and the chains above the leaves, stays pending. So a node is judged on its unshot power as of
 //! the sweep before the round, plus what light changes and edits injected since, plus (a leaf) what this
@@ -69,9 +69,11 @@
 //! Why rounds: a sweep and a round's judging cost a fixed `3 N` units (`N` nodes) whatever is shot, so
 //! sweeping after every shot of the largest node would cost `3 N` per shot; shooting every
 //! node within a factor of the largest keeps the largest residuals first, as Southwell's rule does, and
-//! spreads the fixed cost over many shots. The factor trades the two: a node shot at `M / 4` moves at least a
-//! quarter of what the largest would, and a smaller share would shoot nodes whose power mostly arrives later
-//! (the host's shooting solve uses the same share, `ROUND_SHARE`). The alternative, a sweep whenever the pending
+//! spreads the fixed cost over many shots. The factor trades the two: a large share (`M / 4`) runs many
+//! rounds of few shots, each paying `3 N` to move little, and a share too small shoots nodes whose power
+//! mostly arrives later, so they shoot again. Against `M / 4`, `M / 64` cut the units to reach 1% on every
+//! scene tried, and smaller shares gained on some and lost on others (the bake summary's "device" line shows
+//! the units for a scene); the host's shooting solve uses the same share (`ROUND_SHARE`). The alternative, a sweep whenever the pending
 //! power exceeds a share of the unshot power, judges the same stale unshot powers between sweeps and needs a
 //! selection structure kept current per shot; rounds need neither (no selection buffer).
 //!
@@ -149,7 +151,7 @@ use crate::solver::{Config, NoProgressReason, Outcome, SolverError, MAX_PATCHES,
 
 /// A round shoots every node whose unshot magnitude is at least `1 / 2^ROUND_SHARE_SHIFT` of the largest
 /// (module docs, "Rounds").
-const ROUND_SHARE_SHIFT: u32 = 2;
+const ROUND_SHARE_SHIFT: u32 = 6;
 
 /// Where the solver is in its sequence of actions.
 #[derive(Clone, Copy, Debug)]
@@ -176,6 +178,7 @@ pub struct HierSolver<'a, S: Scalar> {
     shots: u32,
     sweeps: u32,
     links: u64,
+    judged: u64,
     /// Decoded reflectances of materials `0..RHO_CACHE` (kept current with the reflectance buffer), read by
     /// every link to a leaf; materials beyond it are decoded per link.
     rho_cache: [[S::Rho; 3]; RHO_CACHE],
@@ -253,6 +256,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             shots: 0,
             sweeps: 0,
             links: 0,
+            judged: 0,
             rho_cache: [[S::Rho::default(); 3]; RHO_CACHE],
         };
         s.reset();
@@ -307,6 +311,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         self.shots = 0;
         self.sweeps = 0;
         self.links = 0;
+        self.judged = 0;
     }
 
     /// A sweep from the first node with nothing changed yet.
@@ -441,6 +446,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                     let (judged, shooter) =
                         links::judge(&self.table, self.buf.unshot, range, threshold, tolerance);
                     used += judged;
+                    self.judged = self.judged.saturating_add(u64::from(judged));
                     let Some((sender, u, run)) = shooter else {
                         self.phase = Phase::Round { threshold, next: next + judged };
                         continue;
@@ -732,5 +738,12 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     #[must_use]
     pub fn links(&self) -> u64 {
         self.links
+    }
+
+    /// Nodes judged in rounds since the last cold start (saturating): with [`HierSolver::links`], what
+    /// separates a step's units into its kinds of work (the rest are nodes entered or left by sweeps).
+    #[must_use]
+    pub fn judged(&self) -> u64 {
+        self.judged
     }
 }

@@ -6,10 +6,10 @@
 //! yardstick: the two tables solve different discretizations of the same scene). Work becomes model
 //! instructions through the firmware's cost model (`firmware-sim/COST.md`, measured under QEMU): the bound per
 //! unit of the `m4-f32` build for the flat table; for the hierarchical one the rate bound (per link, per node
-//! visit and per shot, scaled to the envelope of its calibration frames) of `cornell-hier-m4-f32`, this same
+//! judged, per node swept and per shot, scaled to the envelope of its calibration frames) of `cornell-hier-m4-f32`, this same
 //! table as `firmware-sim/tables/cornell-box-hier.rft` run on the f32 firmware, whose runs are as long as the
 //! curve's (the committed test table's, `hier-m4-f32`, holds runs of at most 4 links), applied to the links,
-//! node visits and shots the solver counts. They cost different amounts, and the mix changes along a run, so
+//! nodes judged, nodes swept and shots the solver counts. They cost different amounts, and the mix changes along a run, so
 //! one rate per unit would not bound every stretch of it.
 
 use radiosity_core::{
@@ -19,7 +19,7 @@ use radiosity_core::{
 
 use super::device::{radiosity, Owned};
 use super::faces::{face_errors, face_means, FaceErrors};
-use super::{bound_per_unit, log, rate_bound, BenchError, BenchOptions, COST_MD};
+use super::{bound_per_unit, log, rate_bound, BenchError, BenchOptions, Rates, COST_MD};
 use crate::bake::{bake, bake_hierarchy, BakeInput, BakeOptions};
 use crate::formfactor::FormFactorOptions;
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
@@ -55,16 +55,25 @@ const TOLERANCE: f64 = 1e-7;
 pub struct DevicePoint {
     /// Work units spent so far.
     pub units: u64,
-    /// Of them, links applied (hierarchical tables; `None` for a flat table, whose units are all alike).
-    pub links: Option<u64>,
-    /// Shots started so far (hierarchical tables; `None` for a flat table).
-    pub shots: Option<u64>,
+    /// Of them, by kind (hierarchical tables; `None` for a flat table, whose units are all alike).
+    pub work: Option<HierWork>,
     /// Model instructions: the curve's [`CostModel`] applied to the work so far.
     pub instructions: f64,
     /// Area-weighted relative L2 error against the table's own f64 answer.
     pub own: f64,
     /// Per OBJ face against the continuous reference.
     pub faces: FaceErrors,
+}
+
+/// The kinds of a hierarchical solver's work so far (the rest of its units are nodes swept).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HierWork {
+    /// Links applied.
+    pub links: u64,
+    /// Nodes judged in rounds.
+    pub judged: u64,
+    /// Shots started.
+    pub shots: u64,
 }
 
 /// One table's curve.
@@ -91,34 +100,28 @@ pub struct DeviceCurve {
 pub enum CostModel {
     /// The bound instructions per work unit.
     PerUnit(f64),
-    /// The rate bound: `scale (per_link links + per_node node visits + per_shot shots)` (without the
-    /// per-frame overhead: a curve is one run, not frames).
-    Rates {
-        /// Instructions per link applied.
-        per_link: f64,
-        /// Instructions per node visit (judged in a round, entered or left by a sweep).
-        per_node: f64,
-        /// Instructions per shot (its run's setup).
-        per_shot: f64,
-        /// The envelope's scale over the calibration frames.
-        scale: f64,
-    },
+    /// The rate bound: `scale (per_link links + per_judged judged + per_swept swept + per_shot shots)`
+    /// (without the per-frame overhead: a curve is one run, not frames).
+    Rates(Rates),
 }
 
 impl CostModel {
-    /// Model instructions for `units` work units of which `links` are links, with `shots` shots (all units
-    /// alike if `None`).
+    /// Model instructions for `units` work units, of the kinds `work` (all units nodes swept if `None`
+    /// under the rate bound, all alike under the bound per unit).
     #[must_use]
-    pub fn instructions(&self, units: u64, links: Option<u64>, shots: Option<u64>) -> f64 {
+    pub fn instructions(&self, units: u64, work: Option<HierWork>) -> f64 {
         match *self {
             CostModel::PerUnit(r) => units as f64 * r,
-            CostModel::Rates { per_link, per_node, per_shot, scale } => {
-                let links = links.unwrap_or(0).min(units);
-                let shots = shots.unwrap_or(0) as f64;
-                scale
-                    * (per_link.max(0.0) * links as f64
-                        + per_node.max(0.0) * (units - links) as f64
-                        + per_shot.max(0.0) * shots)
+            CostModel::Rates(r) => {
+                let w = work.unwrap_or(HierWork { links: 0, judged: 0, shots: 0 });
+                let links = w.links.min(units);
+                let judged = w.judged.min(units - links);
+                let swept = units - links - judged;
+                r.scale
+                    * (r.per_link.max(0.0) * links as f64
+                        + r.per_judged.max(0.0) * judged as f64
+                        + r.per_swept.max(0.0) * swept as f64
+                        + r.per_shot.max(0.0) * w.shots as f64)
             }
         }
     }
@@ -128,9 +131,11 @@ impl std::fmt::Display for CostModel {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             CostModel::PerUnit(r) => write!(f, "{r:.2} per unit"),
-            CostModel::Rates { per_link, per_node, per_shot, scale } => {
-                write!(f, "{per_link:.1} per link, {per_node:.1} per node visit, {per_shot:.1} per shot, x {scale:.3}")
-            }
+            CostModel::Rates(r) => write!(
+                f,
+                "{:.1} per link, {:.1} per node judged, {:.1} per node swept, {:.1} per shot, x {:.3}",
+                r.per_link, r.per_judged, r.per_swept, r.per_shot, r.scale
+            ),
         }
     }
 }
@@ -232,9 +237,8 @@ fn flat(
             let b = radiosity(&solver.borrow(), &table);
             Ok(DevicePoint {
                 units,
-                links: None,
-                shots: None,
-                instructions: model.instructions(units, None, None),
+                work: None,
+                instructions: model.instructions(units, None),
                 own: metrics::compare(&b, &exact, &area)?.rel_l2,
                 faces: face_errors(&face_means(&p.patches, &b, reference), want, judged),
             })
@@ -281,8 +285,7 @@ fn hierarchical(
     let mut solver = HierSolver::new(&table, buffers.buffers(), Config { tolerance, overshoot: 0 })
         .map_err(|e| BenchError::Solver(format!("hierarchical table: {e}")))?;
     let build = "cornell-hier-m4-f32";
-    let (per_link, per_node, per_shot, scale) = rate_bound(COST_MD, build)?;
-    let model = CostModel::Rates { per_link, per_node, per_shot, scale };
+    let model = CostModel::Rates(rate_bound(COST_MD, build)?);
     let mut out = vec![[0.0f32; 3]; leaves.len()];
     let solver = std::cell::RefCell::new(&mut solver);
     let (points, converged) = checkpoints(
@@ -290,13 +293,12 @@ fn hierarchical(
         |units| {
             solver.borrow().radiosity_into(&mut out);
             let b: Vec<Rgb> = out.iter().map(|v| Rgb::from_array(v.map(f64::from))).collect();
-            let links = Some(solver.borrow().links());
-            let shots = Some(u64::from(solver.borrow().shots()));
+            let s = solver.borrow();
+            let work = Some(HierWork { links: s.links(), judged: s.judged(), shots: u64::from(s.shots()) });
             Ok(DevicePoint {
                 units,
-                links,
-                shots,
-                instructions: model.instructions(units, links, shots),
+                work,
+                instructions: model.instructions(units, work),
                 own: metrics::compare(&b, &baked.radiosity, &area)?.rel_l2,
                 faces: face_errors(&face_means(&leaves, &b, reference), want, judged),
             })

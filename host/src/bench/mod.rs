@@ -505,12 +505,12 @@ pub fn bound_per_unit(cost_md: &str, build: &str) -> Result<f64, BenchError> {
         .ok_or_else(|| BenchError::Options(format!("COST.md: bad bound per unit for {build}")))
 }
 
-/// The rate bound of firmware build `build` from the table of instructions per link, per node visit and per
-/// shot in `firmware-sim/COST.md`: `(per link, per node visit, per shot, bound scale)`.
+/// The rate bound of firmware build `build` from the table of instructions per link, per node judged, per node
+/// swept and per shot in `firmware-sim/COST.md`.
 ///
 /// # Errors
 /// If that table, its columns or a row for `build` are missing, or a value does not parse.
-pub fn rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64, f64), BenchError> {
+pub fn rate_bound(cost_md: &str, build: &str) -> Result<Rates, BenchError> {
     let bad = |what: &str| BenchError::Options(format!("COST.md: {what} (rate bound of {build})"));
     // The build's row in a table whose header has the rate columns (a build has rows in other tables too).
     let lines: Vec<&str> = cost_md.lines().collect();
@@ -527,13 +527,34 @@ pub fn rate_bound(cost_md: &str, build: &str) -> Result<(f64, f64, f64, f64), Be
     let col = |name: &str| {
         header.split('|').position(|c| c.trim() == name).ok_or_else(|| bad(&format!("no `{name}` column")))
     };
-    let (link, node) = (col("instr. per link")?, col("instr. per node visit")?);
-    let (shot, scale) = (col("instr. per shot")?, col("bound scale")?);
     let cells: Vec<&str> = row.split('|').collect();
-    let value = |k: usize| {
+    let value = |name: &str| {
+        let k = col(name)?;
         cells.get(k).and_then(|c| c.trim().parse::<f64>().ok()).ok_or_else(|| bad("a value does not parse"))
     };
-    Ok((value(link)?, value(node)?, value(shot)?, value(scale)?))
+    Ok(Rates {
+        per_link: value("instr. per link")?,
+        per_judged: value("instr. per node judged")?,
+        per_swept: value("instr. per node swept")?,
+        per_shot: value("instr. per shot")?,
+        scale: value("bound scale")?,
+    })
+}
+
+/// A firmware build's rate bound on a hierarchical table (`firmware-sim/COST.md`): instructions per kind of
+/// work, and the scale of the envelope over its calibration frames.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rates {
+    /// Instructions per link applied.
+    pub per_link: f64,
+    /// Instructions per node judged in a round.
+    pub per_judged: f64,
+    /// Instructions per node entered or left by a sweep.
+    pub per_swept: f64,
+    /// Instructions per shot (its run's setup).
+    pub per_shot: f64,
+    /// The envelope's scale over the calibration frames.
+    pub scale: f64,
 }
 
 /// The cost model as built in.
@@ -642,28 +663,32 @@ mod tests {
         let one_rate =
             "| build | calibration frames | LS overhead (instr.) | LS instr. per unit | bound overhead | \
                         bound instr. per unit |\n|---|---|---|---|---|---|\n";
-        let rates = "| build | frames | overhead | instr. per link | instr. per node visit | instr. per shot | residual \
-                     | bound overhead | bound scale |\n|---|---|---|---|---|---|---|---|---|\n";
+        let rates = "| build | frames | overhead | instr. per link | instr. per node judged | instr. per node swept \
+                     | instr. per shot | residual | bound overhead | bound scale |\n|---|---|---|---|---|---|---|---|---|---|\n";
         let md = format!(
-            "{one_rate}| y | 37 | 10 | 70.0 | 10 | 80.0 |\n\n{rates}| y | 33 | 5 | 99.0 | 1.0 | 7.5 | 0.1 | 5 | 1.5 |\n\n\
+            "{one_rate}| y | 37 | 10 | 70.0 | 10 | 80.0 |\n\n{rates}| y | 33 | 5 | 99.0 | 1.0 | 2.0 | 7.5 | 0.1 | 5 | 1.5 |\n\n\
              {one_rate}| x | 37 | 2227 | 74.19 | 2227 | 82.58 |\n\n\
-             {rates}| x | 33 | 12121 | 82.5 | 65.2 | 70.5 | 3.4e-3 | 12121 | 1.204 |\n"
+             {rates}| x | 33 | 12121 | 82.5 | 45.2 | 65.2 | 70.5 | 3.4e-3 | 12121 | 1.204 |\n"
         );
         assert_eq!(bound_per_unit(&md, "x").unwrap(), 82.58);
-        assert_eq!(rate_bound(&md, "x").unwrap(), (82.5, 65.2, 70.5, 1.204));
-        assert_eq!(rate_bound(&md, "y").unwrap(), (99.0, 1.0, 7.5, 1.5));
+        let rates = |per_link, per_judged, per_swept, per_shot, scale| Rates {
+            per_link,
+            per_judged,
+            per_swept,
+            per_shot,
+            scale,
+        };
+        assert_eq!(rate_bound(&md, "x").unwrap(), rates(82.5, 45.2, 65.2, 70.5, 1.204));
+        assert_eq!(rate_bound(&md, "y").unwrap(), rates(99.0, 1.0, 2.0, 7.5, 1.5));
         assert!(rate_bound(&md, "z").is_err());
         assert!(rate_bound("| build | a |\n| x | 1 |\n", "x").is_err());
         // The built-in report: the Cornell table's rates are those of the last row of its build (the rate
         // table closes the section that names the table).
-        let (link, node, _, scale) = rate_bound(COST_MD, "cornell-hier-m4-f32").unwrap();
+        let r = rate_bound(COST_MD, "cornell-hier-m4-f32").unwrap();
         let row = COST_MD.lines().rfind(|l| l.starts_with("| cornell-hier-m4-f32 |")).unwrap();
         let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-        assert_eq!(
-            (cells[4], cells[5]),
-            (format!("{link:.1}").as_str(), format!("{node:.1}").as_str()),
-            "{row}"
-        );
-        assert!(scale >= 1.0, "{scale}");
+        let want = [r.per_link, r.per_judged, r.per_swept, r.per_shot].map(|v| format!("{v:.1}"));
+        assert_eq!(cells[4..8], want, "{row}");
+        assert!(r.scale >= 1.0, "{}", r.scale);
     }
 }

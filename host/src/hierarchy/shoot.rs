@@ -25,7 +25,7 @@ use super::tree::{Tree, NONE};
 use crate::rgb::{max_channel, Rgb};
 
 /// A node shoots in a round when its unshot power is at least this share of the round's largest.
-pub const ROUND_SHARE: f64 = 0.25;
+pub const ROUND_SHARE: f64 = 1.0 / 64.0;
 
 /// Shooting rounds with emission `e` per node (zero on clusters) until the unshot power is at most `tolerance`
 /// of the total, or `max_rounds` ran. The returned `sweeps` counts shots, `change` is the remaining unshot power

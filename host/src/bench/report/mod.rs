@@ -540,9 +540,10 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
          against the table's own f64 answer (its convergence), \"faces\" the per-face error against the continuous \
          reference above (the common yardstick of two different discretizations). Model instructions are \
          the work priced by the bound of the table's firmware build in `firmware-sim/COST.md` (measured under \
-         QEMU): per unit for the flat table; for the hierarchical one the rate bound (per link, per node visit \
-         and per shot, scaled to its calibration frames' envelope) of the same table run on the f32 firmware, \
-         `cornell-hier-m4-f32`, applied to the links, node visits and shots the solver counts.\n"
+         QEMU): per unit for the flat table; for the hierarchical one the rate bound (per link, per node \
+         judged, per node swept and per shot, scaled to its calibration frames' envelope) of the same table run \
+         on the f32 firmware, `cornell-hier-m4-f32`, applied to the links, nodes judged and swept and shots the \
+         solver counts.\n"
     );
     let _ = writeln!(
         s,
