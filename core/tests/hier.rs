@@ -590,6 +590,44 @@ fn relighting_matches_a_cold_solve() {
     assert!(s.set_reflectance(0, [1.0, 0.0, 0.0]).is_err());
 }
 
+/// A light change to a converged solver shoots at once, without the sweep that would move nothing (nothing is
+/// pending): the first links come within one round's judging, at most the node count of units, where that
+/// sweep alone takes twice the node count; and the run ends where the run through that sweep ends (forced
+/// here by an edit that changes nothing), value for value, in exactly that sweep's units fewer.
+#[test]
+fn a_light_change_to_a_converged_solver_shoots_without_a_sweep() {
+    let h = cluster_box();
+    let bytes = h.write();
+    let t = HierTable::parse(&bytes).unwrap();
+    let n = t.node_count();
+    let run = |through_sweep: bool| {
+        let mut store = HierOwnedBuffers::<f32>::for_table(&t);
+        let mut s = HierSolver::new(&t, store.buffers(), Config { tolerance: 1e-7, overshoot: 0 }).unwrap();
+        converge(&mut s, 64);
+        if through_sweep {
+            s.set_reflectance(0, h.materials[0]).unwrap();
+        }
+        let links = s.links();
+        assert!(s.set_light(0, [0.5, 2.0, 0.0]).unwrap() > 0);
+        let mut used = s.step(2 * n - 1).used();
+        let shot = s.links() > links;
+        loop {
+            match s.step(64) {
+                Outcome::Converged { used: u } => break used += u,
+                Outcome::BudgetSpent { used: u } => used += u,
+                Outcome::NoProgress { reason, .. } => panic!("{reason:?}"),
+            }
+        }
+        let power: Vec<[f32; 3]> = (0..t.leaf_count()).map(|l| s.power(l).unwrap()).collect();
+        (shot, used, power)
+    };
+    let (direct, swept) = (run(false), run(true));
+    assert!(direct.0, "no link within {} units of a light change to a converged solver", 2 * n - 1);
+    assert!(!swept.0, "the sweep after an edit should take the first {} units", 2 * n);
+    assert_eq!(direct.1 + 2 * n, swept.1);
+    assert_eq!(direct.2, swept.2);
+}
+
 /// A light change or a reflectance edit at any action boundary (inside a round, a shot, a sweep's push or its
 /// pull) is seen: the run converges to the cold solve of the new settings, and runs that reach the same
 /// boundary through different budget splits stay bit-identical.

@@ -90,9 +90,11 @@
 //! A round costs `3 N` units plus one per link of the nodes it shoots: a link costs one unit whatever the
 //! receiver, and the sweep is paid once per round for all the links shot in it.
 //!
-//! Outside any budget, returned as work counts: [`HierSolver::set_light`] (members times their chain walks),
-//! [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); a change during a sweep makes the sweep
-//! run again before convergence is judged. [`HierSolver::new`] and [`HierSolver::reset`] are
+//! Outside any budget, returned as work counts: [`HierSolver::set_light`] (members times their chain walks,
+//! twice from a converged state), [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); a change
+//! during a sweep makes the sweep run again before convergence is judged. A light change to a converged
+//! solver starts a round at once, without a sweep: nothing is pending, so that sweep would move nothing and
+//! only find the largest unshot magnitude, which lies on the changed light's chains, walked again for it. [`HierSolver::new`] and [`HierSolver::reset`] are
 //! `O(leaves x depth + links)`. Readout: [`HierSolver::power`] and [`HierSolver::radiosity`] are
 //! `O(members)` per leaf, [`HierSolver::power_into`] and [`HierSolver::radiosity_into`] `O(leaves + members)`
 //! for all.
@@ -190,6 +192,11 @@ fn add3<S: Scalar>(a: [S; 3], b: [S; 3]) -> [S; 3] {
 
 fn magnitude<S: Scalar>(v: [S; 3]) -> S {
     v[0].abs().add(v[1].abs()).add(v[2].abs())
+}
+
+/// A round's threshold for the largest unshot magnitude `largest`: its `1 / 2^ROUND_SHARE_SHIFT`.
+fn round_threshold<S: Scalar>(largest: S) -> S {
+    largest.mul_frac(Frac { mantissa: 1, shift: ROUND_SHARE_SHIFT })
 }
 
 /// The smallest tolerance [`HierSolver::new`] accepts for `table` on arithmetic `S` (zero for f32). The flat
@@ -377,11 +384,16 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
 
     /// Adds `d` to the unshot power of `leaf` and every sending ancestor; returns the nodes walked.
     fn add_to_chain(&mut self, leaf: u32, d: [S; 3]) -> u32 {
+        self.walk_chain(leaf, |s, slot| s.add_unshot(slot, d))
+    }
+
+    /// Calls `f` with the slot of `leaf` and of each of its ancestors, leaf first; returns the nodes walked.
+    fn walk_chain(&mut self, leaf: u32, mut f: impl FnMut(&mut Self, u32)) -> u32 {
         let Some(mut node) = self.table.leaf_node(leaf) else { return 0 };
         let mut walked = 0u32;
         // Bounded by the depth (parents precede children, checked by parse).
         for _ in 0..self.table.max_depth() {
-            self.add_unshot(self.table.slot_unchecked(node), d);
+            f(self, self.table.slot_unchecked(node));
             walked += 1;
             match self.table.parent(node) {
                 Some(p) => node = p,
@@ -515,8 +527,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                         self.phase = Phase::Converged;
                         return Outcome::Converged { used };
                     }
-                    let share = Frac { mantissa: 1, shift: ROUND_SHARE_SHIFT };
-                    self.phase = Phase::Round { threshold: largest.mul_frac(share), next: 0 };
+                    self.phase = Phase::Round { threshold: round_threshold(largest), next: 0 };
                 }
             }
         }
@@ -600,8 +611,42 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
             *v = new;
         }
         let units = self.add_group_emission(group, [0, 1, 2].map(|c| new[c].sub(old[c])));
-        self.changed();
-        Ok(units)
+        Ok(units.saturating_add(self.light_changed(group)))
+    }
+
+    /// After light `group`'s change was added to its members' chains: a converged solver has nothing pending
+    /// and every node's unshot magnitude within the tolerance, so the sweep that [`HierSolver::changed`] would
+    /// start moves nothing and only finds the largest magnitude, which is then on the chains just changed. They
+    /// are walked again for it (one unit per member and per node walked, returned) and the round starts at
+    /// once, with the threshold that sweep would have set, or the solver stays converged when no magnitude
+    /// exceeds the tolerance (what that sweep would have found). In any other phase, or with an unusable
+    /// magnitude (for the sweep to report), [`HierSolver::changed`].
+    fn light_changed(&mut self, group: u32) -> u32 {
+        if !matches!(self.phase, Phase::Converged) {
+            self.changed();
+            return 0;
+        }
+        let (mut largest, mut usable, mut units) = (S::ZERO, true, 0u32);
+        for k in self.table.group_members(group).unwrap_or(0..0) {
+            let Some(m) = self.table.member(k) else { continue };
+            let walked = self.walk_chain(m.leaf, |s, slot| {
+                if s.slot_has_links(slot) {
+                    let v = magnitude(s.unshot_of(slot));
+                    if !v.is_usable() {
+                        usable = false;
+                    } else if v > largest {
+                        largest = v;
+                    }
+                }
+            });
+            units = units.saturating_add(1 + walked);
+        }
+        if !usable {
+            self.changed();
+        } else if largest > self.config.tolerance {
+            self.phase = Phase::Round { threshold: round_threshold(largest), next: 0 };
+        }
+        units
     }
 
     /// Sets the reflectance of `material` to `rgb` (each in `[0, 1)`, quantized by the reflectance codec): for
