@@ -71,6 +71,14 @@ pub(crate) mod sealed {
         /// others any value).
         #[must_use]
         fn link_products_fast(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
+        /// Whether, besides [`Internal::link_fast`], every product of `power` with a code of `d` is small enough
+        /// for [`Internal::mul_rho_small`] to give `mul_rho`'s bits.
+        #[must_use]
+        fn link_products_small(d: &Self::LinkDecoder, power: &[Self; 3]) -> bool;
+        /// `mul_rho` without its check, for the products of runs where [`Internal::link_products_small`] holds
+        /// (for others any value).
+        #[must_use]
+        fn mul_rho_small(self, rho: Self::Rho) -> Self;
     }
 }
 
@@ -231,6 +239,14 @@ impl sealed::Internal for f32 {
     fn link_products_fast(power: [f32; 3], code: u32, d: F32RowDecoder) -> [f32; 3] {
         let f = d.decode_fast(code);
         [power[0] * f, power[1] * f, power[2] * f]
+    }
+    /// f32's reflectance product has no check to skip: never, so the one loop stays.
+    fn link_products_small(_: &F32RowDecoder, _: &[f32; 3]) -> bool {
+        false
+    }
+    #[inline(always)]
+    fn mul_rho_small(self, rho: f32) -> f32 {
+        self.mul_rho(rho)
     }
 }
 
@@ -486,7 +502,7 @@ impl sealed::Internal for Fixed {
     #[inline(always)]
     fn mul_rho(self, rho: u16) -> Fixed {
         if self.0.unsigned_abs() >> 46 == 0 {
-            return Fixed(round_shift_product(self.0, i64::from(rho), 16));
+            return self.mul_rho_small(rho);
         }
         self.mul_frac(decode_reflectance(rho))
     }
@@ -564,6 +580,19 @@ impl sealed::Internal for Fixed {
         let m = i64::from(f.mantissa);
         power.map(|p| Fixed(round_shift_product(p.0, m, f.shift)))
     }
+    /// With mantissas below `2^b` and shifts of at least `s` (the row's), a fast product `x = (p m + 2^(s'-1))
+    /// >> s'` is below `|p| 2^(b - s) + 1` in magnitude, so `|p| < 2^(45 - b + s)` keeps every product below
+    /// `2^46`, where `mul_rho` takes its 64-bit product path ([`Internal::mul_rho_small`]).
+    fn link_products_small(d: &RowDecoder, power: &[Fixed; 3]) -> bool {
+        let bound = (45 + d.shift_range().0).saturating_sub(d.mantissa_bits()).min(63);
+        Fixed::link_fast(d, power) && power.iter().all(|p| p.0.unsigned_abs() >> bound == 0)
+    }
+    /// `mul_frac`'s one 64-bit product for a reflectance (mantissa below 2^16, shift 16): `mul_rho`'s bits for
+    /// `|self| < 2^46`.
+    #[inline(always)]
+    fn mul_rho_small(self, rho: u16) -> Fixed {
+        Fixed(round_shift_product(self.0, i64::from(rho), 16))
+    }
 }
 
 #[cfg(test)]
@@ -583,26 +612,42 @@ mod tests {
             [Fixed((1 << 49) - 1), Fixed(-((1 << 49) - 1)), Fixed(3)],
             [Fixed(1 << 49), Fixed(7), Fixed(-7)],
         ];
-        let mut taken = 0;
+        let (mut taken, mut small_taken) = (0, 0);
         for codec in [FfCodec::FLOAT16, FfCodec::FLOAT8, FfCodec::LINEAR16, FfCodec::LINEAR8] {
             for e in [0u8, 1, 5, 20, 40, 50, 63] {
                 let d = codec.row_decoder(e);
-                for power in &powers {
+                // The largest powers the small-products rule admits for this row (the bound's edge).
+                let edge = (45 + d.shift_range().0).saturating_sub(d.mantissa_bits()).min(62);
+                let top = (1i64 << edge) - 1;
+                let edges =
+                    [[Fixed(top), Fixed(-top), Fixed(top >> 1)], [Fixed(top + 1), Fixed(0), Fixed(0)]];
+                for power in powers.iter().chain(&edges) {
                     if !Fixed::link_fast(&d, power) {
                         continue;
                     }
                     taken += 1;
+                    let small = Fixed::link_products_small(&d, power);
+                    small_taken += usize::from(small);
                     for code in 0..=u32::from(codec.max_code()) {
                         let (got, want) = (
                             Fixed::link_products_fast(*power, code, d),
                             Fixed::link_products(*power, code, d),
                         );
                         assert_eq!(got, want, "{codec} e {e} code {code} power {power:?}");
+                        // Where the run's products are declared small, the unchecked reflectance product is
+                        // `mul_rho`'s, for reflectances across the codes.
+                        for rho in [1u16, 0x8000, 0xcccd, u16::MAX].into_iter().filter(|_| small) {
+                            for x in got {
+                                assert!(x.0.unsigned_abs() >> 46 == 0, "{codec} e {e} code {code} {x:?}");
+                                assert_eq!(x.mul_rho_small(rho), x.mul_rho(rho));
+                            }
+                        }
                     }
                 }
             }
         }
         assert!(taken >= 10, "the fast path's premise held for {taken} rows and powers");
+        assert!(small_taken >= 5 && small_taken < taken, "small products held for {small_taken} of {taken}");
         assert!(Fixed::link_fast(&FfCodec::FLOAT16.row_decoder(0), &[Fixed(1 << 32); 3]));
     }
 

@@ -66,13 +66,18 @@ impl<S: Scalar> Targets<'_, '_, S> {
         let (leaf_c, inner_c) = codes.split_at(split.min(codes.len()));
         // The products' path chosen once per run: codes read at the codec's width need no clamp, and the
         // shooter's power and the row's shifts decide once whether fixed point's products can skip their checks.
+        // Likewise whether every product is small enough for fixed point's reflectance product to skip its check.
         if S::link_fast(&decoder, &power) {
             let product = |c: &[u8; CB]| S::link_products_fast(power, le::<CB>(c), decoder);
-            self.leaf_links(leaf_r, leaf_c, leaves, product);
+            if S::link_products_small(&decoder, &power) {
+                self.leaf_links(leaf_r, leaf_c, leaves, product, S::mul_rho_small);
+            } else {
+                self.leaf_links(leaf_r, leaf_c, leaves, product, S::mul_rho);
+            }
             self.inner_links(inner_r, inner_c, leaves, product);
         } else {
             let product = |c: &[u8; CB]| S::link_products(power, le::<CB>(c), decoder);
-            self.leaf_links(leaf_r, leaf_c, leaves, product);
+            self.leaf_links(leaf_r, leaf_c, leaves, product, S::mul_rho);
             self.inner_links(inner_r, inner_c, leaves, product);
         }
     }
@@ -93,7 +98,8 @@ impl<S: Scalar> Targets<'_, '_, S> {
     }
 
     /// Links to leaves (receiver slots below `leaves`, each with its code): link `(l, F)` delivers the power
-    /// `x = product(code) = F U_s` into leaf `l`'s incident power, and the reflected `rho_l F U_s` into its own
+    /// `x = product(code) = F U_s` into leaf `l`'s incident power, and the reflected `rho_l F U_s` (`reflect`,
+    /// `mul_rho` or, where the run's products allow, its unchecked form) into its own
     /// unshot power and, pending for the rest of its chain, into its parent's reflected entry (a root leaf's
     /// parent index is the inner count, past the buffer: nothing). A link to an inner node adds `x` to its
     /// pending power instead ([`Targets::inner_links`]).
@@ -109,6 +115,7 @@ impl<S: Scalar> Targets<'_, '_, S> {
         codes: &[[u8; CB]],
         leaves: u32,
         product: impl Fn(&[u8; CB]) -> [S; 3],
+        reflect: impl Fn(S, S::Rho) -> S,
     ) {
         let n = leaves as usize;
         let (Some(incident), Some(unshot), Some(materials), Some(parents)) = (
@@ -138,7 +145,7 @@ impl<S: Scalar> Targets<'_, '_, S> {
                 material = m;
                 rho = cached_rho::<S>(self.rho_cache, self.reflectance, m as usize);
             }
-            let reflected = [x[0].mul_rho(rho[0]), x[1].mul_rho(rho[1]), x[2].mul_rho(rho[2])];
+            let reflected = [reflect(x[0], rho[0]), reflect(x[1], rho[1]), reflect(x[2], rho[2])];
             *h = add3(*h, x);
             *u = add3(*u, reflected);
             let p = le::<IB>(p) as usize;
