@@ -67,15 +67,15 @@
 //! reflected higher up waits for the next round, as it must (it is not yet computed).
 //!
 //! Why rounds: a sweep and a round's judging cost a fixed `3 N` units (`N` nodes) whatever is shot, so
-//! sweeping after every shot of the largest node would cost `3 N` per shot; shooting every
-//! node within a factor of the largest keeps the largest residuals first, as Southwell's rule does, and
-//! spreads the fixed cost over many shots. The factor trades the two: a large share (`M / 4`) runs many
-//! rounds of few shots, each paying `3 N` to move little, and a share too small shoots nodes whose power
-//! mostly arrives later, so they shoot again. Against `M / 4`, `M / 64` cut the units to reach 1% on every
-//! scene tried, and smaller shares gained on some and lost on others (the bake summary's "device" line shows
-//! the units for a scene); the host's shooting solve uses the same share (`ROUND_SHARE`). The alternative, a sweep whenever the pending
-//! power exceeds a share of the unshot power, judges the same stale unshot powers between sweeps and needs a
-//! selection structure kept current per shot; rounds need neither (no selection buffer).
+//! sweeping after every shot of the largest node would cost `3 N` per shot; shooting every node within a
+//! factor of the largest keeps the largest residuals first, as Southwell's rule does, and spreads the fixed
+//! cost over many shots. The factor trades the two: a large share (`M / 4`) runs many rounds of few shots,
+//! each paying `3 N` to move little, and a share too small shoots nodes whose power mostly arrives later, so
+//! they shoot again. Against `M / 4`, `M / 64` cut the units to reach 1% on every scene tried, and smaller
+//! shares gained on some and lost on others (the bake summary's "device" line shows the units for a scene);
+//! the host's shooting solve uses the same share (`ROUND_SHARE`). The alternative, a sweep whenever the
+//! pending power exceeds a share of the unshot power, judges the same stale unshot powers between sweeps and
+//! needs a selection structure kept current per shot; rounds need neither (no selection buffer).
 //!
 //! # Work units
 //! One unit each: a node judged in a round (a shot starts at no extra cost); a link applied (its power
@@ -94,10 +94,10 @@
 //! twice from a converged state), [`HierSolver::set_reflectance`] (leaves scanned plus chain walks); a change
 //! during a sweep makes the sweep run again before convergence is judged. A light change to a converged
 //! solver starts a round at once, without a sweep: nothing is pending, so that sweep would move nothing and
-//! only find the largest unshot magnitude, which lies on the changed light's chains, walked again for it. [`HierSolver::new`] and [`HierSolver::reset`] are
-//! `O(leaves x depth + links)`. Readout: [`HierSolver::power`] and [`HierSolver::radiosity`] are
-//! `O(members)` per leaf, [`HierSolver::power_into`] and [`HierSolver::radiosity_into`] `O(leaves + members)`
-//! for all.
+//! only find the largest unshot magnitude, which lies on the changed light's chains, walked again for it.
+//! [`HierSolver::new`] and [`HierSolver::reset`] are `O(leaves x depth + links)`. Readout:
+//! [`HierSolver::power`] and [`HierSolver::radiosity`] are `O(members)` per leaf, [`HierSolver::power_into`]
+//! and [`HierSolver::radiosity_into`] `O(leaves + members)` for all.
 //!
 //! # Example
 //! ```

@@ -1,16 +1,17 @@
-//! Device tables of one scene, flat against hierarchical: core's f32 shooting from a cold start at the default
-//! intensities on the Cornell box's flat device table (the `demo`'s: the adaptive mesh within
+//! Device tables of one scene, flat against hierarchical: core's f32 shooting from a cold start at the
+//! default intensities on the Cornell box's flat device table (the `demo`'s: the adaptive mesh within
 //! [`FLAT_PATCHES`] patches, baked at the bake's defaults) and on its hierarchical table (the `demo`'s:
-//! brightness refinement at [`HIER_EPSILON`], 16-bit codes), with the error at geometrically spaced amounts of
-//! work against each table's own f64 answer and, per OBJ face, against the continuous reference (the common
-//! yardstick: the two tables solve different discretizations of the same scene). Work becomes model
-//! instructions through the firmware's cost model (`firmware-sim/COST.md`, measured under QEMU): the bound per
-//! unit of the `m4-f32` build for the flat table; for the hierarchical one the rate bound (per link, per node
-//! judged, per node swept and per shot, scaled to the envelope of its calibration frames) of `cornell-hier-m4-f32`, this same
-//! table as `firmware-sim/tables/cornell-box-hier.rft` run on the f32 firmware, whose runs are as long as the
-//! curve's (the committed test table's, `hier-m4-f32`, holds runs of at most 4 links), applied to the links,
-//! nodes judged, nodes swept and shots the solver counts. They cost different amounts, and the mix changes along a run, so
-//! one rate per unit would not bound every stretch of it.
+//! brightness refinement at [`HIER_EPSILON`], 16-bit codes), with the error at geometrically spaced amounts
+//! of work against each table's own f64 answer and, per OBJ face, against the continuous reference (the
+//! common yardstick: the two tables solve different discretizations of the same scene). Work becomes model
+//! instructions through the firmware's cost model (`firmware-sim/COST.md`, measured under QEMU): the bound
+//! per unit of the `m4-f32` build for the flat table; for the hierarchical one the rate bound (per link, per
+//! node judged, per node swept and per shot, scaled to the envelope of its calibration frames) of
+//! `cornell-hier-m4-f32`, this same table as `firmware-sim/tables/cornell-box-hier.rft` run on the f32
+//! firmware, whose runs are as long as the curve's (the committed test table's, `hier-m4-f32`, holds runs of
+//! at most 4 links), applied to the links, nodes judged, nodes swept and shots the solver counts. They cost
+//! different amounts, and the mix changes along a run, so one rate per unit would not bound every stretch of
+//! it.
 
 use radiosity_core::{
     hier_convergence_floor, Config, HierOwnedBuffers, HierSolver, HierTable, NoProgressReason, Outcome,
