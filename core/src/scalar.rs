@@ -71,8 +71,9 @@ pub(crate) mod sealed {
         /// others any value).
         #[must_use]
         fn link_products_fast(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
-        /// Whether, besides [`Internal::link_fast`], every product of `power` with a code of `d` is small enough
-        /// for [`Internal::mul_rho_small`] to give `mul_rho`'s bits.
+        /// For `d` and `power` where [`Internal::link_fast`] holds (the caller's check, not repeated): whether
+        /// every fast product of `power` with a code of `d` is small enough for [`Internal::mul_rho_small`] to
+        /// give `mul_rho`'s bits.
         #[must_use]
         fn link_products_small(d: &Self::LinkDecoder, power: &[Self; 3]) -> bool;
         /// `mul_rho` without its check, for the products of runs where [`Internal::link_products_small`] holds
@@ -585,7 +586,7 @@ impl sealed::Internal for Fixed {
     /// `2^46`, where `mul_rho` takes its 64-bit product path ([`Internal::mul_rho_small`]).
     fn link_products_small(d: &RowDecoder, power: &[Fixed; 3]) -> bool {
         let bound = (45 + d.shift_range().0).saturating_sub(d.mantissa_bits()).min(63);
-        Fixed::link_fast(d, power) && power.iter().all(|p| p.0.unsigned_abs() >> bound == 0)
+        power.iter().all(|p| p.0.unsigned_abs() >> bound == 0)
     }
     /// `mul_frac`'s one 64-bit product for a reflectance (mantissa below 2^16, shift 16): `mul_rho`'s bits for
     /// `|self| < 2^46`.
