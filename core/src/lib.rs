@@ -149,7 +149,8 @@
 //!   remaining error per patch is at most `n * tolerance / ((1 - rho_max) A_min)`.
 //! - Arithmetic: `f32`, or [`Fixed`] (Q32.32 in `i64`, integer only, saturating; range about `+-2.1e9` power
 //!   units, resolution `2.3e-10`, products rounded to nearest), chosen by the solver's type parameter. See
-//!   [`scalar`] for the fixed-point convergence condition on the tolerance.
+//!   [`scalar`] for the fixed-point convergence condition on the tolerance. The hierarchical solver's link
+//!   loops stop it with `NotFinite` at half that range, `+-1.07e9` (module docs of [`hier`], "Range").
 //!
 //! Solver cost and arithmetic error by method (shooting, with and without overshoot, Gauss-Seidel, Jacobi;
 //! `f32` and fixed point; warm starts after relighting) are measured by the `methods` example on a closed cube,

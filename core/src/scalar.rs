@@ -4,7 +4,8 @@
 //! Every operation the solver uses is here, so both paths run the same solver code and the same tests.
 //! Fixed-point operations saturate instead of wrapping: range `[-2^31, 2^31)` (about +-2.1e9) with resolution
 //! `2^-32` (2.3e-10). Power values (`B * A`, see the crate docs) must stay inside that range; a saturated
-//! value makes the solver report [`crate::solver::NoProgressReason::NotFinite`]. Precision is absolute, so
+//! value makes the solver report [`crate::solver::NoProgressReason::NotFinite`] (the hierarchical solver's
+//! link loops report it at half that range instead, [`crate::hier`], "Range"). Precision is absolute, so
 //! choose units (area unit, emission scale) that keep typical powers well above the resolution: each entry
 //! applied rounds once per product to the nearest unit (at most 1 unit per receipt in all).
 //!
@@ -59,10 +60,29 @@ pub(crate) mod sealed {
         /// Prepares `row` (one run's decoder) for [`Internal::link_products`].
         #[must_use]
         fn link_decoder(row: crate::codec::RowDecoder) -> Self::LinkDecoder;
-        /// `power` times the factor of form-factor code `code`: bit for bit `p.mul_frac(row.decode(code))` per
-        /// channel, `row` the decoder `d` was prepared from.
+        /// A form-factor code decoded for [`Internal::link_product`] (once per link, for its three channels).
+        type LinkFactor: Copy + core::fmt::Debug;
+        /// Decodes form-factor code `code` under `d`.
         #[must_use]
-        fn link_products(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
+        fn link_factor(code: u32, d: Self::LinkDecoder) -> Self::LinkFactor;
+        /// `self` times the factor `f`: bit for bit `self.mul_frac(row.decode(code))`, `row` the decoder `d` was
+        /// prepared from and `f = link_factor(code, d)`.
+        #[must_use]
+        fn link_product(self, f: Self::LinkFactor) -> Self;
+        /// [`Internal::link_factor`] for decoders where [`Internal::link_fast`] holds, without its checks.
+        #[must_use]
+        fn link_factor_fast(code: u32, d: Self::LinkDecoder) -> Self::LinkFactor;
+        /// [`Internal::link_product`] for the factors of [`Internal::link_factor_fast`] and powers where
+        /// [`Internal::link_fast`] holds, without its checks (for others any value).
+        #[must_use]
+        fn link_product_fast(self, f: Self::LinkFactor) -> Self;
+        /// `power` times the factor of form-factor code `code`, per channel ([`Internal::link_product`]).
+        #[must_use]
+        #[inline(always)]
+        fn link_products(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3] {
+            let f = Self::link_factor(code, d);
+            power.map(|p| p.link_product(f))
+        }
         /// Whether [`Internal::link_products_fast`] gives `link_products`' bits for `d`, `power` and every
         /// code read at the codec's width.
         #[must_use]
@@ -70,7 +90,11 @@ pub(crate) mod sealed {
         /// `link_products` without its per-code checks, for decoders where [`Internal::link_fast`] holds (for
         /// others any value).
         #[must_use]
-        fn link_products_fast(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3];
+        #[inline(always)]
+        fn link_products_fast(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3] {
+            let f = Self::link_factor_fast(code, d);
+            power.map(|p| p.link_product_fast(f))
+        }
         /// For `d` and `power` where [`Internal::link_fast`] holds (the caller's check, not repeated): whether
         /// every fast product of `power` with a code of `d` is small enough for [`Internal::mul_rho_small`] to
         /// give `mul_rho`'s bits.
@@ -80,8 +104,18 @@ pub(crate) mod sealed {
         /// (for others any value).
         #[must_use]
         fn mul_rho_small(self, rho: Self::Rho) -> Self;
+        /// `self + other` for sums whose addend is below `2^62` raw in magnitude (fixed point; the products of
+        /// hierarchical shooting's fast path): fixed point wraps instead of saturating and sets bit 31 of
+        /// `flag` when the sum lies outside `[-2^62, 2^62)` raw, which is also where a wrapped sum lands, so a
+        /// run of sums checks one flag at its end instead of saturating each ([`OUT_OF_RANGE`]). f32 adds (an
+        /// overflow is infinite, which the solver's magnitudes find).
+        #[must_use]
+        fn add_flagged(self, other: Self, flag: &mut u32) -> Self;
     }
 }
+
+/// The bit of [`sealed::Internal::add_flagged`]'s flag that says a sum left its range.
+pub(crate) const OUT_OF_RANGE: u32 = 1 << 31;
 
 /// Numbers the solver computes with: `f32` and [`Fixed`], and only these (the trait is sealed: the solver's
 /// per-entry internals, the reflectance cache and the selection rank, live in a crate-private supertrait).
@@ -228,18 +262,25 @@ impl sealed::Internal for f32 {
     fn link_decoder(row: RowDecoder) -> F32RowDecoder {
         F32RowDecoder::new(row)
     }
+    type LinkFactor = f32;
     #[inline(always)]
-    fn link_products(power: [f32; 3], code: u32, d: F32RowDecoder) -> [f32; 3] {
-        let f = d.decode(code);
-        [power[0] * f, power[1] * f, power[2] * f]
+    fn link_factor(code: u32, d: F32RowDecoder) -> f32 {
+        d.decode(code)
+    }
+    #[inline(always)]
+    fn link_product(self, f: f32) -> f32 {
+        self * f
     }
     fn link_fast(d: &F32RowDecoder, _: &[f32; 3]) -> bool {
         d.is_fast()
     }
     #[inline(always)]
-    fn link_products_fast(power: [f32; 3], code: u32, d: F32RowDecoder) -> [f32; 3] {
-        let f = d.decode_fast(code);
-        [power[0] * f, power[1] * f, power[2] * f]
+    fn link_factor_fast(code: u32, d: F32RowDecoder) -> f32 {
+        d.decode_fast(code)
+    }
+    #[inline(always)]
+    fn link_product_fast(self, f: f32) -> f32 {
+        self * f
     }
     /// f32's reflectance product has no check to skip: never, so the one loop stays.
     fn link_products_small(_: &F32RowDecoder, _: &[f32; 3]) -> bool {
@@ -248,6 +289,10 @@ impl sealed::Internal for f32 {
     #[inline(always)]
     fn mul_rho_small(self, rho: f32) -> f32 {
         self.mul_rho(rho)
+    }
+    #[inline(always)]
+    fn add_flagged(self, other: f32, _: &mut u32) -> f32 {
+        self + other
     }
 }
 
@@ -318,6 +363,33 @@ fn shift_saturating(v: i128, shift: i32) -> Fixed {
 #[inline(always)]
 fn round_shift_product(x: i64, m: i64, s: u32) -> i64 {
     x.wrapping_mul(m).wrapping_add(1i64.wrapping_shl(s.wrapping_sub(1))).wrapping_shr(s)
+}
+
+/// `(p + 2^(s - 1)) >> s` for `|p| < 2^62` and `s` in `1..=31`, in 32-bit halves: the half is added to the low
+/// word (carry into the high word, which stays below `2^31` in magnitude), then the two words shift by `s`
+/// without the choice a 64-bit shift by any amount makes. Other operands get some value (never a panic).
+#[inline(always)]
+fn round_shift_below_32(p: i64, s: u32) -> i64 {
+    let (lo, carry) = (p as u32).overflowing_add(1u32.wrapping_shl(s.wrapping_sub(1)));
+    let hi = ((p >> 32) as i32).wrapping_add(i32::from(carry));
+    let low = lo.wrapping_shr(s) | (hi as u32).wrapping_shl(32u32.wrapping_sub(s));
+    (i64::from(hi.wrapping_shr(s)) << 32) | i64::from(low)
+}
+
+/// `(p + 2^(s - 1)) >> s` for `|p| < 2^62` and `s` in `32..=62`: by `floor(floor(x / 2^32) / 2^t) = floor(x /
+/// 2^(32 + t))`, the high word of `p + 2^(s - 1)` (below `2^31` in magnitude) shifted by `t = s - 32`, a 32-bit
+/// shift. The half is `2^31` in the low word for `s = 32` (its carry, the low word's top bit before the
+/// sum), else `2^(t - 1)` in the high word. Other operands get some value (never a panic).
+#[inline(always)]
+fn round_shift_from_32(p: i64, s: u32) -> i64 {
+    let t = s.wrapping_sub(32);
+    let hi = (p >> 32) as i32;
+    let top = if t == 0 {
+        hi.wrapping_add(((p as u32) >> 31) as i32)
+    } else {
+        hi.wrapping_add(1i32.wrapping_shl(t.wrapping_sub(1))).wrapping_shr(t)
+    };
+    i64::from(top)
 }
 
 /// `floor(n 2^32 / (m 2^s))` for a divisor of at most 24 significant bits (`m < 2^24`, `s < 64`), or `None`
@@ -559,10 +631,14 @@ impl sealed::Internal for Fixed {
     fn link_decoder(row: RowDecoder) -> RowDecoder {
         row
     }
+    type LinkFactor = Frac;
     #[inline(always)]
-    fn link_products(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
-        let f = d.decode(code);
-        [power[0].mul_frac(f), power[1].mul_frac(f), power[2].mul_frac(f)]
+    fn link_factor(code: u32, d: RowDecoder) -> Frac {
+        d.decode(code)
+    }
+    #[inline(always)]
+    fn link_product(self, f: Frac) -> Fixed {
+        self.mul_frac(f)
     }
     /// Rows whose values have mantissas below `2^13` and shifts in `1..=62` (FLOAT16 rows of exponents in
     /// the usual range) shot with powers below `2^49` raw in magnitude: every product then takes `mul_frac`'s
@@ -574,12 +650,18 @@ impl sealed::Internal for Fixed {
             && largest <= 62
             && power.iter().all(|p| p.0.unsigned_abs() >> 49 == 0)
     }
-    /// `mul_frac`'s one-product path: `(p m + 2^(s - 1)) >> s` per channel, the code decoded once.
+    /// Codes read at the codec's width need no clamp.
     #[inline(always)]
-    fn link_products_fast(power: [Fixed; 3], code: u32, d: RowDecoder) -> [Fixed; 3] {
-        let f = d.decode_unclamped(code);
-        let m = i64::from(f.mantissa);
-        power.map(|p| Fixed(round_shift_product(p.0, m, f.shift)))
+    fn link_factor_fast(code: u32, d: RowDecoder) -> Frac {
+        d.decode_unclamped(code)
+    }
+    /// `mul_frac`'s one-product path, `(p m + 2^(s - 1)) >> s`, with the shift's two ranges taken apart
+    /// ([`round_shift_below_32`], [`round_shift_from_32`]): a 64-bit shift by a variable amount costs a 32-bit
+    /// core both of its halves' sequences and a choice between them.
+    #[inline(always)]
+    fn link_product_fast(self, f: Frac) -> Fixed {
+        let p = self.0.wrapping_mul(i64::from(f.mantissa));
+        Fixed(if f.shift < 32 { round_shift_below_32(p, f.shift) } else { round_shift_from_32(p, f.shift) })
     }
     /// With mantissas below `2^b` and shifts of at least `s` (the row's), a fast product `x = (p m + 2^(s'-1))
     /// >> s'` is below `|p| 2^(b - s) + 1` in magnitude, so `|p| < 2^(45 - b + s)` keeps every product below
@@ -593,6 +675,17 @@ impl sealed::Internal for Fixed {
     #[inline(always)]
     fn mul_rho_small(self, rho: u16) -> Fixed {
         Fixed(round_shift_product(self.0, i64::from(rho), 16))
+    }
+    /// The sum lies in `[-2^62, 2^62)` exactly when its two top bits are equal: bit 31 of `hi ^ (hi << 1)`,
+    /// `hi` its top word. With `|self| < 2^63` and `|other| < 2^62`, a sum that wraps lands within `2^62` of
+    /// the far end of the range, where those bits differ, so every wrapped sum is flagged, and so is every
+    /// exact sum of `2^62` or more, which a saturating add would keep (the flagged range is half the type's).
+    #[inline(always)]
+    fn add_flagged(self, other: Fixed, flag: &mut u32) -> Fixed {
+        let r = self.0.wrapping_add(other.0);
+        let hi = (r >> 32) as u32;
+        *flag |= hi ^ (hi << 1);
+        Fixed(r)
     }
 }
 
@@ -650,6 +743,30 @@ mod tests {
         assert!(taken >= 10, "the fast path's premise held for {taken} rows and powers");
         assert!(small_taken >= 5 && small_taken < taken, "small products held for {small_taken} of {taken}");
         assert!(Fixed::link_fast(&FfCodec::FLOAT16.row_decoder(0), &[Fixed(1 << 32); 3]));
+    }
+
+    #[test]
+    fn fixed_flagged_sums_are_exact_or_flagged() {
+        // Operands at and around the flag's edges (2^62) and the type's (2^63), addends below 2^62: a sum in
+        // [-2^62, 2^62) is exact and unflagged, every other (wrapped or not) is flagged.
+        let edge = 1i64 << 62;
+        let values = [0, 1, -1, edge - 1, edge, -edge, -edge - 1, i64::MAX, i64::MIN, i64::MAX - 5, edge / 3];
+        let addends = [0, 1, -1, edge - 1, -(edge - 1), 1 << 40, -(1 << 40), edge / 2];
+        let mut flagged = 0;
+        for a in values {
+            for b in addends {
+                let mut flag = 0u32;
+                let got = Fixed(a).add_flagged(Fixed(b), &mut flag);
+                let exact = i128::from(a) + i128::from(b);
+                let inside = (-(1i128 << 62)..1i128 << 62).contains(&exact);
+                assert_eq!(flag & OUT_OF_RANGE == 0, inside, "{a} + {b}");
+                if inside {
+                    assert_eq!(i128::from(got.0), exact, "{a} + {b}");
+                }
+                flagged += usize::from(!inside);
+            }
+        }
+        assert!(flagged > 10, "{flagged}");
     }
 
     #[test]

@@ -628,6 +628,54 @@ fn a_light_change_to_a_converged_solver_shoots_without_a_sweep() {
     assert_eq!(direct.2, swept.2);
 }
 
+/// Fixed point's link sums on the fast path wrap and are checked once per run (module docs of `hier`,
+/// "Range"): a leaf whose incident power is at or above `2^30` power units when a link adds to it stops the
+/// solver with `NotFinite`, every later step says so until a restart, and one below that converges. The leaf
+/// takes its incident power from a static irradiance, at a reflectance of 0 so that it reflects none of it:
+/// every shot stays small and on the fast path.
+#[test]
+fn a_fixed_point_sum_out_of_range_stops_the_solver() {
+    let with_irradiance = |g: f32| {
+        let mut h = facing_squares();
+        // Leaf 4 (node 6) takes a leaf-level link from leaf 0 (node 1), the light's leaf.
+        h.materials.push([0.0; 3]);
+        h.leaves[4].material = 2;
+        h.leaves[4].area = 1.0;
+        h.leaves[4].base_irradiance = [g; 3];
+        h.write()
+    };
+    let outcome = |bytes: &[u8]| {
+        let t = HierTable::parse(bytes).unwrap();
+        let mut store = HierOwnedBuffers::<Fixed>::for_table(&t);
+        let tolerance = Fixed::from_f32(1e-4);
+        let mut s = HierSolver::new(&t, store.buffers(), Config { tolerance, overshoot: 0 }).unwrap();
+        let mut last = s.step(64);
+        while let Outcome::BudgetSpent { .. } = last {
+            last = s.step(64);
+        }
+        let after = s.step(64);
+        s.restart();
+        let restarted = s.step(1);
+        (last, after, restarted)
+    };
+    // Incident power g (area 1): 2e9 units (above 2^30, below the type's 2^31) and 1e9 (below 2^30).
+    let (last, after, restarted) = outcome(&with_irradiance(2e9));
+    assert!(matches!(last, Outcome::NoProgress { reason: NoProgressReason::NotFinite, .. }), "{last:?}");
+    assert!(
+        matches!(after, Outcome::NoProgress { reason: NoProgressReason::NotFinite, used: 0 }),
+        "{after:?}"
+    );
+    assert!(matches!(restarted, Outcome::BudgetSpent { used: 1 }), "{restarted:?}");
+    let (last, _, _) = outcome(&with_irradiance(1e9));
+    assert!(matches!(last, Outcome::Converged { .. }), "{last:?}");
+    // f32 has no such range: the same table converges.
+    let bytes = with_irradiance(2e9);
+    let t = HierTable::parse(&bytes).unwrap();
+    let mut store = HierOwnedBuffers::<f32>::for_table(&t);
+    let mut s = HierSolver::new(&t, store.buffers(), Config { tolerance: 1e-4, overshoot: 0 }).unwrap();
+    converge(&mut s, 64);
+}
+
 /// A light change or a reflectance edit at any action boundary (inside a round, a shot, a sweep's push or its
 /// pull) is seen: the run converges to the cold solve of the new settings, and runs that reach the same
 /// boundary through different budget splits stay bit-identical.

@@ -8,9 +8,9 @@
 //! test: its leaves (each link indexes the per-leaf buffers and its parent's entry directly), then its inner
 //! nodes (each link indexes the per-inner-node buffer).
 
-use super::{add3, magnitude, HierBuffers};
+use super::{magnitude, HierBuffers};
 use crate::format::{le, HierTable, NodeSections};
-use crate::scalar::Scalar;
+use crate::scalar::{Scalar, OUT_OF_RANGE};
 use crate::solver::RHO_CACHE;
 
 /// What a link writes to: the receiver's table sections and the solver's buffers, borrowed for one run.
@@ -38,17 +38,52 @@ pub(super) fn cached_rho<S: Scalar>(
     }
 }
 
-/// Adds `d` to entry `i` of `buf` (nothing past its end).
-#[inline(always)]
-fn add_at<S: Scalar>(buf: &mut [[S; 3]], i: usize, d: [S; 3]) {
-    if let Some(v) = buf.get_mut(i) {
-        *v = add3(*v, d);
+/// A run's arithmetic, chosen once per run: `FAST`, the products of fixed point's fast path (no per-product
+/// checks, sums that wrap and flag instead of saturating, module docs of [`hier`](super), "Range"), else the
+/// checked products and saturating sums; `SMALL` (with `FAST`), reflectance products without their check. f32
+/// computes the same either way.
+#[derive(Clone, Copy)]
+struct Arith<const FAST: bool, const SMALL: bool>;
+
+impl<const FAST: bool, const SMALL: bool> Arith<FAST, SMALL> {
+    #[inline(always)]
+    fn factor<S: Scalar>(code: u32, d: S::LinkDecoder) -> S::LinkFactor {
+        if FAST {
+            S::link_factor_fast(code, d)
+        } else {
+            S::link_factor(code, d)
+        }
+    }
+    #[inline(always)]
+    fn product<S: Scalar>(p: S, f: S::LinkFactor) -> S {
+        if FAST {
+            p.link_product_fast(f)
+        } else {
+            p.link_product(f)
+        }
+    }
+    #[inline(always)]
+    fn reflect<S: Scalar>(x: S, rho: S::Rho) -> S {
+        if FAST && SMALL {
+            x.mul_rho_small(rho)
+        } else {
+            x.mul_rho(rho)
+        }
+    }
+    #[inline(always)]
+    fn add<S: Scalar>(a: S, b: S, flag: &mut u32) -> S {
+        if FAST {
+            a.add_flagged(b, flag)
+        } else {
+            a.add(b)
+        }
     }
 }
 
 impl<S: Scalar> Targets<'_, '_, S> {
     /// Applies the entries of `receivers` and `codes` (widths `IB` and `CB` bytes; receivers are slots, those
-    /// below `leaves` first).
+    /// below `leaves` first). Returns whether every sum stayed in range (module docs of [`hier`](super),
+    /// "Range").
     #[inline(always)]
     fn run<const IB: usize, const CB: usize>(
         &mut self,
@@ -57,7 +92,7 @@ impl<S: Scalar> Targets<'_, '_, S> {
         decoder: S::LinkDecoder,
         power: [S; 3],
         leaves: u32,
-    ) {
+    ) -> bool {
         let (receivers, _) = receivers.as_chunks::<IB>();
         let (codes, _) = codes.as_chunks::<CB>();
         // Parse checked that a run's receivers increase, so its leaves are a prefix.
@@ -67,55 +102,62 @@ impl<S: Scalar> Targets<'_, '_, S> {
         // The products' path chosen once per run: codes read at the codec's width need no clamp, and the
         // shooter's power and the row's shifts decide once whether fixed point's products can skip their checks.
         // Likewise whether every product is small enough for fixed point's reflectance product to skip its check.
+        // The fast products are below 2^61 raw in magnitude (powers below 2^49, factors below 2^12), and so are
+        // their reflected parts: fixed point's sums wrap and flag instead of saturating.
+        let mut flag = 0u32;
+        let shot = (power, decoder);
         if S::link_fast(&decoder, &power) {
-            let product = |c: &[u8; CB]| S::link_products_fast(power, le::<CB>(c), decoder);
             if S::link_products_small(&decoder, &power) {
-                self.leaf_links(leaf_r, leaf_c, leaves, product, S::mul_rho_small);
+                self.leaf_links::<IB, CB, true, true>(leaf_r, leaf_c, leaves, shot, &mut flag);
             } else {
-                self.leaf_links(leaf_r, leaf_c, leaves, product, S::mul_rho);
+                self.leaf_links::<IB, CB, true, false>(leaf_r, leaf_c, leaves, shot, &mut flag);
             }
-            self.inner_links(inner_r, inner_c, leaves, product);
+            self.inner_links::<IB, CB, true>(inner_r, inner_c, leaves, shot, &mut flag);
         } else {
-            let product = |c: &[u8; CB]| S::link_products(power, le::<CB>(c), decoder);
-            self.leaf_links(leaf_r, leaf_c, leaves, product, S::mul_rho);
-            self.inner_links(inner_r, inner_c, leaves, product);
+            self.leaf_links::<IB, CB, false, false>(leaf_r, leaf_c, leaves, shot, &mut flag);
+            self.inner_links::<IB, CB, false>(inner_r, inner_c, leaves, shot, &mut flag);
         }
+        flag & OUT_OF_RANGE == 0
     }
 
-    /// Links to inner nodes (receiver slots from `leaves` on): each adds `product(code) = F U_s` to its
-    /// receiver's pending power, spread over its subtree by the next sweep.
+    /// Links to inner nodes (receiver slots from `leaves` on): each adds `F U_s` (the shot's power times the
+    /// code's factor) to its receiver's pending power, spread over its subtree by the next sweep.
     #[inline(always)]
-    fn inner_links<const IB: usize, const CB: usize>(
+    fn inner_links<const IB: usize, const CB: usize, const FAST: bool>(
         &mut self,
         receivers: &[[u8; IB]],
         codes: &[[u8; CB]],
         leaves: u32,
-        product: impl Fn(&[u8; CB]) -> [S; 3],
+        (power, decoder): ([S; 3], S::LinkDecoder),
+        flag: &mut u32,
     ) {
         for (r, c) in receivers.iter().zip(codes) {
-            add_at(self.pending, le::<IB>(r).wrapping_sub(leaves) as usize, product(c));
+            let f = Arith::<FAST, false>::factor::<S>(le::<CB>(c), decoder);
+            if let Some(v) = self.pending.get_mut(le::<IB>(r).wrapping_sub(leaves) as usize) {
+                for (v, p) in v.iter_mut().zip(power) {
+                    *v = Arith::<FAST, false>::add(*v, Arith::<FAST, false>::product(p, f), flag);
+                }
+            }
         }
     }
 
     /// Links to leaves (receiver slots below `leaves`, each with its code): link `(l, F)` delivers the power
-    /// `x = product(code) = F U_s` into leaf `l`'s incident power, and the reflected `rho_l F U_s` (`reflect`,
-    /// `mul_rho` or, where the run's products allow, its unchecked form) into its own
-    /// unshot power and, pending for the rest of its chain, into its parent's reflected entry (a root leaf's
-    /// parent index is the inner count, past the buffer: nothing). A link to an inner node adds `x` to its
-    /// pending power instead ([`Targets::inner_links`]).
+    /// `x = F U_s` (the shot's power times the code's factor) into leaf `l`'s incident power, and the reflected
+    /// `rho_l F U_s` into its own unshot power and, pending for the rest of its chain, into its parent's
+    /// reflected entry (a root leaf's parent index is the inner count, past the buffer: nothing). A link to
+    /// an inner node adds `x` to its pending power instead ([`Targets::inner_links`]).
     ///
-    /// A run's leaves are in leaf order, so neighbours mostly share a parent and a material: the parent's
-    /// reflected entry is held in registers while the parent stays the same (added to link by link, so the
-    /// sums round exactly as entry-by-entry additions would, however a budget splits the run), and the
-    /// reflectance while the material stays the same.
+    /// Channel by channel, so that a channel's product, its reflected part and the three sums are all a link
+    /// holds in registers at a time. A run's leaves are in leaf order, so neighbours mostly share a material:
+    /// the reflectance is held while the material stays the same.
     #[inline(always)]
-    fn leaf_links<const IB: usize, const CB: usize>(
+    fn leaf_links<const IB: usize, const CB: usize, const FAST: bool, const SMALL: bool>(
         &mut self,
         receivers: &[[u8; IB]],
         codes: &[[u8; CB]],
         leaves: u32,
-        product: impl Fn(&[u8; CB]) -> [S; 3],
-        reflect: impl Fn(S, S::Rho) -> S,
+        (power, decoder): ([S; 3], S::LinkDecoder),
+        flag: &mut u32,
     ) {
         let n = leaves as usize;
         let (Some(incident), Some(unshot), Some(materials), Some(parents)) = (
@@ -129,9 +171,6 @@ impl<S: Scalar> Targets<'_, '_, S> {
         };
         let mut material = u32::MAX;
         let mut rho = [S::Rho::default(); 3];
-        // The parent entry held: its index (the inner count, past the buffer, when none) and its value.
-        let mut parent = usize::MAX;
-        let mut held = [S::ZERO; 3];
         for (r, c) in receivers.iter().zip(codes) {
             let l = le::<IB>(r) as usize;
             let (Some(h), Some(u), Some(m), Some(p)) =
@@ -139,38 +178,38 @@ impl<S: Scalar> Targets<'_, '_, S> {
             else {
                 continue;
             };
-            let x = product(c);
+            let f = Arith::<FAST, SMALL>::factor::<S>(le::<CB>(c), decoder);
             let m = le::<2>(m);
             if m != material {
                 material = m;
                 rho = cached_rho::<S>(self.rho_cache, self.reflectance, m as usize);
             }
-            let reflected = [reflect(x[0], rho[0]), reflect(x[1], rho[1]), reflect(x[2], rho[2])];
-            *h = add3(*h, x);
-            *u = add3(*u, reflected);
-            let p = le::<IB>(p) as usize;
-            if p != parent {
-                put_at(self.reflected, parent, held);
-                parent = p;
-                held = self.reflected.get(p).copied().unwrap_or([S::ZERO; 3]);
+            let channel = |c: usize, h: &mut S, u: &mut S, flag: &mut u32| {
+                let x = Arith::<FAST, SMALL>::product(power[c], f);
+                let y = Arith::<FAST, SMALL>::reflect::<S>(x, rho[c]);
+                *h = Arith::<FAST, SMALL>::add(*h, x, flag);
+                *u = Arith::<FAST, SMALL>::add(*u, y, flag);
+                y
+            };
+            if let Some(up) = self.reflected.get_mut(le::<IB>(p) as usize) {
+                for c in 0..3 {
+                    let y = channel(c, &mut h[c], &mut u[c], flag);
+                    up[c] = Arith::<FAST, SMALL>::add(up[c], y, flag);
+                }
+            } else {
+                for c in 0..3 {
+                    let _ = channel(c, &mut h[c], &mut u[c], flag);
+                }
             }
-            held = add3(held, reflected);
         }
-        put_at(self.reflected, parent, held);
-    }
-}
-
-/// Stores `v` as entry `i` of `buf` (nothing past its end).
-#[inline(always)]
-fn put_at<S: Copy>(buf: &mut [[S; 3]], i: usize, v: [S; 3]) {
-    if let Some(e) = buf.get_mut(i) {
-        *e = v;
     }
 }
 
 /// Applies the links at table positions `from..end` of the run of the sender in slot `sender`, each delivering
 /// `F power` to its receiver (the solver's link rule), in loops specialized for the table's index and code
-/// widths. Not inlined: called once per shot (or budget), it keeps the stepping loop small.
+/// widths. Not inlined: called once per shot (or budget), it keeps the stepping loop small. Returns whether
+/// every sum stayed in range (module docs of [`hier`](super), "Range"); if not, the buffers hold wrapped
+/// values.
 #[inline(never)]
 pub(super) fn apply_run<S: Scalar>(
     table: &HierTable<'_>,
@@ -178,7 +217,7 @@ pub(super) fn apply_run<S: Scalar>(
     rho_cache: &[[S::Rho; 3]; RHO_CACHE],
     (sender, from, end): (u32, u32, u32),
     power: [S; 3],
-) {
+) -> bool {
     let (receivers, codes, row) = table.link_bytes(sender, from, end);
     let decoder = S::link_decoder(row);
     let mut t = Targets {
@@ -197,7 +236,7 @@ pub(super) fn apply_run<S: Scalar>(
         (4, 1) => t.run::<4, 1>(receivers, codes, decoder, power, leaves),
         (4, 2) => t.run::<4, 2>(receivers, codes, decoder, power, leaves),
         // Parse accepts no other widths.
-        _ => {}
+        _ => true,
     }
 }
 

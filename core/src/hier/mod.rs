@@ -99,6 +99,17 @@
 //! [`HierSolver::power`] and [`HierSolver::radiosity`] are `O(members)` per leaf, [`HierSolver::power_into`]
 //! and [`HierSolver::radiosity_into`] `O(leaves + members)` for all.
 //!
+//! # Range
+//! Fixed point's sums saturate ([`crate::scalar`]), except in shooting's link loops on runs whose products
+//! take fixed point's fast path (FLOAT16-like rows shot with powers below `2^49` raw): a 64-bit saturating
+//! sum costs a 32-bit core several instructions more than a wrapping one, and a link to a leaf makes nine
+//! sums. There each sum wraps, and the run checks once, at its end, whether any sum left `[-2^62, 2^62)` raw
+//! (`+-2^30` power units, half the type's range; the products are below `2^61`, so a wrapped sum lands
+//! outside it too). If one did, the buffers hold wrapped values and the solver stops: every step reports
+//! [`NoProgressReason::NotFinite`] until [`HierSolver::restart`] or [`HierSolver::reset`]. A saturating
+//! sum's value would have been found unusable by the next sweep (unshot and pending power), or read out as
+//! the largest value (incident power). f32 is unaffected: its sums overflow to infinity.
+//!
 //! # Example
 //! ```
 //! use radiosity_core::{
@@ -168,6 +179,9 @@ enum Phase<S> {
     Sweep { next: u32, depth: u32, largest: S, usable: bool, stale: bool },
     /// Every node's unshot magnitude is within the tolerance and nothing is pending (until a change).
     Converged,
+    /// A shot's sum left the range (module docs, "Range"): the buffers hold wrapped values, and every step
+    /// reports [`NoProgressReason::NotFinite`] until [`HierSolver::restart`] or [`HierSolver::reset`].
+    OutOfRange,
 }
 
 /// Hierarchical solver state: the current solution of one [`HierTable`], in the caller's buffers.
@@ -433,8 +447,12 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
     pub fn step(&mut self, budget: u32) -> Outcome {
         let mut used = 0u32;
         loop {
-            if let Phase::Converged = self.phase {
-                return Outcome::Converged { used };
+            match self.phase {
+                Phase::Converged => return Outcome::Converged { used },
+                Phase::OutOfRange => {
+                    return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
+                }
+                _ => {}
             }
             if used >= budget {
                 return if used == 0 {
@@ -444,7 +462,7 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                 };
             }
             match self.phase {
-                Phase::Converged => {}
+                Phase::Converged | Phase::OutOfRange => {}
                 Phase::Round { threshold, next } => {
                     let nodes = self.table.node_count();
                     if next >= nodes {
@@ -483,7 +501,10 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
                     used += count;
                     self.links = self.links.saturating_add(u64::from(count));
                     let links = (sender, next, next + count);
-                    links::apply_run(&self.table, &mut self.buf, &self.rho_cache, links, power);
+                    if !links::apply_run(&self.table, &mut self.buf, &self.rho_cache, links, power) {
+                        self.phase = Phase::OutOfRange;
+                        return Outcome::NoProgress { used, reason: NoProgressReason::NotFinite };
+                    }
                     self.phase = Phase::Shooting { sender, power, next: next + count, end, threshold };
                 }
                 Phase::Sweep { mut next, mut depth, mut largest, mut usable, stale } => {
