@@ -13,7 +13,7 @@
 //! first `LIGHT_PATCHES` patches of wall 5 form the one light group, at unit intensity emitting the Cornell
 //! light's `Ke` (17, 11.8, 4 W/m^2), so the Cornell box's relight scripts (one light group) run on it unchanged.
 //!
-//! Both tables carry a transfer basis (the f64 answer at unit intensity, [`unit_response`]; no static light,
+//! Both tables carry a transfer basis (the f64 answer at unit intensity, `unit_response`; no static light,
 //! so the static base is zero), so the firmware also measures the transfer relight on them.
 
 use radiosity_core::{

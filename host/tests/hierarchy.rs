@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use radiosity_host::formfactor::{compute_form_factors, FormFactorOptions};
+use radiosity_host::formfactor::{compute_form_factors, ClosureMode, FormFactorOptions};
 use radiosity_host::hierarchy::{
     solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions, HierarchySolver, Refinement,
 };
@@ -107,17 +107,43 @@ fn white_furnace_is_within_the_claimed_bound() {
     }
 }
 
-#[test]
-fn a_hierarchy_whose_light_grows_without_bound_is_an_error_not_an_answer() {
-    // The white furnace at rho 0.99: its exact answer is B = E / (1 - rho) = 100, but at epsilon 0.3 the corner
-    // elements' chains gather well over 1 / 0.99 (ancestors' averages overstate what a corner sees), so the
-    // iteration grows until it overflows. That must be an error naming the gain, not an overflowed "answer" (an
-    // overflowed total once made the relative change 0, i.e. converged).
+/// The white furnace at rho 0.99 (`scenes/furnace.obj` with its reflectance raised): `B = E / (1 - rho) = 100`.
+fn furnace_99() -> Scene {
     let obj = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/furnace.obj")).unwrap();
     let obj: String = obj.lines().filter(|l| !l.starts_with("mtllib")).map(|l| format!("{l}\n")).collect();
-    let s = scene("furnace99", &obj, "newmtl furnace\nKd 0.99 0.99 0.99\nKe 1 1 1\n");
+    scene("furnace99", &obj, "newmtl furnace\nKd 0.99 0.99 0.99\nKe 1 1 1\n")
+}
+
+#[test]
+fn a_closed_furnace_at_rho_099_gathers_exactly_its_light() {
+    // At epsilon 0.3 the corner elements' chains gather well over 1 / 0.99 (ancestors' averages overstate what a
+    // corner sees): without closure the iteration diverges (next test). The cube is closed, so each leaf's gathered
+    // light is divided by its row sum, and a uniform B then gathers exactly B: every sweep keeps B uniform, B_k =
+    // E (1 + rho + ... + rho^k), and the solve stops when a sweep's relative change `rho^k / sum` is at most the
+    // tolerance, leaving `100 rho^(k+1) / (1 - rho)`, at most `100 tolerance rho / (1 - rho)`, on every leaf (and
+    // rounding, about 1e-13 relative per sweep over a few thousand sweeps).
+    let s = furnace_99();
+    let options = HierarchyOptions { epsilon: 0.3, ..HierarchyOptions::default() };
+    let sol = solve_hierarchical(&s, &options).unwrap();
+    assert!(sol.stats.closed, "{}", sol.stats);
+    assert!(sol.stats.row_sums.1 > 1.0 / 0.99, "the closure is needed here: {}", sol.stats);
+    let bound = 100.0 * options.solve_tolerance * 0.99 / (1.0 - 0.99) + 1e-8;
+    for (k, b) in sol.b.iter().enumerate() {
+        let err = (*b - Rgb::splat(100.0)).abs().max_element();
+        assert!(err <= bound, "leaf {k}: B {b} vs 100, error {err:e} above {bound:e}");
+    }
+}
+
+#[test]
+fn a_hierarchy_whose_light_grows_without_bound_is_an_error_not_an_answer() {
+    // The white furnace at rho 0.99 without closure (the test above): the iteration grows until it overflows. That
+    // must be an error naming the gain, not an overflowed "answer" (an overflowed total once made the relative
+    // change 0, i.e. converged).
+    let s = furnace_99();
+    let mut options = HierarchyOptions { epsilon: 0.3, ..HierarchyOptions::default() };
+    options.form_factors.closure = ClosureMode::Off;
     // (Gathering: its sweeps reach the overflow within seconds; the shooting solve has the same guard.)
-    match solve_hierarchical(&s, &HierarchyOptions { epsilon: 0.3, ..HierarchyOptions::default() }) {
+    match solve_hierarchical(&s, &options) {
         Err(e @ HierarchyError::NotConverged { gain, .. }) => {
             assert!(gain >= 1.0, "{e}");
             assert!(e.to_string().contains("grew without bound"), "{e}");
@@ -133,6 +159,8 @@ fn cornell_box_leaves_match_the_dense_solve_of_the_same_leaves_within_the_claime
     // contact where a cluster link's point-pair estimate is heavy-tailed (such links are split, not trusted).
     let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
     let sol = solve_hierarchical(&s, &HierarchyOptions::default()).unwrap();
+    // Open (no front wall): never scaled as a closed scene.
+    assert!(!sol.stats.closed);
     matches_the_dense_solve_within_the_claim(&sol);
 }
 

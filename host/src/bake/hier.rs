@@ -15,6 +15,12 @@
 //! The device converges to the answer of the table's system (after that cap), which the bake solves in f64 on
 //! the sender runs: [`BakedHierarchy::radiosity`] (every light group at its default intensity) and the static
 //! radiosity, whose gathered light is the static base `G_s`, so that static light costs the device no work.
+//!
+//! In a closed scene the hierarchical solve divides each leaf's gathered light by its row sum (`hierarchy`,
+//! "Closed scenes"). The table does not carry that factor: core's guarantee that shooting converges rests on
+//! every chain sending on at most the power it holds, and scaling what leaves receive up (where their row sum is
+//! below 1) would break it. So in a closed scene the table's answer differs from the solve's by the row sums'
+//! deviation from 1 as well ([`HierBakeSummary::cap_difference`]).
 
 use radiosity_core::{
     hier_required_len, write_hier_table, FfCodec, GroupSpec, HierSpec, HierTable, MemberSpec, NodeSpec,
@@ -406,12 +412,16 @@ pub struct HierBakeSummary {
     /// The power the cap keeps from being sent on, as a share of all the leaves' power.
     pub cap_power_share: f64,
     /// The table system's f64 answer against the hierarchical solve's: area-weighted relative L1 difference
-    /// (largest channel), what the cap changed.
+    /// (largest channel), what the cap changed (and, in a closed scene, the solve's closure, which the table does
+    /// not carry: [`HierBakeSummary::closed`]).
     pub cap_difference: f64,
+    /// Whether the hierarchical solve found the scene closed and scaled each leaf's gathered light by its row
+    /// sum (`hierarchy`, "Closed scenes"), which the table's system does not.
+    pub closed: bool,
     /// Work units until the device's area-weighted relative L1 error (largest channel) was below 1%, if it got
     /// there.
     pub units_to_one_percent: Option<u64>,
-    /// Work units until the device converged (every node's unshot power within [`SUMMARY_TOLERANCE`] of the
+    /// Work units until the device converged (every node's unshot power within `SUMMARY_TOLERANCE` of the
     /// emitted power).
     pub units_to_converge: Option<u64>,
     /// The converged device's error (same measure): the codes' and f32's floor.
@@ -501,6 +511,7 @@ impl HierBakeSummary {
             cap_largest: baked.capped.largest,
             cap_power_share: baked.capped.power_share,
             cap_difference: relative_l1(&area, baked.radiosity.iter().copied(), &hierarchy),
+            closed: solution.stats.closed,
             units_to_one_percent: to_one,
             units_to_converge: converged,
             error_floor: converged.map(|_| relative_l1(&area, device(&solver).into_iter(), &baked.radiosity)),
@@ -524,8 +535,12 @@ impl std::fmt::Display for HierBakeSummary {
         writeln!(
             f,
             "chain cap          {} leaves over 1 (largest {:.4}), {:.2e} of the power kept back, answer moved \
-             {:.2e}",
-            self.cap_leaves, self.cap_largest, self.cap_power_share, self.cap_difference
+             {:.2e}{}",
+            self.cap_leaves,
+            self.cap_largest,
+            self.cap_power_share,
+            self.cap_difference,
+            if self.closed { " (with the closed scene's scaling of the solve, which the table does not carry)" } else { "" }
         )?;
         writeln!(
             f,

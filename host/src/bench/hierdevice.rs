@@ -90,7 +90,7 @@ pub struct DeviceCurve {
     pub build: String,
     /// That build's bound.
     pub model: CostModel,
-    /// Whether the solver converged (to [`TOLERANCE`]) before [`MAX_UNITS`].
+    /// Whether the solver converged (to `TOLERANCE`) before `MAX_UNITS`.
     pub converged: bool,
     /// The checkpoints.
     pub points: Vec<DevicePoint>,

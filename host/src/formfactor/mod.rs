@@ -61,7 +61,7 @@
 //!
 //! # Rows above 1
 //! A row of an estimate may sum to a little more than 1 through sampling alone. [`FormFactorStats`] carries,
-//! per row, how much ([`row_excess_allowed`]: a 6-sigma bound on the visibility noise from the ray count, plus
+//! per row, how much (`row_excess_allowed`: a 6-sigma bound on the visibility noise from the ray count, plus
 //! the quadrature error that the pair's two estimates show), and the pipeline scales rows within it to 1 (and
 //! says so) but refuses an estimate with a row beyond it ([`rows_over_noise`] names the rows and faces): such a
 //! row means lost occlusion or a broken kernel, not noise.
@@ -183,7 +183,7 @@ pub struct FormFactorStats {
     pub visibility_time: Duration,
     /// Wall time of the whole computation.
     pub elapsed: Duration,
-    /// Per row, how far above 1 the row's sum may lie from sampling alone ([`row_excess_allowed`]); a row that
+    /// Per row, how far above 1 the row's sum may lie from sampling alone (`row_excess_allowed`); a row that
     /// sums to more than `1 + allowed` is not noise, and the pipeline refuses it.
     pub row_excess_allowed: Vec<f64>,
 }
@@ -238,11 +238,51 @@ pub fn rows_over_noise(
 }
 
 /// Standard deviations of visibility noise a row's excess over 1 may reach before it counts as an error (see
-/// [`row_excess_allowed`]): a Gaussian 6-sigma event has a probability of about 1e-9 per row.
+/// `row_excess_allowed`): a Gaussian 6-sigma event has a probability of about 1e-9 per row.
 pub const ROW_EXCESS_SIGMAS: f64 = 6.0;
 
-/// Rounding allowance of a row sum in [`row_excess_allowed`] (a row of thousands of entries summed in f64).
+/// Rounding allowance of a row sum in `row_excess_allowed` (a row of thousands of entries summed in f64).
 pub const ROW_EXCESS_ROUNDING: f64 = 1e-9;
+
+/// Diagonal of the bounding box of `patches` (0 for none).
+fn bounding_diagonal(patches: &[Patch]) -> f64 {
+    let (lo, hi) = patches
+        .iter()
+        .flat_map(|p| p.vertices.iter())
+        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| {
+            (lo.min(*v), hi.max(*v))
+        });
+    if patches.is_empty() {
+        0.0
+    } else {
+        (hi - lo).length()
+    }
+}
+
+/// The closure test of the module docs ("Closure and open scenes") on `patches` as a whole: about `rays` escape
+/// rays spread over them by area (at least [`ESCAPE_RAYS_PER_PATCH`] from each), cast at `caster`. Returns
+/// `(rays cast, rays escaped)`: the scene is closed if none escaped. For solvers that do not mesh the scene into
+/// patches first (the hierarchy tests its face polygons), so that a large polygon gets as many rays as the
+/// patches it would be cut into.
+pub fn escape_test<C: RayCaster + ?Sized>(
+    patches: &[Patch],
+    caster: &C,
+    seed: u64,
+    rays: usize,
+) -> (u64, u64) {
+    let total_area: f64 = patches.iter().map(|p| p.area).sum();
+    let size = bounding_diagonal(patches);
+    (0..patches.len())
+        .into_par_iter()
+        .map(|i| {
+            let p = &patches[i];
+            let share =
+                if total_area > 0.0 { (rays as f64 * p.area / total_area).ceil() as usize } else { 0 };
+            let sampler = PolygonSampler::new(&p.vertices);
+            rows::escaping_rays(p, &sampler, share.max(ESCAPE_RAYS_PER_PATCH), (seed, i as u64), caster, size)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+}
 
 /// How far above 1 each row of an estimate may sum from sampling alone:
 /// `ROW_EXCESS_ROUNDING + q_i + ROW_EXCESS_SIGMAS * sigma_i`, where
@@ -408,19 +448,7 @@ fn estimate<C: RayCaster + ?Sized>(
         scene: caster,
         options,
         progress: &progress,
-        scene_size: {
-            let (lo, hi) = patches
-                .iter()
-                .flat_map(|p| p.vertices.iter())
-                .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| {
-                    (lo.min(*v), hi.max(*v))
-                });
-            if patches.is_empty() {
-                0.0
-            } else {
-                (hi - lo).length()
-            }
-        },
+        scene_size: bounding_diagonal(patches),
     };
     let compute = || -> Phases {
         // Phase 1: unoccluded form factors, no rays.

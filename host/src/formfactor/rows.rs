@@ -39,54 +39,17 @@ pub(super) struct RowContext<'a, C: RayCaster + ?Sized> {
 }
 
 impl<C: RayCaster + ?Sized> RowContext<'_, C> {
-    /// `(rays cast, rays escaped)` for [`ESCAPE_RAYS_PER_PATCH`] cosine-distributed rays from stratified points of
-    /// patch `i` in stratified directions (Malley's method: a stratified point on the unit disk lifted to the
-    /// hemisphere), each tested against everything out to 4 times the scene's size.
+    /// `(rays cast, rays escaped)` for [`ESCAPE_RAYS_PER_PATCH`] escape rays from patch `i` ([`escaping_rays`]).
     pub(super) fn escaping_rays(&self, i: usize) -> (u64, u64) {
-        let p = &self.patches[i];
-        let mut rng = SplitMix64::for_stream(self.options.seed ^ 0x5EED_E5CA_9E00_0000, i as u64, u64::MAX);
-        let mut origins = Vec::new();
-        self.samplers[i].stratified(ESCAPE_RAYS_PER_PATCH, &mut rng, &mut origins);
-        rng.shuffle(&mut origins);
-        let (a, b) = grid(ESCAPE_RAYS_PER_PATCH);
-        let n = p.normal;
-        let (t1, t2) = tangent_frame(n);
-        // Directions of the scene's size (a power of two near it, exact) rather than unit length: in a scene of
-        // size 1e30 a unit direction is 1e-30 of it, and a caster that scales the scene to unit size (Embree's)
-        // would see directions whose squares underflow. `t` runs to 4 scene sizes.
-        let length = 1.0 / unit_factor(self.scene_size as f32);
-        let offset = self.scene.offset() / length;
-        let far = 4.0 * self.scene_size as f32 / length;
-        let mut rays = Vec::with_capacity(a * b);
-        for (k, x) in origins.iter().enumerate() {
-            let (s, t) = (
-                ((k % a) as f64 + rng.open_unit()) / a as f64,
-                ((k / a) as f64 + rng.open_unit()) / b as f64,
-            );
-            let dir = cosine_direction(n, (t1, t2), s, t);
-            rays.push(Ray::new(x.as_vec3(), dir.normalize().as_vec3() * length, offset, far));
-        }
-        let mut occluded = vec![false; rays.len()];
-        self.scene.occluded_many(&rays, &mut occluded);
-        // A ray through a crack between triangles (f32 rounding at T-junctions of neighbouring faces' patches) is
-        // not an opening: an escaped ray counts only if two rays from a nearby point, tilted by 1e-3 rad either
-        // way (far wider than an f32 crack, far narrower than a real opening), escape too.
-        let mut escaped = 0;
-        for (ray, _) in rays.iter().zip(&occluded).filter(|(_, &o)| !o) {
-            let d = ray.direction / length;
-            let tilt = (t1 * 1e-3 + t2 * 1e-3).as_vec3();
-            // Also from a point moved 1 % of the way to the centroid: a ray that starts within the ray offset of a
-            // contact edge can slip past the touching face's edge, which is no opening either.
-            let origin = (ray.origin.as_dvec3() * 0.99 + p.centroid * 0.01).as_vec3();
-            let again = [
-                Ray::new(origin, (d + tilt).normalize() * length, ray.tnear, ray.tfar),
-                Ray::new(origin, (d - tilt).normalize() * length, ray.tnear, ray.tfar),
-            ];
-            if !self.scene.occluded(&again[0]) && !self.scene.occluded(&again[1]) {
-                escaped += 1;
-            }
-        }
-        (rays.len() as u64, escaped)
+        let stream = (self.options.seed, i as u64);
+        escaping_rays(
+            &self.patches[i],
+            &self.samplers[i],
+            ESCAPE_RAYS_PER_PATCH,
+            stream,
+            self.scene,
+            self.scene_size,
+        )
     }
 
     /// `U_ij` for every `j` that `i` can see, sorted by `j`, and the kernel evaluations that took.
@@ -345,4 +308,59 @@ pub(super) fn visible_fraction<C: RayCaster + ?Sized>(
     // the pair as visible.
     let fraction = if total > 0.0 { visible / total } else { f64::NAN };
     (fraction, rays.len() as u64)
+}
+
+/// `(rays cast, rays escaped)` for `count` cosine-distributed rays from stratified points of `p` (sampled by
+/// `sampler`) in stratified directions (Malley's method: a stratified point on the unit disk lifted to the
+/// hemisphere), each tested against everything in `scene` out to 4 times the scene's size `scene_size`; `(seed,
+/// index)` name the random stream.
+pub(crate) fn escaping_rays<C: RayCaster + ?Sized>(
+    p: &Patch,
+    sampler: &PolygonSampler,
+    count: usize,
+    (seed, index): (u64, u64),
+    scene: &C,
+    scene_size: f64,
+) -> (u64, u64) {
+    let mut rng = SplitMix64::for_stream(seed ^ 0x5EED_E5CA_9E00_0000, index, u64::MAX);
+    let mut origins = Vec::new();
+    sampler.stratified(count, &mut rng, &mut origins);
+    rng.shuffle(&mut origins);
+    let (a, b) = grid(count);
+    let n = p.normal;
+    let (t1, t2) = tangent_frame(n);
+    // Directions of the scene's size (a power of two near it, exact) rather than unit length: in a scene of
+    // size 1e30 a unit direction is 1e-30 of it, and a caster that scales the scene to unit size (Embree's)
+    // would see directions whose squares underflow. `t` runs to 4 scene sizes.
+    let length = 1.0 / unit_factor(scene_size as f32);
+    let offset = scene.offset() / length;
+    let far = 4.0 * scene_size as f32 / length;
+    let mut rays = Vec::with_capacity(a * b);
+    for (k, x) in origins.iter().enumerate() {
+        let (s, t) =
+            (((k % a) as f64 + rng.open_unit()) / a as f64, ((k / a) as f64 + rng.open_unit()) / b as f64);
+        let dir = cosine_direction(n, (t1, t2), s, t);
+        rays.push(Ray::new(x.as_vec3(), dir.normalize().as_vec3() * length, offset, far));
+    }
+    let mut occluded = vec![false; rays.len()];
+    scene.occluded_many(&rays, &mut occluded);
+    // A ray through a crack between triangles (f32 rounding at T-junctions of neighbouring faces' patches) is
+    // not an opening: an escaped ray counts only if two rays from a nearby point, tilted by 1e-3 rad either
+    // way (far wider than an f32 crack, far narrower than a real opening), escape too.
+    let mut escaped = 0;
+    for (ray, _) in rays.iter().zip(&occluded).filter(|(_, &o)| !o) {
+        let d = ray.direction / length;
+        let tilt = (t1 * 1e-3 + t2 * 1e-3).as_vec3();
+        // Also from a point moved 1 % of the way to the centroid: a ray that starts within the ray offset of a
+        // contact edge can slip past the touching face's edge, which is no opening either.
+        let origin = (ray.origin.as_dvec3() * 0.99 + p.centroid * 0.01).as_vec3();
+        let again = [
+            Ray::new(origin, (d + tilt).normalize() * length, ray.tnear, ray.tfar),
+            Ray::new(origin, (d - tilt).normalize() * length, ray.tnear, ray.tfar),
+        ];
+        if !scene.occluded(&again[0]) && !scene.occluded(&again[1]) {
+            escaped += 1;
+        }
+    }
+    (rays.len() as u64, escaped)
 }

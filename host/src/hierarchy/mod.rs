@@ -49,6 +49,19 @@
 //!   is propagated through the same operator, `e = c + rho H e`: the oracle's claimed bound on each leaf's
 //!   radiosity error ([`HierarchicalSolution::error_bound`]), against which the tests judge the answer.
 //!
+//! # Closed scenes
+//! In a closed scene every point's hemisphere is covered, so every leaf's total form factor (its row sum: the
+//! links on its chain, pushed down) is 1, but the hierarchy's is not: an ancestor's link carries the ancestor's
+//! average form factor, which overstates what a leaf in a corner sees and understates what a leaf facing the
+//! middle sees. With reflectances near 1 that error is multiplied by `1 / (1 - rho)`: the white furnace at rho
+//! 0.99 (`B = E / (1 - rho)` exactly) gathered up to 1.55 times its light per bounce and diverged. So, as the
+//! flat path closes a closed scene's rows (`formfactor`, "Closure and open scenes"), the solves divide what each
+//! leaf gathers by its row sum: the same test decides (escape rays, here [`CLOSURE_RAYS`] spread over the face
+//! polygons by area; none may escape), the scene is never scaled if any does, and the stats say when it was. For
+//! the furnace that is exact (a uniform `B` gathers `B` times the row sum); elsewhere it removes the row sums'
+//! deviation as a common factor of what a leaf gathers, where the link that caused it may have been one of many.
+//! The device tables (`bake::hier`) do not carry that factor: they cap chain sums at 1 instead.
+//!
 //! # Status
 //! Not yet the default of any command: `solve --method hierarchical` only (links refined for the default light
 //! intensities; the answer is also split by light source, [`HierarchicalSolution::transfer`]). Scenes
@@ -82,7 +95,9 @@ mod tree;
 
 use std::fmt;
 
-use crate::formfactor::{occluder_scene, ElementRules, FormFactorError, FormFactorOptions};
+use crate::formfactor::{
+    escape_test, occluder_scene, ClosureMode, ElementRules, FormFactorError, FormFactorOptions,
+};
 use crate::lighting::PatchLighting;
 use crate::mesh::{mesh, MeshError, MeshOptions};
 use crate::patch::Patch;
@@ -121,6 +136,10 @@ pub const DEFAULT_PASSES: usize = 4;
 pub const DEFAULT_SOLVE_TOLERANCE: f64 = 1e-7;
 /// Most push-pull sweeps of one solve.
 pub const MAX_SWEEPS: usize = 100_000;
+
+/// Escape rays of the closure test on the face polygons ([`escape_test`], spread by area): what the flat path's
+/// test casts from a mesh of about a thousand patches, so that a polygon gets as many as its patches would.
+pub const CLOSURE_RAYS: usize = 65_536;
 
 /// How the linear system on the links is solved (both reach the same answer; see the tests of `shoot`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -286,8 +305,9 @@ fn not_converged(sweeps: usize, change: f64, gain: f64) -> String {
     };
     let why = if gain >= 1.0 {
         " (at 1 or above, light can grow without bound: with reflectances this close to 1, the hierarchy's \
-         averaged form factors overstate what corner elements see by too much; --method flat closes the rows of a \
-         closed scene)"
+         averaged form factors overstate what corner elements see by too much; a closed scene's gathered light is \
+         scaled to its row sums, which removes that, but escape rays found an opening in this one, or closure is \
+         off; --method flat keeps every pair's own form factor)"
     } else {
         ""
     };
@@ -362,6 +382,9 @@ pub struct HierarchyStats {
     /// Smallest and largest total form factor a leaf gathers through (its links and its ancestors'): the
     /// hierarchy's row sums, 1 in a closed scene.
     pub row_sums: (f64, f64),
+    /// Whether the scene was found closed (no escape ray, [`CLOSURE_RAYS`]), so that the solves scaled what each
+    /// leaf gathers by one over its row sum (module docs, "Closed scenes").
+    pub closed: bool,
 }
 
 impl fmt::Display for HierarchyStats {
@@ -386,6 +409,9 @@ impl fmt::Display for HierarchyStats {
         )?;
         if self.at_limit > 0 {
             write!(f, "; {} links above the bound at the resolution or node limit", self.at_limit)?;
+        }
+        if self.closed {
+            write!(f, "; closed scene (no escape ray): each leaf's gathered light divided by its row sum")?;
         }
         Ok(())
     }
@@ -558,6 +584,14 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let rules = ElementRules::new(&options.form_factors)?;
     let progress = link::Progress::new();
     let mut refining = std::time::Instant::now();
+    // Closure is a property of the scene: tested once, on the face polygons (module docs, "Closed scenes").
+    let closed = match options.form_factors.closure {
+        ClosureMode::Detect => {
+            let (cast, escaped) = escape_test(roots, caster, options.form_factors.seed, CLOSURE_RAYS);
+            cast > 0 && escaped == 0
+        }
+        ClosureMode::Off => false,
+    };
     let mut refine_time = std::time::Duration::ZERO;
     let mut tree = Tree::new(&rules, roots, rho, emission);
     let total_area: f64 = roots.iter().map(|p| p.area).sum();
@@ -615,7 +649,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 .map_err(in_pass)?;
         }
         refine_time += refining.elapsed();
-        solution = solve_with(&tree, &links, &solve::emission(&tree), options)?;
+        solution = solve_with(&tree, &links, &solve::emission(&tree), options, closed)?;
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
         passes.push(PassStats {
             links: links.len(),
@@ -652,11 +686,14 @@ fn solve_checked<C: RayCaster + ?Sized>(
     }
     let rays = rules.rays_per_pair() as f64;
     let (charges, persistent) = budget::leaf_charges(&tree, &spans, &limits, &links, rays, options.epsilon);
-    let bound = solve::propagate(&tree, &links, &charges, options.solve_tolerance, MAX_SWEEPS)
-        .zip(solve::propagate(&tree, &links, &persistent, options.solve_tolerance, MAX_SWEEPS));
+    let rho = reflectance_of(&tree, &links, closed);
+    let propagate =
+        |c: &[f64]| solve::propagate(&tree, &links, (c, &rho), options.solve_tolerance, MAX_SWEEPS);
+    let bound = propagate(&charges).zip(propagate(&persistent));
     let mut out =
         finish(&tree, &links, &solution, bound, counts, passes, &limits, brightest_power, roots.len());
     out.refine_seconds = refine_time.as_secs_f64();
+    out.stats.closed = closed;
     if !sources.is_empty() {
         let order = leaf_order(&tree);
         let (mut residual, mut sweeps) = (0.0f64, 0);
@@ -667,7 +704,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 .iter()
                 .map(|n| if n.root == tree::NONE { Rgb::ZERO } else { source[n.root as usize] })
                 .collect();
-            let s = solve_with(&tree, &links, &e, options)?;
+            let s = solve_with(&tree, &links, &e, options, closed)?;
             residual = residual.max(s.change);
             sweeps += s.sweeps;
             per_source.push(order.iter().map(|&k| s.b[k]).collect::<Vec<Rgb>>());
@@ -756,10 +793,13 @@ fn solve_with(
     links: &[link::Link],
     e: &[Rgb],
     options: &HierarchyOptions,
+    closed: bool,
 ) -> Result<solve::NodeRadiosity, HierarchyError> {
+    let rho = reflectance_of(tree, links, closed);
+    let system = (e, rho.as_slice());
     let solution = match options.solver {
-        HierarchySolver::Gathering => solve::solve(tree, links, e, options.solve_tolerance, MAX_SWEEPS),
-        HierarchySolver::Shooting => shoot::shoot(tree, links, e, options.solve_tolerance, MAX_SWEEPS),
+        HierarchySolver::Gathering => solve::solve(tree, links, system, options.solve_tolerance, MAX_SWEEPS),
+        HierarchySolver::Shooting => shoot::shoot(tree, links, system, options.solve_tolerance, MAX_SWEEPS),
     };
     if solution.change.is_nan() || solution.change > options.solve_tolerance {
         let (sums, _) = excess::leaf_row_sums(tree, links);
@@ -767,12 +807,29 @@ fn solve_with(
             .nodes
             .iter()
             .zip(&sums)
-            .filter(|(n, _)| n.children.is_empty())
-            .map(|(n, s)| n.rho_max.max_element() * s)
+            .zip(&rho)
+            .filter(|((n, _), _)| n.children.is_empty())
+            .map(|((_, s), r)| r.max_element() * s)
             .fold(0.0, f64::max);
         return Err(HierarchyError::NotConverged { sweeps: solution.sweeps, change: solution.change, gain });
     }
     Ok(solution)
+}
+
+/// The reflectance the solves use per node: the surfaces' (zero on clusters), and in a closed scene each leaf's
+/// divided by its total form factor (its row sum, [`excess::leaf_row_sums`]), so that what it gathers is scaled to
+/// the whole hemisphere it sees (module docs, "Closed scenes"). A leaf without links keeps its own.
+fn reflectance_of(tree: &Tree, links: &[link::Link], closed: bool) -> Vec<Rgb> {
+    let mut rho = solve::reflectance(tree);
+    if closed {
+        let (sums, _) = excess::leaf_row_sums(tree, links);
+        for ((r, node), s) in rho.iter_mut().zip(&tree.nodes).zip(&sums) {
+            if node.children.is_empty() && *s > 0.0 {
+                *r /= *s;
+            }
+        }
+    }
+    rho
 }
 
 /// The leaves' node indices in the answer's order: by face, then by node index (when they were made).
@@ -839,6 +896,7 @@ fn finish(
             claimed_error: None,
             sweeps: solution.sweeps,
             row_sums: excess::leaf_row_sums(tree, links).1,
+            closed: false,
         },
     };
     let (mut radiosity, mut claimed) = (0.0, 0.0);

@@ -19,7 +19,7 @@
 //! leaf has received, through every link on its chain, the sender's full radiosity.
 
 use super::link::Link;
-use super::solve::{pull, reflectance, NodeRadiosity};
+use super::solve::{pull, NodeRadiosity};
 use super::span::Span;
 use super::tree::{Tree, NONE};
 use crate::rgb::{max_channel, Rgb};
@@ -27,19 +27,18 @@ use crate::rgb::{max_channel, Rgb};
 /// A node shoots in a round when its unshot power is at least this share of the round's largest.
 pub const ROUND_SHARE: f64 = 1.0 / 64.0;
 
-/// Shooting rounds with emission `e` per node (zero on clusters) until the unshot power is at most `tolerance`
-/// of the total, or `max_rounds` ran. The returned `sweeps` counts shots, `change` is the remaining unshot power
+/// Shooting rounds with emission `e` and reflectance `rho` per node (zero on clusters) until the unshot power is
+/// at most `tolerance` of the total, or `max_rounds` ran. The returned `sweeps` counts shots, `change` is the remaining unshot power
 /// over the total (infinite or NaN if it diverged).
 pub(super) fn shoot(
     tree: &Tree,
     links: &[Link],
-    e: &[Rgb],
+    (e, rho): (&[Rgb], &[Rgb]),
     tolerance: f64,
     max_rounds: usize,
 ) -> NodeRadiosity {
     let n = tree.nodes.len();
     let e = e.to_vec();
-    let rho = reflectance(tree);
     // Outgoing links per node, as (receiver, form factor at the receiver).
     let mut start = vec![0usize; n + 1];
     for l in links {
@@ -138,7 +137,7 @@ pub(super) fn shoot(
 mod tests {
     use super::super::link::{expand_self, Estimator, Limits, RefineCounts};
     use super::super::pieces::refine;
-    use super::super::solve::{emission as node_emission, emission_bound, solve};
+    use super::super::solve::{emission as node_emission, emission_bound, reflectance, solve};
     use super::super::testing::cornell_polygons;
     use super::super::tree::Tree;
     use super::shoot;
@@ -176,8 +175,9 @@ mod tests {
 
         let tol = 1e-10;
         let e = node_emission(&tree);
-        let gathered = solve(&tree, &links, &e, tol, 100_000);
-        let shot = shoot(&tree, &links, &e, tol, 100_000);
+        let rho = reflectance(&tree);
+        let gathered = solve(&tree, &links, (&e, &rho), tol, 100_000);
+        let shot = shoot(&tree, &links, (&e, &rho), tol, 100_000);
         assert!(gathered.change <= tol && shot.change <= tol, "{} {}", gathered.change, shot.change);
         // The iteration's contraction per sweep, as observed: from a change of at most 1 to `tol` in `sweeps`.
         let q = tol.powf(1.0 / gathered.sweeps as f64);

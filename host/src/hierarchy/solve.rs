@@ -74,18 +74,17 @@ pub(super) fn emission_bound(tree: &Tree) -> Vec<Span> {
     spans
 }
 
-/// Jacobi sweeps with emission `e` per node (zero on clusters) until the relative change is at most `tolerance`
-/// or `max_sweeps` ran.
+/// Jacobi sweeps with emission `e` and reflectance `rho` per node (zero on clusters) until the relative change is
+/// at most `tolerance` or `max_sweeps` ran.
 pub(super) fn solve(
     tree: &Tree,
     links: &[Link],
-    e: &[Rgb],
+    (e, rho): (&[Rgb], &[Rgb]),
     tolerance: f64,
     max_sweeps: usize,
 ) -> NodeRadiosity {
     let n = tree.nodes.len();
     let e = e.to_vec();
-    let rho = reflectance(tree);
     let mut b = e.clone();
     let mut spans = vec![Span::ZERO; n];
     pull(tree, &mut b, &e, &mut spans);
@@ -128,25 +127,19 @@ pub(super) fn solve(
 }
 
 /// The propagated error bound: the solution of `e = c + rho H e` on the leaves (`c` per leaf from `source`, `H`
-/// the links with push-pull, `rho` the largest channel), by the same Jacobi sweeps as [`solve`]. An error of at
-/// most `c` in what each leaf gathers per bounce becomes at most `e` in its radiosity. `None` if the sweeps do
-/// not settle to `tolerance` (the bound diverges: `rho` times a leaf's total form factor reaches 1).
+/// the links with push-pull, `rho` the largest channel of `rho`, the solve's reflectance), by the same Jacobi
+/// sweeps as [`solve`]. An error of at most `c` in what each leaf gathers per bounce becomes at most `e` in its
+/// radiosity. `None` if the sweeps do not settle to `tolerance` (the bound diverges: `rho` times a leaf's total
+/// form factor reaches 1).
 pub(super) fn propagate(
     tree: &Tree,
     links: &[Link],
-    source: &[f64],
+    (source, rho): (&[f64], &[Rgb]),
     tolerance: f64,
     max_sweeps: usize,
 ) -> Option<Vec<f64>> {
     let n = tree.nodes.len();
-    let rho: Vec<f64> = tree
-        .nodes
-        .iter()
-        .map(|n| match &n.kind {
-            Kind::Surface { rho, .. } => max_channel(*rho),
-            Kind::Cluster { .. } => 0.0,
-        })
-        .collect();
+    let rho: Vec<f64> = rho.iter().map(|r| max_channel(*r)).collect();
     let mut e = source.to_vec();
     let mut gathered = vec![0.0; n];
     for _ in 0..max_sweeps {

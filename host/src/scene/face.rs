@@ -77,7 +77,7 @@ impl fmt::Display for GltfPlace {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Face {
     /// Index of the face in load order (0-based): for an OBJ file, over all objects, the k-th `f` statement has
-    /// index k; for a glTF file, see [`super::gltf`].
+    /// index k; for a glTF file, see the `scene::gltf` module.
     pub index: usize,
     /// Line of the face's `f` statement in the OBJ file (1-based); 0 for a face of a glTF file (see
     /// [`Face::gltf`]).
