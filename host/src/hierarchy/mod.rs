@@ -191,7 +191,9 @@ pub struct HierarchyOptions {
     pub solver: HierarchySolver,
     /// What the passes after the direct-light pass refine for.
     pub refinement: Refinement,
-    /// The form-factor estimator's rules (samples per element, rays per pair, seed) for surface pairs.
+    /// The form-factor estimator's rules (samples per element, rays per pair, seed) for surface pairs, and its
+    /// closure test (`closure`: with [`ClosureMode::Detect`], a closed scene's leaves gather to their row sums,
+    /// module docs "Closed scenes"; [`ClosureMode::Off`] never scales).
     pub form_factors: FormFactorOptions,
     /// Receiver-subtree pieces every refinement runs in, each on its own copy of the tree, in parallel
     /// (`pieces`). The answer is the same, bit for bit, for every count: this is the split a run on several
