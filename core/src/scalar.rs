@@ -57,7 +57,7 @@ pub(crate) mod sealed {
         fn transfer_term_fast(code: u16, scale: Self::TransferScale) -> Self;
         /// A run's form-factor decoder prepared for hierarchical shooting's per-link products.
         type LinkDecoder: Copy + core::fmt::Debug;
-        /// Prepares `row` (one run's decoder) for [`Internal::link_products`].
+        /// Prepares `row` (one run's decoder) for [`Internal::link_factor`] and [`Internal::link_product`].
         #[must_use]
         fn link_decoder(row: crate::codec::RowDecoder) -> Self::LinkDecoder;
         /// A form-factor code decoded for [`Internal::link_product`] (once per link, for its three channels).
@@ -76,27 +76,12 @@ pub(crate) mod sealed {
         /// [`Internal::link_fast`] holds, without its checks (for others any value).
         #[must_use]
         fn link_product_fast(self, f: Self::LinkFactor) -> Self;
-        /// `power` times the factor of form-factor code `code`, per channel ([`Internal::link_product`]).
-        #[must_use]
-        #[inline(always)]
-        fn link_products(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3] {
-            let f = Self::link_factor(code, d);
-            power.map(|p| p.link_product(f))
-        }
-        /// Whether [`Internal::link_products_fast`] gives `link_products`' bits for `d`, `power` and every
-        /// code read at the codec's width.
+        /// Whether the fast forms ([`Internal::link_factor_fast`], [`Internal::link_product_fast`]) give the
+        /// checked ones' bits for `d`, every channel of `power` and every code read at the codec's width.
         #[must_use]
         fn link_fast(d: &Self::LinkDecoder, power: &[Self; 3]) -> bool;
-        /// `link_products` without its per-code checks, for decoders where [`Internal::link_fast`] holds (for
-        /// others any value).
-        #[must_use]
-        #[inline(always)]
-        fn link_products_fast(power: [Self; 3], code: u32, d: Self::LinkDecoder) -> [Self; 3] {
-            let f = Self::link_factor_fast(code, d);
-            power.map(|p| p.link_product_fast(f))
-        }
         /// For `d` and `power` where [`Internal::link_fast`] holds (the caller's check, not repeated): whether
-        /// every fast product of `power` with a code of `d` is small enough for [`Internal::mul_rho_small`] to
+        /// every fast product of a channel of `power` with a code of `d` is small enough for [`Internal::mul_rho_small`] to
         /// give `mul_rho`'s bits.
         #[must_use]
         fn link_products_small(d: &Self::LinkDecoder, power: &[Self; 3]) -> bool;
@@ -642,7 +627,7 @@ impl sealed::Internal for Fixed {
     }
     /// Rows whose values have mantissas below `2^13` and shifts in `1..=62` (FLOAT16 rows of exponents in
     /// the usual range) shot with powers below `2^49` raw in magnitude: every product then takes `mul_frac`'s
-    /// one 64-bit product path, which [`Internal::link_products_fast`] computes without `mul_frac`'s checks.
+    /// one 64-bit product path, which [`Internal::link_product_fast`] computes without `mul_frac`'s checks.
     fn link_fast(d: &RowDecoder, power: &[Fixed; 3]) -> bool {
         let (least, largest) = d.shift_range();
         d.mantissa_bits() <= 13
@@ -697,7 +682,7 @@ mod tests {
     #[test]
     fn fixed_link_products_fast_are_the_checked_products() {
         // Every code of the codecs at row exponents across the range, powers on both sides of 2^49: where
-        // `link_fast` holds, the unchecked products are `link_products`' bits; the premise holds for FLOAT16 rows
+        // `link_fast` holds, the unchecked products are the checked ones' bits; the premise holds for FLOAT16 rows
         // of small exponents with moderate powers (the path is not dead).
         use crate::codec::FfCodec;
         let powers = [
@@ -723,9 +708,10 @@ mod tests {
                     let small = Fixed::link_products_small(&d, power);
                     small_taken += usize::from(small);
                     for code in 0..=u32::from(codec.max_code()) {
+                        let (fast, checked) = (Fixed::link_factor_fast(code, d), Fixed::link_factor(code, d));
                         let (got, want) = (
-                            Fixed::link_products_fast(*power, code, d),
-                            Fixed::link_products(*power, code, d),
+                            power.map(|p| p.link_product_fast(fast)),
+                            power.map(|p| p.link_product(checked)),
                         );
                         assert_eq!(got, want, "{codec} e {e} code {code} power {power:?}");
                         // Where the run's products are declared small, the unchecked reflectance product is

@@ -650,14 +650,13 @@ impl<'a, S: Scalar> HierSolver<'a, S> {
         let (mut largest, mut usable, mut units) = (S::ZERO, true, 0u32);
         for k in self.table.group_members(group).unwrap_or(0..0) {
             let Some(m) = self.table.member(k) else { continue };
+            // A node without links reads as zero unshot power, which never raises the largest.
             let walked = self.walk_chain(m.leaf, |s, slot| {
-                if s.slot_has_links(slot) {
-                    let v = magnitude(s.unshot_of(slot));
-                    if !v.is_usable() {
-                        usable = false;
-                    } else if v > largest {
-                        largest = v;
-                    }
+                let v = magnitude(s.unshot_of(slot));
+                if !v.is_usable() {
+                    usable = false;
+                } else if v > largest {
+                    largest = v;
                 }
             });
             units = units.saturating_add(1 + walked);

@@ -54,7 +54,7 @@
 //! links on its chain, pushed down) is 1, but the hierarchy's is not: an ancestor's link carries the ancestor's
 //! average form factor, which overstates what a leaf in a corner sees and understates what a leaf facing the
 //! middle sees. With reflectances near 1 that error is multiplied by `1 / (1 - rho)`: the white furnace at rho
-//! 0.99 (`B = E / (1 - rho)` exactly) gathered up to 1.55 times its light per bounce and diverged. So, as the
+//! 0.99 (`B = E / (1 - rho)` exactly) gathered more than its light per bounce at its corners and diverged. So, as the
 //! flat path closes a closed scene's rows (`formfactor`, "Closure and open scenes"), the solves divide what each
 //! leaf gathers by its row sum: the same test decides (escape rays, here [`CLOSURE_RAYS`] spread over the face
 //! polygons by area; none may escape), the scene is never scaled if any does, and the stats say when it was. For
