@@ -8,7 +8,7 @@
 //! each.
 
 use radiosity_core::{Config, HierOwnedBuffers, HierSolver, HierTable, Outcome};
-use radiosity_host::bake::bake_hierarchy;
+use radiosity_host::bake::{bake_hierarchy, BakedHierarchy, HierBakeSummary};
 use radiosity_host::hierarchy::{solve_hierarchical, HierarchicalSolution, HierarchyOptions};
 use radiosity_host::scene::Scene;
 
@@ -75,22 +75,8 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
     // power and power; `S` the sweeps, `solver.sweeps()`: the sums of a leaf's power and a node's unshot power
     // over sweeps), so it carries a relative error of at most `u` times that; an error spreads like power, so
     // the total is at most that times `P / (1 - q)`.
-    let u = 2f64.powi(-12);
-    let rho_max = solution.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
-    let c = baked.chain_sum;
-    let q = rho_max * c;
-    let leaf_power: Vec<f64> = baked
-        .radiosity
-        .iter()
-        .enumerate()
-        .map(|(t, b)| solution.leaves[baked.solution_leaf[t]].area * b.max_element())
-        .collect();
-    let p_total: f64 = leaf_power.iter().sum();
+    let CodeBound { codes, p_total, q } = code_bound(&solution, &baked, &table);
     let eps32 = f64::from(f32::EPSILON);
-    let codes = (2f64.powi(-24) * emitted
-        + (u * rho_max + 2f64.powi(-17)) * c * p_total
-        + 2f64.powi(-26) * f64::from(table.longest_run()) * p_total)
-        / (1.0 - q);
     let unshot = nodes as f64 * tolerance / (1.0 - q);
     let mut into = vec![0u32; nodes];
     for s in 0..table.node_count() {
@@ -121,6 +107,58 @@ fn cornell_box_hierarchical_table_relights_to_the_f64_answer_of_its_links() {
     );
     assert!(error <= allowed, "device power error {error:.3e} above the allowed {allowed:.3e}");
     assert!(allowed < 0.01 * p_total, "an allowance this large would say nothing");
+}
+
+/// What the codes alone may change in the table system's answer, in total power (the derivation is in
+/// the test above), with the total power of the f64 answer and the contraction `q = rho_max * c`.
+struct CodeBound {
+    codes: f64,
+    p_total: f64,
+    q: f64,
+}
+
+fn code_bound(solution: &HierarchicalSolution, baked: &BakedHierarchy, table: &HierTable<'_>) -> CodeBound {
+    let u = 2f64.powi(-12);
+    let emitted: f64 =
+        solution.leaves.iter().zip(&solution.emission).map(|(p, e)| p.area * e.element_sum()).sum();
+    let rho_max = solution.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
+    let c = baked.chain_sum;
+    let q = rho_max * c;
+    let p_total: f64 = baked
+        .radiosity
+        .iter()
+        .enumerate()
+        .map(|(t, b)| solution.leaves[baked.solution_leaf[t]].area * b.max_element())
+        .sum();
+    let codes = (2f64.powi(-24) * emitted
+        + (u * rho_max + 2f64.powi(-17)) * c * p_total
+        + 2f64.powi(-26) * f64::from(table.longest_run()) * p_total)
+        / (1.0 - q);
+    CodeBound { codes, p_total, q }
+}
+
+/// The bake summary's quantization component (the f64 answer of the decoded codes against the system they were
+/// quantized from) is within what the codes may change, and is not zero (the codes round).
+#[test]
+fn hierarchical_quantization_component_is_within_the_codes_bound() {
+    let (scene, solution) = cornell_box_at_epsilon_0_1();
+    let baked = bake_hierarchy(&scene, &solution, 16, false).unwrap();
+    let table = HierTable::parse(&baked.table).unwrap();
+    let CodeBound { codes, p_total, .. } = code_bound(&solution, &baked, &table);
+    let summary = HierBakeSummary::measure(&baked, &solution).unwrap();
+    let floor = summary.error_floor.expect("the summary's relight converges");
+    println!(
+        "quantization {:.3e} (allowed {:.3e}), device floor {floor:.3e}",
+        summary.quantization,
+        codes / p_total
+    );
+    assert!(summary.quantization > 0.0, "decoded codes differ from the f64 values they came from");
+    assert!(
+        summary.quantization * p_total <= codes,
+        "quantization {:.3e} above the codes' bound {:.3e}",
+        summary.quantization,
+        codes / p_total
+    );
 }
 
 /// The transfer basis of a hierarchical table: core's one-pass relight at intensities other than the defaults

@@ -217,6 +217,73 @@ impl Runs<'_> {
     }
 }
 
+/// What the device computes with, decoded from a parsed table of `net`'s bake into f64: the runs' form factors,
+/// each leaf's reflectance, its static base `E_s + rho G_s` (zero without a solved base) and the dynamic
+/// emission with every group at its default intensity, per node (zero at inner nodes).
+struct DecodedHierarchy<'a> {
+    runs: Runs<'a>,
+    rho: Vec<Rgb>,
+    base: Vec<Rgb>,
+    dynamic: Vec<Rgb>,
+}
+
+impl<'a> DecodedHierarchy<'a> {
+    /// Decodes `table`, baked from `net` (the same nodes in the same order).
+    ///
+    /// # Errors
+    /// [`BakeError::Input`] if the table's nodes are not `net`'s.
+    fn new(net: &'a LinkNetwork, table: &HierTable<'_>) -> Result<Self, BakeError> {
+        use radiosity_core::codec::{decode_emission_f32, decode_reflectance};
+        let n = net.nodes.len();
+        if table.node_count() as usize != n {
+            return Err(BakeError::Input(format!(
+                "the table has {} nodes, the network {n}",
+                table.node_count()
+            )));
+        }
+        let mut runs = Runs { net, runs: vec![Vec::new(); n] };
+        for (k, run) in runs.runs.iter_mut().enumerate() {
+            for position in table.run(k as u32).unwrap_or(0..0) {
+                if let Some((r, f)) = table.link(k as u32, position) {
+                    run.push((r, f64::from(f.to_f32())));
+                }
+            }
+        }
+        let emission = |codes: [u16; 3]| Rgb::from_array(codes.map(|c| f64::from(decode_emission_f32(c))));
+        let (mut rho, mut base, mut dynamic) = (vec![Rgb::ZERO; n], vec![Rgb::ZERO; n], vec![Rgb::ZERO; n]);
+        let node_of = |leaf: u32| table.leaf_node(leaf).map(|k| k as usize).filter(|&k| k < n);
+        for leaf in 0..table.leaf_count() {
+            let Some(k) = node_of(leaf) else { continue };
+            let codes = table.reflectance(table.material(leaf).unwrap_or(0)).unwrap_or([0; 3]);
+            rho[k] = Rgb::from_array(codes.map(|c| f64::from(decode_reflectance(c).to_f32())));
+            if table.base_solved() {
+                let e = emission(table.base_emission(leaf).unwrap_or([0; 3]));
+                let g = emission(table.base_irradiance(leaf).unwrap_or([0; 3]));
+                base[k] = e + rho[k] * g;
+            }
+        }
+        for g in 0..table.group_count() {
+            let intensity = Rgb::from_array(table.default_intensity(g).unwrap_or([0.0; 3]).map(f64::from));
+            for position in table.group_members(g).unwrap_or(0..0) {
+                if let Some((m, k)) = table.member(position).and_then(|m| Some((m, node_of(m.leaf)?))) {
+                    dynamic[k] += intensity * Rgb::from_array(m.emission.map(f64::from));
+                }
+            }
+        }
+        Ok(DecodedHierarchy { runs, rho, base, dynamic })
+    }
+
+    /// The decoded system's f64 answer per node (leaves): the static base plus the solve of the dynamic
+    /// emission, what the device converges to but for its arithmetic.
+    fn answer(&self) -> Result<Vec<Rgb>, BakeError> {
+        let mut b = self.runs.solve(&self.dynamic, &self.rho)?;
+        for (b, s) in b.iter_mut().zip(&self.base) {
+            *b += *s;
+        }
+        Ok(b)
+    }
+}
+
 /// Bakes `solution` (of `scene`, from [`crate::hierarchy::solve_hierarchical`]) into a hierarchical table with
 /// `bits`-wide form-factor codes; with `transfer`, the table also carries the transfer basis (core's
 /// `transfer` module): every leaf's f64 response to each dynamic light group at unit intensity, quantized.
@@ -426,6 +493,10 @@ pub struct HierBakeSummary {
     pub units_to_converge: Option<u64>,
     /// The converged device's error (same measure): the codes' and f32's floor.
     pub error_floor: Option<f64>,
+    /// The quantization component (same measure): the f64 answer of the table's decoded codes (form factors,
+    /// reflectances, static base; areas and emissions as the table's f32) against the f64 answer of the system
+    /// they were quantized from. The device floor adds f32's arithmetic to it.
+    pub quantization: f64,
     /// Shots and link entries walked until convergence.
     pub shots: u32,
     /// See `shots`.
@@ -489,6 +560,10 @@ impl HierBakeSummary {
                 break;
             }
         }
+        let decoded = DecodedHierarchy::new(&solution.network, &table)?.answer()?;
+        let node_of = |leaf: u32| table.leaf_node(leaf).map_or(0, |k| k as usize);
+        let quantization =
+            relative_l1(&area, (0..table.leaf_count()).map(|t| decoded[node_of(t)]), &baked.radiosity);
         let transfer = if table.has_transfer() {
             let intensity: Vec<[f32; 3]> =
                 (0..table.group_count()).map(|g| table.default_intensity(g).unwrap_or([0.0; 3])).collect();
@@ -515,6 +590,7 @@ impl HierBakeSummary {
             units_to_one_percent: to_one,
             units_to_converge: converged,
             error_floor: converged.map(|_| relative_l1(&area, device(&solver).into_iter(), &baked.radiosity)),
+            quantization,
             shots: solver.shots(),
             links_walked: solver.links(),
         })
@@ -551,10 +627,12 @@ impl std::fmt::Display for HierBakeSummary {
         )?;
         write!(
             f,
-            "device floor       {} ({} shots, {} link entries walked)",
+            "device floor       {} ({} shots, {} link entries walked); of which quantization {:.2e} (f64 \
+             answer of the decoded codes)",
             self.error_floor.map_or_else(|| "not converged".to_owned(), |e| format!("{e:.2e}")),
             self.shots,
-            self.links_walked
+            self.links_walked,
+            self.quantization
         )?;
         if let Some((units, error)) = self.transfer {
             write!(f, "\ntransfer relight   {units} units (leaves x (groups + 1)), error {error:.2e} (f32)")?;
