@@ -78,6 +78,20 @@ pub struct BakedHierarchy {
 }
 
 impl BakedHierarchy {
+    /// The f64 answer of the table's decoded codes (form factors, reflectances, static base; areas and
+    /// emissions as the table's f32) with every light group at its default intensity, per table leaf: what the
+    /// device converges to but for its arithmetic. Against [`BakedHierarchy::radiosity`], the quantization
+    /// component. `network` is the one the table was baked from (`HierarchicalSolution::network`).
+    ///
+    /// # Errors
+    /// [`BakeError::Parse`] if the table does not parse, [`BakeError::Input`] if its nodes are not `network`'s
+    /// or the decoded system does not converge.
+    pub fn decoded_radiosity(&self, network: &LinkNetwork) -> Result<Vec<Rgb>, BakeError> {
+        let table = HierTable::parse(&self.table).map_err(BakeError::Parse)?;
+        let b = DecodedHierarchy::new(network, &table)?.answer()?;
+        Ok((0..table.leaf_count()).map(|t| table.leaf_node(t).map_or(Rgb::ZERO, |k| b[k as usize])).collect())
+    }
+
     /// The f64 answer of the table's system for light-group `intensity` (RGB per group, table order), per table
     /// leaf: static radiosity plus each group's response times its intensity.
     ///
@@ -560,10 +574,8 @@ impl HierBakeSummary {
                 break;
             }
         }
-        let decoded = DecodedHierarchy::new(&solution.network, &table)?.answer()?;
-        let node_of = |leaf: u32| table.leaf_node(leaf).map_or(0, |k| k as usize);
-        let quantization =
-            relative_l1(&area, (0..table.leaf_count()).map(|t| decoded[node_of(t)]), &baked.radiosity);
+        let decoded = baked.decoded_radiosity(&solution.network)?;
+        let quantization = relative_l1(&area, decoded.into_iter(), &baked.radiosity);
         let transfer = if table.has_transfer() {
             let intensity: Vec<[f32; 3]> =
                 (0..table.group_count()).map(|g| table.default_intensity(g).unwrap_or([0.0; 3])).collect();

@@ -22,6 +22,7 @@ use super::device::{radiosity, Owned};
 use super::faces::{face_errors, face_means, FaceErrors};
 use super::{bound_per_unit, log, rate_bound, BenchError, BenchOptions, Rates, COST_MD};
 use crate::bake::{bake, bake_hierarchy, BakeInput, BakeOptions};
+use crate::evaluate::{evaluate, EvaluateOptions, QUANTIZATION};
 use crate::formfactor::FormFactorOptions;
 use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
 use crate::metrics;
@@ -92,6 +93,10 @@ pub struct DeviceCurve {
     pub model: CostModel,
     /// Whether the solver converged (to `TOLERANCE`) before `MAX_UNITS`.
     pub converged: bool,
+    /// The table's quantization component (same measure as `own`): the f64 answer of its decoded codes
+    /// against the f64 answer of the system they were rounded from, the part of the converged floor that is
+    /// not f32 arithmetic.
+    pub quantization: f64,
     /// The checkpoints.
     pub points: Vec<DevicePoint>,
 }
@@ -245,7 +250,18 @@ fn flat(
             })
         },
     )?;
+    let input = BakeInput::from_scene(&p.scene, &p.patches, l, &p.form_factors);
+    let evaluation =
+        evaluate(&input, &baked, &EvaluateOptions::for_bake(p.patches.len(), &BakeOptions::default()))
+            .map_err(|e| BenchError::Solver(format!("flat table: {e}")))?;
+    let quantization = evaluation
+        .components
+        .iter()
+        .find(|c| c.name == QUANTIZATION)
+        .map(|c| c.error.rel_l2)
+        .ok_or_else(|| BenchError::Solver("flat table: no quantization component".to_owned()))?;
     Ok(DeviceCurve {
+        quantization,
         name: format!("flat ({} patches)", p.patches.len()),
         elements: p.patches.len(),
         bytes: baked.table.len(),
@@ -305,7 +321,10 @@ fn hierarchical(
             })
         },
     )?;
+    let quantization =
+        metrics::compare(&baked.decoded_radiosity(&sol.network)?, &baked.radiosity, &area)?.rel_l2;
     Ok(DeviceCurve {
+        quantization,
         name: format!("hierarchical ({} leaves, epsilon {HIER_EPSILON})", leaves.len()),
         elements: leaves.len(),
         bytes: baked.table.len(),

@@ -537,7 +537,8 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
         "\n### Device tables: flat against hierarchical (cold lights-on, f32 shooting)\n\nThe `demo`'s two device \
          tables of the Cornell box, each relit by core's f32 solver from a cold start at the default intensities \
          (host simulator, bit-identical to the firmware under QEMU): \"own\" is the area-weighted relative L2 error \
-         against the table's own f64 answer (its convergence), \"faces\" the per-face error against the continuous \
+         against the table's own f64 answer (its convergence; \"quantization\" is the part of its converged floor that \
+         the 16-bit codes make: the f64 answer of the decoded table against the f64 answer it was rounded from), \"faces\" the per-face error against the continuous \
          reference above (the common yardstick of two different discretizations). Model instructions are \
          the work priced by the bound of the table's firmware build in `firmware-sim/COST.md` (measured under \
          QEMU): per unit for the flat table; for the hierarchical one the rate bound (per link, per node \
@@ -547,15 +548,15 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
     );
     let _ = writeln!(
         s,
-        "| table | elements | bytes | build (bound) | instructions to 10% own | to 1% own | last: own | last: worst face vs continuous (face) | last: mean face |"
+        "| table | elements | bytes | build (bound) | instructions to 10% own | to 1% own | last: own | quantization | last: worst face vs continuous (face) | last: mean face |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     let f = |v: Option<f64>| v.map_or("not reached".to_owned(), |v| format!("{v:.3e}"));
     for c in device {
         let last = c.points.last();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} ({}) | {} | {} | {}{} | {} | {} |",
+            "| {} | {} | {} | {} ({}) | {} | {} | {}{} | {:.2e} | {} | {} |",
             c.name,
             c.elements,
             c.bytes,
@@ -565,6 +566,7 @@ fn device_curves(s: &mut String, device: &[super::hierdevice::DeviceCurve]) {
             f(c.instructions_to(0.01)),
             last.map_or("-".to_owned(), |p| format!("{:.2e}", p.own)),
             if c.converged { " (converged)" } else { "" },
+            c.quantization,
             last.map_or("-".to_owned(), |p| format!(
                 "{:.2}% ({})",
                 100.0 * p.faces.worst,
