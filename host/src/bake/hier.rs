@@ -609,6 +609,27 @@ impl HierBakeSummary {
     }
 }
 
+/// The difference between a closed scene's table and its hierarchical solve above which the bake warns
+/// ([`HierBakeSummary::closure_warning`]): the accuracy the device's 1% marks are judged at.
+pub const CLOSURE_WARNING: f64 = 0.01;
+
+impl HierBakeSummary {
+    /// In a closed scene whose table's answer is more than [`CLOSURE_WARNING`] from the hierarchical solve's (the
+    /// solve's closure, which the table does not carry, and the chain cap), what to tell the user.
+    #[must_use]
+    pub fn closure_warning(&self) -> Option<String> {
+        (self.closed && self.cap_difference > CLOSURE_WARNING).then(|| {
+            format!(
+                "the scene is closed and the device table's answer is {:.1}% from the hierarchical solve's \
+                 (relative L1): the solve scales each element's gathered light to its row sum, which a \
+                 hierarchical table cannot carry yet, and light reflected many times (reflectances near 1) \
+                 multiplies the difference; `bake --method flat` keeps a closed scene's rows closed",
+                100.0 * self.cap_difference
+            )
+        })
+    }
+}
+
 impl std::fmt::Display for HierBakeSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let opt = |v: Option<u64>| v.map_or_else(|| "not reached".to_owned(), |u| format!("{u} units"));

@@ -135,6 +135,8 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             (Refinement::Brightness, 0.01),
             (Refinement::Brightness, 0.005),
             (Refinement::Brightness, 0.0025),
+            (Refinement::Brightness, 0.0008),
+            (Refinement::Brightness, 0.0002),
         ]
     };
     let flat_sizes: &[Option<usize>] =
