@@ -211,3 +211,57 @@ fn hierarchical_transfer_relight_is_within_its_quantization_bound() {
     println!("transfer relight of {} leaves: worst error {worst:.3} of its bound", out.len());
     assert!(worst > 0.0, "the relight must differ from f64 somewhere (codes round)");
 }
+
+/// The white furnace at rho 0.99 (a closed cube, every face emitting 1) through the hierarchical bake (16-bit
+/// codes) and core's f32 shooting: every leaf within 0.5% of `E / (1 - rho) = 100` (the device tables' target for
+/// a closed scene). The bake closes each leaf's row (module docs of `bake::hier`, "Closed scenes"); with the
+/// open scenes' cap alone the answer lost the power the cap kept back, times `1 / (1 - rho)`.
+#[test]
+fn furnace_at_rho_099_through_the_hierarchical_table_gives_e_over_1_minus_rho() {
+    use radiosity_host::hierarchy::Refinement;
+    let dir = std::env::temp_dir().join(format!("radiosity-hier-furnace-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let furnace =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/furnace.obj")).unwrap();
+    std::fs::write(dir.join("furnace.obj"), furnace.replace("mtllib furnace.mtl", "mtllib f99.mtl")).unwrap();
+    std::fs::write(dir.join("f99.mtl"), "newmtl furnace\nKd 0.99 0.99 0.99\nKe 1 1 1\n").unwrap();
+    let scene = Scene::load(dir.join("furnace.obj")).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let solution = solve_hierarchical(
+        &scene,
+        &HierarchyOptions { epsilon: 0.9, refinement: Refinement::Budgets, ..HierarchyOptions::default() },
+    )
+    .unwrap();
+    assert!(solution.stats.closed, "the furnace is closed");
+    let baked = bake_hierarchy(&scene, &solution, 16, false).unwrap();
+    assert!(baked.capped.self_links > 0, "some rows were below 1 and were closed");
+    let table = HierTable::parse(&baked.table).unwrap();
+    let emitted: f64 =
+        solution.leaves.iter().zip(&solution.emission).map(|(p, e)| p.area * e.element_sum()).sum();
+    let mut buffers = HierOwnedBuffers::<f32>::for_table(&table);
+    let mut solver = HierSolver::new(
+        &table,
+        buffers.buffers(),
+        Config { tolerance: (1e-9 * emitted) as f32, overshoot: 0 },
+    )
+    .unwrap();
+    let mut steps = 0;
+    while !matches!(solver.step(1_000_000), Outcome::Converged { .. }) {
+        steps += 1;
+        assert!(steps < 10_000, "no convergence after {steps} steps");
+    }
+    let mut worst = 0.0f64;
+    for t in 0..table.leaf_count() {
+        let b = solver.radiosity(t).unwrap();
+        for c in b {
+            worst = worst.max((f64::from(c) - 100.0).abs() / 100.0);
+        }
+    }
+    println!(
+        "{} leaves, {} self-links: worst leaf {:.3e} off 100",
+        table.leaf_count(),
+        baked.capped.self_links,
+        worst
+    );
+    assert!(worst <= 0.005, "worst leaf {worst:.3e} off E / (1 - rho)");
+}

@@ -13,10 +13,13 @@ use radiosity_host::reference::{solve_many, Method, RadiositySystem};
 use radiosity_host::rgb::Rgb;
 use radiosity_host::scene::Scene;
 
-/// Writes `obj` and `mtl` into a fresh folder and loads the scene.
+/// Writes `obj` and `mtl` into a fresh folder and loads the scene. The folder is this call's own (tests run in
+/// parallel and several load the same scene).
 fn scene(name: &str, obj: &str, mtl: &str) -> Scene {
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir: PathBuf =
-        std::env::temp_dir().join(format!("radiosity-hierarchy-{name}-{}", std::process::id()));
+        std::env::temp_dir().join(format!("radiosity-hierarchy-{name}-{}-{call}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join(format!("{name}.mtl")), mtl).unwrap();
     std::fs::write(dir.join(format!("{name}.obj")), format!("mtllib {name}.mtl\n{obj}")).unwrap();

@@ -16,11 +16,20 @@
 //! the sender runs: [`BakedHierarchy::radiosity`] (every light group at its default intensity) and the static
 //! radiosity, whose gathered light is the static base `G_s`, so that static light costs the device no work.
 //!
-//! In a closed scene the hierarchical solve divides each leaf's gathered light by its row sum (`hierarchy`,
-//! "Closed scenes"). The table does not carry that factor: core's guarantee that shooting converges rests on
-//! every chain sending on at most the power it holds, and scaling what leaves receive up (where their row sum is
-//! below 1) would break it. So in a closed scene the table's answer differs from the solve's by the row sums'
-//! deviation from 1 as well ([`HierBakeSummary::cap_difference`]).
+//! # Closed scenes
+//! In a closed scene every leaf's row sum (what its chain gathers from a uniform radiosity of 1) should be 1, but
+//! the hierarchy's averaged links leave it above or below, and with reflectances near 1 that error is multiplied
+//! by `1 / (1 - rho)` (the white furnace at rho 0.99 came out 29% off with the open scenes' cap alone). The
+//! hierarchical solve divides what each leaf gathers by its row sum (`hierarchy`, "Closed scenes"); a table cannot
+//! carry that factor without a per-leaf product in core's link loop. Instead the bake closes the rows with the
+//! links themselves (`Runs::closed`): links are reciprocal (`A_a f_ab = A_b f_ba`), so each leaf's chain of run
+//! sums (what it sends on) equals its row sum (what it gathers); a leaf over 1 has its own links scaled down, both
+//! directions at once (what remains, every link scaled by the worst row below its ends), which keeps them
+//! reciprocal; then each leaf below 1 gets a link to itself carrying the rest. Every chain then sums to 1: core's
+//! bound holds, no power is kept back (a closed scene loses none), and a uniform radiosity gathers exactly itself,
+//! so the furnace's `E / (1 - rho)` is the table's answer. Elsewhere the two closures differ where a leaf's own
+//! radiosity is not the average of what it sees (the self-link assumes the one, the solve's scaling the other);
+//! the summary reports how far the table's answer is from the solve's ([`HierBakeSummary::cap_difference`]).
 
 use radiosity_core::{
     hier_required_len, write_hier_table, FfCodec, GroupSpec, HierSpec, HierTable, MemberSpec, NodeSpec,
@@ -30,7 +39,7 @@ use radiosity_core::{
 use super::codec::codec_for_bits;
 use super::ids::{group_ids, scene_fingerprint};
 use super::BakeError;
-use crate::hierarchy::{HierarchicalSolution, LinkNetwork};
+use crate::hierarchy::{HierarchicalSolution, LinkNetwork, NetworkLink};
 use crate::lighting::PatchLighting;
 use crate::rgb::{max_channel, Rgb};
 use crate::scene::Scene;
@@ -51,6 +60,10 @@ pub struct ChainCap {
     /// The power the cap keeps from being sent on, at the default intensities, as a share of all the leaves'
     /// power.
     pub power_share: f64,
+    /// In a closed scene (module docs, "Closed scenes"): the leaves given a self-link to close their row.
+    pub self_links: usize,
+    /// The largest self-link's form factor.
+    pub largest_self_link: f64,
 }
 
 /// A hierarchical table and what it was made from.
@@ -122,7 +135,7 @@ struct Runs<'a> {
     runs: Vec<Vec<(u32, f64)>>,
 }
 
-impl Runs<'_> {
+impl<'a> Runs<'a> {
     /// Each node's run sum.
     fn sums(&self) -> Vec<f64> {
         self.runs.iter().map(|r| r.iter().map(|&(_, f)| f).sum()).collect()
@@ -172,6 +185,89 @@ impl Runs<'_> {
                 self.scale(k, 1.0 / w);
             }
         }
+    }
+
+    /// A closed scene's runs (module docs, "Closed scenes"): the network's links scaled symmetrically until no
+    /// leaf's row sum exceeds 1, then each leaf's row closed by a self-link; returns the runs, the leaves whose
+    /// row was over 1 and the self-links' count and largest form factor.
+    fn closed(net: &'a LinkNetwork) -> (Runs<'a>, usize, (usize, f64)) {
+        let nodes = &net.nodes;
+        let n = nodes.len();
+        let mut links = net.links.clone();
+        // Row sums: each node's own links' receiving form factors, summed down each leaf's chain.
+        let rows = |links: &[NetworkLink]| -> Vec<f64> {
+            let mut own = vec![0.0; n];
+            for l in links {
+                own[l.a as usize] += l.f_ab;
+                own[l.b as usize] += l.f_ba;
+            }
+            let mut row = vec![0.0; n];
+            for k in 0..n {
+                row[k] = own[k] + nodes[k].parent.map_or(0.0, |p| row[p as usize]);
+            }
+            row
+        };
+        let scale = |links: &mut [NetworkLink], factor: &[f64]| {
+            for l in links.iter_mut() {
+                let t = factor[l.a as usize].min(factor[l.b as usize]);
+                l.f_ab *= t;
+                l.f_ba *= t;
+            }
+        };
+        // A leaf over 1 takes its excess off its own links where it can (both directions, so every link stays
+        // reciprocal; a link between two such leaves takes the smaller factor).
+        let row = rows(&links);
+        let over = (0..n).filter(|&k| nodes[k].leaf.is_some() && row[k] > 1.0).count();
+        let mut own = vec![0.0; n];
+        for l in &links {
+            own[l.a as usize] += l.f_ab;
+            own[l.b as usize] += l.f_ba;
+        }
+        let factor: Vec<f64> = (0..n)
+            .map(|k| {
+                if nodes[k].leaf.is_some() && row[k] > 1.0 && own[k] > 0.0 {
+                    ((own[k] - (row[k] - 1.0)) / own[k]).max(0.0)
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        scale(&mut links, &factor);
+        // What remains: every link scaled by the worst row below its ends, which brings each row within 1 (each
+        // term of a leaf's row is scaled by at most the inverse of that row).
+        let row = rows(&links);
+        let mut worst = vec![1.0f64; n];
+        for k in (0..n).rev() {
+            if nodes[k].leaf.is_some() {
+                worst[k] = worst[k].max(row[k]);
+            }
+            if let Some(p) = nodes[k].parent {
+                worst[p as usize] = worst[p as usize].max(worst[k]);
+            }
+        }
+        scale(&mut links, &worst.iter().map(|w| 1.0 / w).collect::<Vec<_>>());
+        // Shooting form: a link sends `A_a f_ab / A_b` of `b`'s power to `a` and back; reciprocity makes each
+        // leaf's chain of run sums equal to its row sum, so a self-link that closes the row closes the chain.
+        let mut runs = vec![Vec::new(); n];
+        for l in &links {
+            let (area_a, area_b) = (nodes[l.a as usize].area, nodes[l.b as usize].area);
+            runs[l.b as usize].push((l.a, l.f_ab * area_a / area_b));
+            runs[l.a as usize].push((l.b, l.f_ba * area_b / area_a));
+        }
+        let row = rows(&links);
+        let (mut count, mut largest) = (0, 0.0f64);
+        for k in 0..n {
+            if nodes[k].leaf.is_some() && row[k] < 1.0 {
+                let f = 1.0 - row[k];
+                runs[k].push((k as u32, f));
+                count += 1;
+                largest = largest.max(f);
+            }
+        }
+        for run in &mut runs {
+            run.sort_by_key(|&(r, _)| r);
+        }
+        (Runs { net, runs }, over, (count, largest))
     }
 
     /// The irradiance each leaf node gathers (zero elsewhere) from radiosity `b` per node (leaves set, inner
@@ -338,16 +434,23 @@ pub fn bake_hierarchy(
         }
     }
 
-    let mut runs = Runs { net, runs: net.sender_runs() };
-    let largest = runs
+    let open = Runs { net, runs: net.sender_runs() };
+    let largest = open
         .chains()
         .iter()
         .zip(&net.nodes)
         .filter(|(_, x)| x.leaf.is_some())
         .map(|(c, _)| *c)
         .fold(0.0, f64::max);
-    let over = runs.chains().iter().zip(&net.nodes).filter(|(c, x)| x.leaf.is_some() && **c > 1.0).count();
-    let before = runs.sums();
+    let before = open.sums();
+    let (mut runs, over, self_links) = if solution.stats.closed {
+        Runs::closed(net)
+    } else {
+        let over =
+            open.chains().iter().zip(&net.nodes).filter(|(c, x)| x.leaf.is_some() && **c > 1.0).count();
+        (open, over, (0, 0.0))
+    };
+    // A closed scene's chains are 1 but for rounding, which this takes off.
     runs.cap();
     let chain_sum = runs
         .chains()
@@ -382,9 +485,15 @@ pub fn bake_hierarchy(
             power[p as usize] += mine;
         }
     }
+    // In a closed scene the self-links send on what the symmetric cap took off elsewhere: the net change.
     let kept: f64 = before.iter().zip(&runs.sums()).zip(&power).map(|((b, a), p)| (b - a) * p).sum();
-    let capped =
-        ChainCap { leaves: over, largest, power_share: if power[0] > 0.0 { kept / power[0] } else { 0.0 } };
+    let capped = ChainCap {
+        leaves: over,
+        largest,
+        power_share: if power[0] > 0.0 { kept / power[0] } else { 0.0 },
+        self_links: self_links.0,
+        largest_self_link: self_links.1,
+    };
 
     let leaves: Vec<PatchSpec> = net
         .nodes
@@ -490,14 +599,18 @@ pub struct HierBakeSummary {
     pub cap_leaves: usize,
     /// The largest chain sum before the cap.
     pub cap_largest: f64,
+    /// In a closed scene, the leaves whose row the bake closed with a self-link (module docs, "Closed scenes").
+    pub self_links: usize,
+    /// The largest of those self-links' form factors.
+    pub largest_self_link: f64,
     /// The power the cap keeps from being sent on, as a share of all the leaves' power.
     pub cap_power_share: f64,
     /// The table system's f64 answer against the hierarchical solve's: area-weighted relative L1 difference
-    /// (largest channel), what the cap changed (and, in a closed scene, the solve's closure, which the table does
-    /// not carry: [`HierBakeSummary::closed`]).
+    /// (largest channel), what the cap changed (in a closed scene, the table's closure against the solve's: module
+    /// docs, "Closed scenes").
     pub cap_difference: f64,
     /// Whether the hierarchical solve found the scene closed and scaled each leaf's gathered light by its row
-    /// sum (`hierarchy`, "Closed scenes"), which the table's system does not.
+    /// sum (`hierarchy`, "Closed scenes"); the table closes the rows with self-links instead.
     pub closed: bool,
     /// Work units until the device's area-weighted relative L1 error (largest channel) was below 1%, if it got
     /// there.
@@ -596,6 +709,8 @@ impl HierBakeSummary {
             ram_f32: HierBufferSizes::of(&table).bytes::<f32>(),
             cap_leaves: baked.capped.leaves,
             cap_largest: baked.capped.largest,
+            self_links: baked.capped.self_links,
+            largest_self_link: baked.capped.largest_self_link,
             cap_power_share: baked.capped.power_share,
             cap_difference: relative_l1(&area, baked.radiosity.iter().copied(), &hierarchy),
             closed: solution.stats.closed,
@@ -605,27 +720,6 @@ impl HierBakeSummary {
             quantization,
             shots: solver.shots(),
             links_walked: solver.links(),
-        })
-    }
-}
-
-/// The difference between a closed scene's table and its hierarchical solve above which the bake warns
-/// ([`HierBakeSummary::closure_warning`]): the accuracy the device's 1% marks are judged at.
-pub const CLOSURE_WARNING: f64 = 0.01;
-
-impl HierBakeSummary {
-    /// In a closed scene whose table's answer is more than [`CLOSURE_WARNING`] from the hierarchical solve's (the
-    /// solve's closure, which the table does not carry, and the chain cap), what to tell the user.
-    #[must_use]
-    pub fn closure_warning(&self) -> Option<String> {
-        (self.closed && self.cap_difference > CLOSURE_WARNING).then(|| {
-            format!(
-                "the scene is closed and the device table's answer is {:.1}% from the hierarchical solve's \
-                 (relative L1): the solve scales each element's gathered light to its row sum, which a \
-                 hierarchical table cannot carry yet, and light reflected many times (reflectances near 1) \
-                 multiplies the difference; `bake --method flat` keeps a closed scene's rows closed",
-                100.0 * self.cap_difference
-            )
         })
     }
 }
@@ -649,8 +743,16 @@ impl std::fmt::Display for HierBakeSummary {
             self.cap_largest,
             self.cap_power_share,
             self.cap_difference,
-            if self.closed { " (with the closed scene's scaling of the solve, which the table does not carry)" } else { "" }
+            if self.closed { " (and the closed scene's rows closed differently from the solve's, below)" } else { "" }
         )?;
+        if self.closed {
+            writeln!(
+                f,
+                "closure            the scene is closed: {} leaves' rows closed by a self-link (largest {:.4}), \
+                 where the solve scales what each leaf gathers",
+                self.self_links, self.largest_self_link
+            )?;
+        }
         writeln!(
             f,
             "device (f32)       cold lights-on in frames of {SUMMARY_FRAME_UNITS} units: 1% error after {}, \

@@ -60,7 +60,9 @@
 //! polygons by area; none may escape), the scene is never scaled if any does, and the stats say when it was. For
 //! the furnace that is exact (a uniform `B` gathers `B` times the row sum); elsewhere it removes the row sums'
 //! deviation as a common factor of what a leaf gathers, where the link that caused it may have been one of many.
-//! The device tables (`bake::hier`) do not carry that factor: they cap chain sums at 1 instead.
+//! The device tables (`bake::hier`) do not carry that factor: they close each leaf's row with its links (scaled
+//! down where the row is over 1, both directions, and a link to itself where it is under), so that a closed
+//! table's chains send on all the power they hold and the furnace is exact there too.
 //!
 //! # Status
 //! Not yet the default of any command: `solve --method hierarchical` only (links refined for the default light

@@ -355,9 +355,6 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 hierarchical_solution(&scene, &hierarchy, Refinement::Brightness, None)?;
             let baked = bake_hierarchy(&loaded, &solution, bits, transfer)?;
             let summary = HierBakeSummary::measure(&baked, &solution)?;
-            if let Some(w) = summary.closure_warning() {
-                eprintln!("warning: {}: {w}", scene.scene.display());
-            }
             files::write_atomic(&output, &baked.table)?;
             match format {
                 ReportFormat::Json => {
