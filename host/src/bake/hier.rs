@@ -194,13 +194,17 @@ impl<'a> Runs<'a> {
         let nodes = &net.nodes;
         let n = nodes.len();
         let mut links = net.links.clone();
-        // Row sums: each node's own links' receiving form factors, summed down each leaf's chain.
-        let rows = |links: &[NetworkLink]| -> Vec<f64> {
+        // Each node's own links' receiving form factors, and the row sums: those summed down each leaf's chain.
+        let owns = |links: &[NetworkLink]| -> Vec<f64> {
             let mut own = vec![0.0; n];
             for l in links {
                 own[l.a as usize] += l.f_ab;
                 own[l.b as usize] += l.f_ba;
             }
+            own
+        };
+        let rows = |links: &[NetworkLink]| -> Vec<f64> {
+            let own = owns(links);
             let mut row = vec![0.0; n];
             for k in 0..n {
                 row[k] = own[k] + nodes[k].parent.map_or(0.0, |p| row[p as usize]);
@@ -218,11 +222,7 @@ impl<'a> Runs<'a> {
         // reciprocal; a link between two such leaves takes the smaller factor).
         let row = rows(&links);
         let over = (0..n).filter(|&k| nodes[k].leaf.is_some() && row[k] > 1.0).count();
-        let mut own = vec![0.0; n];
-        for l in &links {
-            own[l.a as usize] += l.f_ab;
-            own[l.b as usize] += l.f_ba;
-        }
+        let own = owns(&links);
         let factor: Vec<f64> = (0..n)
             .map(|k| {
                 if nodes[k].leaf.is_some() && row[k] > 1.0 && own[k] > 0.0 {
