@@ -19,7 +19,7 @@
 //! # Closed scenes
 //! In a closed scene every leaf's row sum (what its chain gathers from a uniform radiosity of 1) should be 1, but
 //! the hierarchy's averaged links leave it above or below, and with reflectances near 1 that error is multiplied
-//! by `1 / (1 - rho)` (the white furnace at rho 0.99 came out 29% off with the open scenes' cap alone). The
+//! by `1 / (1 - rho)` (the white furnace at rho 0.99 came out far off with the open scenes' cap alone). The
 //! hierarchical solve divides what each leaf gathers by its row sum (`hierarchy`, "Closed scenes"); a table cannot
 //! carry that factor without a per-leaf product in core's link loop. Instead the bake closes the rows with the
 //! links themselves (`Runs::closed`): links are reciprocal (`A_a f_ab = A_b f_ba`), so each leaf's chain of run
