@@ -128,6 +128,22 @@ impl BakedHierarchy {
     }
 }
 
+/// Per node, the largest of `sums` over the leaves below it (itself, for a leaf), and at least 1: the factor
+/// that brings every leaf's sum below the node within 1 (the chain cap's and the closed rows' last stage).
+fn worst_below(net: &LinkNetwork, sums: &[f64]) -> Vec<f64> {
+    let nodes = &net.nodes;
+    let mut worst = vec![1.0f64; nodes.len()];
+    for k in (0..nodes.len()).rev() {
+        if nodes[k].leaf.is_some() {
+            worst[k] = worst[k].max(sums[k]);
+        }
+        if let Some(p) = nodes[k].parent {
+            worst[p as usize] = worst[p as usize].max(worst[k]);
+        }
+    }
+    worst
+}
+
 /// The sender runs of a network with their sums along each leaf's chain.
 struct Runs<'a> {
     net: &'a LinkNetwork,
@@ -171,15 +187,7 @@ impl<'a> Runs<'a> {
         }
         // What remains: every run scaled by the worst chain below it.
         let chain = self.chains();
-        let mut worst = vec![1.0f64; n];
-        for k in (0..n).rev() {
-            if self.net.nodes[k].leaf.is_some() {
-                worst[k] = worst[k].max(chain[k]);
-            }
-            if let Some(p) = self.net.nodes[k].parent {
-                worst[p as usize] = worst[p as usize].max(worst[k]);
-            }
-        }
+        let worst = worst_below(self.net, &chain);
         for (k, &w) in worst.iter().enumerate() {
             if w > 1.0 {
                 self.scale(k, 1.0 / w);
@@ -236,15 +244,7 @@ impl<'a> Runs<'a> {
         // What remains: every link scaled by the worst row below its ends, which brings each row within 1 (each
         // term of a leaf's row is scaled by at most the inverse of that row).
         let row = rows(&links);
-        let mut worst = vec![1.0f64; n];
-        for k in (0..n).rev() {
-            if nodes[k].leaf.is_some() {
-                worst[k] = worst[k].max(row[k]);
-            }
-            if let Some(p) = nodes[k].parent {
-                worst[p as usize] = worst[p as usize].max(worst[k]);
-            }
-        }
+        let worst = worst_below(net, &row);
         scale(&mut links, &worst.iter().map(|w| 1.0 / w).collect::<Vec<_>>());
         // Shooting form: a link sends `A_a f_ab / A_b` of `b`'s power to `a` and back; reciprocity makes each
         // leaf's chain of run sums equal to its row sum, so a self-link that closes the row closes the chain.
