@@ -122,14 +122,19 @@ fn quick_bench_writes_a_well_formed_report() {
         solved.materials
     );
     assert!(md.contains("Every material of the largest solved office (1 x 1)"));
-    // Link construction against raw Embree: both thread counts, as many raw rays as refinement cast, rates > 0.
+    // Link construction against raw Embree, with shaft culling and without: both thread counts, as many raw rays
+    // as refinement cast, rates > 0; culling casts fewer rays (the blocks leave most pairs' shafts clear).
     let rate = &results.link_rate;
     assert!(md.contains("### Link construction against raw Embree"));
-    assert_eq!(rate.refine.iter().map(|r| r.0).collect::<Vec<_>>(), [1, 2], "{rate:?}");
-    for (r, w) in rate.refine.iter().zip(&rate.raw) {
-        assert!(r.1 > 0 && w.1 as u64 == r.1 && r.2 > 0.0 && w.2 > 0.0, "{rate:?}");
+    for culled in [true, false] {
+        let (refine, raw) = rate.runs(culled);
+        assert_eq!(refine.iter().map(|r| r.0).collect::<Vec<_>>(), [1, 2], "{rate:?}");
+        for (r, w) in refine.iter().zip(raw) {
+            assert!(r.1 > 0 && w.1 as u64 == r.1 && r.2 > 0.0 && w.2 > 0.0, "{rate:?}");
+        }
+        assert!(rate.ratio(culled, 1).is_some_and(|x| x > 0.0) && rate.links > 0, "{rate:?}");
     }
-    assert!(rate.ratio(1).is_some_and(|x| x > 0.0) && rate.links > 0, "{rate:?}");
+    assert!(rate.refine[0].1 < rate.unculled.0[0].1, "{rate:?}");
     // Two flat rows at different budgets give the discretization slope (a finite number, reported).
     assert_eq!(h.rows.iter().filter(|r| r.epsilon.is_none()).count(), 2);
     assert!(

@@ -100,8 +100,10 @@ impl ElementRules {
         if !may_see(&i.patch, &j.patch) {
             return 0.0;
         }
-        let own = Receiver::new(&i.patch);
-        let receiver = Receiver::new(&j.patch);
+        // Near and far judged by the distance to the polygons: an element is often far smaller than the face
+        // polygon (or the coarse piece) it exchanges with.
+        let own = Receiver::by_polygon(&i.patch);
+        let receiver = Receiver::by_polygon(&j.patch);
         let sender = Sender {
             patch: &i.patch,
             quadrature: &i.quadrature,

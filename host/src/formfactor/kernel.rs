@@ -15,7 +15,8 @@ pub fn point_to_polygon(x: DVec3, normal: DVec3, polygon: &[DVec3], polygon_norm
     point_to_polygon_with(x, normal, polygon, polygon_normal, &mut scratch)
 }
 
-pub(super) fn point_to_polygon_with(
+/// [`point_to_polygon`] with a caller's buffer for the clipped polygon (no allocation once it has grown).
+pub(crate) fn point_to_polygon_with(
     x: DVec3,
     normal: DVec3,
     polygon: &[DVec3],

@@ -75,7 +75,10 @@
 //! then varies on the scale of the distance, not of the patch. Such near pairs are integrated with the rule on
 //! pieces of `i`: split in 4 (a centroid fan for polygons of 5 or more vertices) wherever a piece's bounding sphere
 //! is within its diameter of `j`'s, [`NEAR_FIELD_DEPTH`] levels, and further up to [`NEAR_FIELD_MAX_DEPTH`] while a
-//! piece is still larger than `j` (`near_field_pairs_are_reciprocal` tests the effect on reciprocity). The
+//! piece is still larger than `j` (`near_field_pairs_are_reciprocal` tests the effect on reciprocity). Elements
+//! ([`ElementRules`], the hierarchy's, often far smaller than what they exchange with) measure the gap to `j`'s
+//! polygon instead: a small element in the middle of a floor is far from the walls standing on it, though inside
+//! their bounding spheres. The
 //! pipeline then averages the two estimates. Ray end points are jittered in open strata, so no ray starts or ends
 //! on an edge either. Points coplanar with `j` get 0 (they cannot see `j`'s front).
 //!
@@ -91,7 +94,8 @@
 //! `samples_per_patch` kernel evaluations, a clip and a contour sum), then visible fractions (each unordered pair
 //! with a nonzero kernel either way casts `rays_per_pair` rays, in 16-wide packets with Embree). No test for
 //! "nothing can occlude this pair" is made (an exact one costs O(patches) per pair, more than the rays it saves at
-//! the default ray count), so rays are cast even in convex scenes. Pairs facing away from each other cost only a
+//! the default ray count), so rays are cast even in convex scenes. (The hierarchical solver makes one, through its
+//! cluster tree: `hierarchy::shaft`.) Pairs facing away from each other cost only a
 //! plane test. [`FormFactorStats`] counts the kernel evaluations and times both passes; `radiosity bench` reports
 //! them (`bench/REPORT.md`, "Bake throughput").
 //!
@@ -123,6 +127,7 @@ use rayon::prelude::*;
 
 pub use element::{Element, ElementRules};
 pub use kernel::point_to_polygon;
+pub(crate) use kernel::point_to_polygon_with;
 pub use nearfield::{far_field_order, FAR_FIELD_GAP, NEAR_FIELD_DEPTH, NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH};
 pub use options::{ClosureMode, FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
 pub(crate) use quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler};

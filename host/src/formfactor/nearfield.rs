@@ -37,8 +37,8 @@ pub(super) fn bounding_sphere(polygon: &[DVec3]) -> (DVec3, f64) {
     (c, polygon.iter().map(|v| v.distance(c)).fold(0.0, f64::max))
 }
 
-/// A pair is in the far field when the gap between the bounding spheres of `i` and `j` is at least this many
-/// diameters of `i`: the kernel then varies on a scale `D` at least that many times `i`'s size `h`, and the
+/// A pair is in the far field when the gap between the bounding spheres of `i` and `j` (for elements, between
+/// `i`'s sphere and `j`'s polygon, `Receiver::gap`) is at least this many diameters of `i`: the kernel then varies on a scale `D` at least that many times `i`'s size `h`, and the
 /// product Gauss-Legendre rule of half the order ([`far_field_order`]) suffices. Its relative error is about
 /// `c (h / D)^(2m)` for `m` points per direction (Davis and Rabinowitz, "Methods of Numerical Integration",
 /// 2nd ed., section 2.7: `f^(2m)` of a kernel falling like `D^-3` is about `(2m + 2)! / 2 D^-(2m)` times it);
@@ -55,12 +55,18 @@ pub fn far_field_order(order: usize) -> usize {
     order.div_ceil(2).max(2).min(order)
 }
 
-/// Whether a receiver inside the sphere `(center, radius)` is nearer to `domain` than `domain`'s own diameter
-/// (measured between bounding spheres, so conservative): then a fixed product rule over `domain` is inaccurate
-/// (its error grows like a power of size / distance).
-pub(super) fn near(domain: &[DVec3], center: DVec3, radius: f64) -> bool {
+/// Whether `domain` is near the receiver: the gap between its bounding sphere and the receiver ([`Receiver::gap`])
+/// is less than its own diameter, so that a fixed product rule over `domain` is inaccurate (its error grows like a
+/// power of size / distance).
+pub(super) fn near(domain: &[DVec3], receiver: &Receiver) -> bool {
     let (c, r) = bounding_sphere(domain);
-    c.distance(center) - radius - r < 2.0 * r
+    let gap = if receiver.polygon_gap {
+        receiver.gap(c, r)
+    } else {
+        // The patch-to-patch estimator's sphere-to-sphere gap, in its own order of operations.
+        c.distance(receiver.center) - receiver.radius - r
+    };
+    gap < 2.0 * r
 }
 
 /// Extra levels of splitting of the near-field quadrature towards a sliver receiver (`Receiver::sliver_width`),
@@ -105,6 +111,9 @@ pub(super) struct Receiver<'a> {
     pub(super) normal: DVec3,
     /// Its width if it is a sliver ([`sliver_width`]).
     pub(super) sliver_width: Option<f64>,
+    /// Whether the near and far fields are judged by the distance to the polygon ([`Receiver::gap`]; elements) or
+    /// to its bounding sphere (the patch-to-patch estimator, whose values its regression baseline pins).
+    pub(super) polygon_gap: bool,
 }
 
 /// `2 A / P` of a polygon (area over half the perimeter: the width of a long strip) if that is positive and less
@@ -122,7 +131,29 @@ impl<'a> Receiver<'a> {
     pub(super) fn new(patch: &'a Patch) -> Self {
         let (center, radius) = bounding_sphere(&patch.vertices);
         let sliver_width = sliver_width(&patch.vertices);
-        Receiver { center, radius, vertices: &patch.vertices, normal: patch.normal, sliver_width }
+        Receiver {
+            center,
+            radius,
+            vertices: &patch.vertices,
+            normal: patch.normal,
+            sliver_width,
+            polygon_gap: false,
+        }
+    }
+
+    /// [`Self::new`], judging near and far by the distance to the polygon ([`Self::gap`]).
+    pub(super) fn by_polygon(patch: &'a Patch) -> Self {
+        Receiver { polygon_gap: true, ..Self::new(patch) }
+    }
+
+    /// The gap between a sphere `(center, radius)` holding (a piece of) the sender and the receiver's polygon: the
+    /// distance from the centre to the polygon less the radius, a lower bound of the distance from any point of
+    /// the piece to the receiver. The point kernel `F_{x -> j}` is analytic wherever `x` is off `j`'s closure and
+    /// varies on the scale of the distance to it, which is what a fixed rule's error depends on; the gap to `j`'s
+    /// bounding sphere calls a small piece in the middle of a floor near every wall standing on that floor, and
+    /// splits it for nothing.
+    pub(super) fn gap(&self, center: DVec3, radius: f64) -> f64 {
+        self.distance(center) - radius
     }
 
     /// Distance from `x` to the (convex, planar) receiver polygon.
@@ -191,9 +222,8 @@ pub(super) fn near_field_integral(
     // still larger than the receiver (a small patch next to a large one).
     let (center, radius) = bounding_sphere(domain);
     let larger = radius > receiver.radius;
-    let split = depth > 0
-        && near(domain, receiver.center, receiver.radius)
-        && (depth > NEAR_FIELD_MAX_DEPTH - NEAR_FIELD_DEPTH || larger);
+    let split =
+        depth > 0 && near(domain, receiver) && (depth > NEAR_FIELD_MAX_DEPTH - NEAR_FIELD_DEPTH || larger);
     // Then towards a sliver, while a piece is wider than it and near it; and towards the edges of a nearly
     // parallel receiver facing the piece, closer than half the piece's size.
     let split_sliver = !split && sliver_depth > 0 && {

@@ -221,7 +221,7 @@ pub(super) fn unoccluded_pair(
     // the quadrature; integrate over the front part only (exactly clipped) instead.
     let domain: &[DVec3] =
         if clip_to_front(&patch_i.vertices, patch_j, front) { front } else { &patch_i.vertices };
-    let is_near = near(domain, receiver.center, receiver.radius);
+    let is_near = near(domain, receiver);
     if is_near && sliver_strips(domain, strips) {
         // Near field of a sliver sender: the kernel varies on the scale of the sliver's width (its points are that
         // close to j) along its whole length, and near j's edges along it too; integrate over short pieces of it.
@@ -246,7 +246,11 @@ pub(super) fn unoccluded_pair(
         ) / patch_i.area
     } else if domain.len() == patch_i.vertices.len() && std::ptr::eq(domain, &patch_i.vertices[..]) {
         let own = sender.own;
-        let gap = own.center.distance(receiver.center) - own.radius - receiver.radius;
+        let gap = if receiver.polygon_gap {
+            receiver.gap(own.center, own.radius)
+        } else {
+            own.center.distance(receiver.center) - own.radius - receiver.radius
+        };
         let far = far_field && gap >= FAR_FIELD_GAP * 2.0 * own.radius;
         let Quadrature { points, weights } = if far { sender.far_quadrature } else { sender.quadrature };
         points.iter().zip(weights).map(|(x, w)| w * kernel(x)).sum()

@@ -8,7 +8,8 @@
 //!   to `l`): `rho_l * B_s * |v K(l, s) - f_rs|`, with `K` the point kernel from `l`'s centroid to `s`'s polygon
 //!   and `v` the link's visible fraction; where visibility is partial, `l` may lie anywhere across the shadow
 //!   edge, so `rho_l * B_s * max(v, 1 - v) K` is added; where the rays saw all or nothing, `rho_l * B_s * K / n`
-//!   (the fraction's resolution with `n` rays) counts as random and adds in quadrature. Such deviations average
+//!   (the fraction's resolution with `n` rays; 0 where a clear shaft made it exact) counts as random and adds in
+//!   quadrature. Such deviations average
 //!   out over `r` but not over a leaf: a leaf in a corner sees every far surface at a grazing angle, so it
 //!   inherits an overestimate from each ancestor's links, and in a closed scene the leaves' total form factors
 //!   then stray from 1, which interreflection amplifies (the white furnace comes out bright).
@@ -66,9 +67,9 @@ pub(super) fn systematic(tree: &Tree, spans: &[Span], link: &Link) -> (f64, f64)
 /// `K` from the leaf's centroid to the sender's polygon, `rho * B_s * |v K - f_rs|` (what pushing the link's
 /// average down to the leaf misses) plus, where the link's visibility is partial, `rho * B_s * max(v, 1 - v) K`
 /// (the leaf may lie anywhere across the shadow edge); where the rays saw all or nothing, `rho * B_s * K / n` as
-/// the random part (the fraction's resolution with `n` rays). With a cluster at either end, the bound
+/// the random part (the fraction's resolution with `n` rays, the link's `sigma`; 0 for a clear shaft). With a cluster at either end, the bound
 /// `rho * B_s * spread_rs`.
-fn local(tree: &Tree, spans: &[Span], link: &Link, receiver: u32, leaf: u32, rays: f64) -> Local {
+fn local(tree: &Tree, spans: &[Span], link: &Link, receiver: u32, leaf: u32) -> Local {
     let (s, f_rs, spread_rs) = if link.a == receiver {
         (link.b, link.f_ab, link.spread_ab)
     } else {
@@ -85,7 +86,7 @@ fn local(tree: &Tree, spans: &[Span], link: &Link, receiver: u32, leaf: u32, ray
             if v > 0.0 && v < 1.0 {
                 bound = v.max(1.0 - v) * k;
             } else {
-                random = k / rays;
+                random = k * link.sigma;
             }
             Local { signed: scale * (v * k - f_rs), bound: scale * bound, random: scale * random }
         }
@@ -107,9 +108,9 @@ struct Local {
 
 /// The random part of a link held at the leaf itself: `rho * B_s * u * sigma_v`, with `u` the unoccluded form
 /// factor and `sigma_v` the visible fraction's standard error, `sqrt(v (1 - v) / n)`, or its resolution `1 / n`
-/// where the rays saw all or nothing (what the form-factor estimate itself may get wrong; the variation within
+/// where the rays saw all or nothing, or 0 where a clear shaft made it exact (the link's `sigma`: what the form-factor estimate itself may get wrong; the variation within
 /// the leaf is the mesh's, not the hierarchy's).
-fn own_noise(tree: &Tree, spans: &[Span], link: &Link, leaf: u32, rays: f64) -> f64 {
+fn own_noise(tree: &Tree, spans: &[Span], link: &Link, leaf: u32) -> f64 {
     let (s, u) = if link.a == leaf {
         (link.b, link.unoccluded_ab)
     } else {
@@ -118,9 +119,7 @@ fn own_noise(tree: &Tree, spans: &[Span], link: &Link, leaf: u32, rays: f64) -> 
     if tree.is_cluster(link.a) || tree.is_cluster(link.b) {
         return 0.0;
     }
-    let v = link.visible;
-    let sigma = if v > 0.0 && v < 1.0 { (v * (1.0 - v) / rays).sqrt() } else { 1.0 / rays };
-    max_channel(tree.nodes[leaf as usize].rho_max * spans[s as usize].mean) * u * sigma
+    max_channel(tree.nodes[leaf as usize].rho_max * spans[s as usize].mean) * u * link.sigma
 }
 
 /// The charges on one leaf's chain: the total (deterministic parts added, random parts in quadrature), and every
@@ -144,7 +143,6 @@ fn charge_leaf(
     spans: &[Span],
     links: &[Link],
     ledger: &Ledger,
-    rays: f64,
     allowed: f64,
     leaf: u32,
 ) -> LeafCharge {
@@ -164,13 +162,13 @@ fn charge_leaf(
                 (ledger.sys[k].1, link.spread_ba, link.a)
             };
             let (l, r) = if n == leaf {
-                (0.0, own_noise(tree, spans, link, n, rays))
+                (0.0, own_noise(tree, spans, link, n))
             } else {
                 let bound = max_channel(rho * spans[sender as usize].mean) * spread;
                 if bound <= NEGLIGIBLE * allowed {
                     (bound, 0.0)
                 } else {
-                    let part = local(tree, spans, link, n, leaf, rays);
+                    let part = local(tree, spans, link, n, leaf);
                     signed += part.signed;
                     unsigned += part.signed.abs();
                     (part.signed.abs() + part.bound, part.random)
@@ -275,7 +273,6 @@ pub(super) fn refine_budgets<C: RayCaster + ?Sized>(
     counts: &mut RefineCounts,
 ) -> Result<u64, HierarchyError> {
     let floor = budget_floor(tree, spans, epsilon);
-    let rays = estimator.rules.rays_per_pair() as f64;
     let mut ledger = Ledger { dead: Vec::new(), at: Vec::new(), sys: Vec::new(), splittable: Vec::new() };
     let mut dirty = vec![true; tree.nodes.len()];
     ledger.add(tree, spans, limits, links, 0, &mut dirty);
@@ -300,7 +297,7 @@ pub(super) fn refine_budgets<C: RayCaster + ?Sized>(
                 .par_iter()
                 .map(|&l| {
                     let allowed = budget(spans, l as usize, epsilon, floor);
-                    charge_leaf(tree, spans, links, ledger, rays, allowed, l)
+                    charge_leaf(tree, spans, links, ledger, allowed, l)
                 })
                 .collect()
         };
@@ -373,7 +370,6 @@ pub(super) fn leaf_charges(
     spans: &[Span],
     limits: &Limits,
     links: &[Link],
-    rays: f64,
     epsilon: f64,
 ) -> (Vec<f64>, Vec<f64>) {
     let floor = budget_floor(tree, spans, epsilon);
@@ -385,7 +381,7 @@ pub(super) fn leaf_charges(
         .map(|n| {
             if tree.nodes[n as usize].children.is_empty() {
                 let allowed = budget(spans, n as usize, epsilon, floor);
-                let c = charge_leaf(tree, spans, links, &ledger, rays, allowed, n);
+                let c = charge_leaf(tree, spans, links, &ledger, allowed, n);
                 (c.total, c.persistent)
             } else {
                 (0.0, 0.0)
@@ -398,7 +394,6 @@ pub(super) fn leaf_charges(
 mod tests {
     use glam::DVec3;
 
-    use super::super::link::Estimator;
     use super::super::span::Span;
     use super::super::tree::Tree;
     use super::systematic;
@@ -440,8 +435,7 @@ mod tests {
         tree.split(&rules, sender).unwrap();
         let quarters = tree.nodes[sender as usize].children.clone();
         let caster = occluder_bvh(&roots).unwrap();
-        let estimator =
-            Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1, progress: None };
+        let estimator = super::super::testing::estimator(&rules, &caster);
         for brightness in [[1.0, 2.0, 3.0, 4.0], [0.0, 0.0, 0.0, 8.0], [5.0, 1.0, 1.0, 5.0]] {
             let mut spans = vec![Span::ZERO; tree.nodes.len()];
             let (mut mean, mut square) = (0.0, 0.0);

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use super::span::Span;
 use super::tree::{Kind, Tree};
 use super::HierarchyError;
-use crate::formfactor::{point_to_polygon, Element, ElementRules};
+use crate::formfactor::{point_to_polygon_with, Element, ElementRules};
 use crate::raycast::{Ray, RayCaster};
 use crate::rgb::max_channel;
 use crate::rng::SplitMix64;
@@ -53,6 +53,20 @@ pub(super) struct Link {
     pub(super) visible: f64,
     /// The unoccluded form factor from `a` to `b` of a surface-surface link (`f_ab` for a link with a cluster).
     pub(super) unoccluded_ab: f64,
+    /// The uncertainty of `visible` (see [`visibility_uncertainty`]): its standard error where the rays found it
+    /// partial, the resolution of their count where they saw all or nothing, 0 where it is exact (a clear shaft,
+    /// or a link with a cluster, whose `f` includes its visibility).
+    pub(super) sigma: f64,
+}
+
+/// The uncertainty of a visible fraction `v` found by `n` rays: its standard error `sqrt(v (1 - v) / n)` where it
+/// is partial, the resolution `1 / n` of the count where the rays saw all or nothing.
+pub(super) fn visibility_uncertainty(v: f64, n: f64) -> f64 {
+    if v > 0.0 && v < 1.0 {
+        (v * (1.0 - v) / n).sqrt()
+    } else {
+        1.0 / n
+    }
 }
 
 /// The estimate of one candidate pair: a [`Link`] and the rays it cast.
@@ -77,6 +91,9 @@ pub(super) struct Estimator<'a, C: ?Sized> {
     pub(super) cluster_samples: usize,
     /// Seed of the cluster links' streams.
     pub(super) seed: u64,
+    /// Whether surface pairs are shaft-culled ([`super::shaft`]): the caster must then hold no occluders but
+    /// (some of) the tree's face polygons.
+    pub(super) shafts: bool,
     /// Where refinement reports how far it got on stderr (long passes), if anywhere.
     pub(super) progress: Option<&'a Progress>,
 }
@@ -122,8 +139,9 @@ fn kernel_range(r: &Element, s: &Element) -> Option<f64> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     let probes =
         std::iter::once(pr.centroid).chain(pr.vertices.iter().map(|&p| p + PROBE_INSET * (pr.centroid - p)));
+    let mut clipped = Vec::with_capacity(ps.vertices.len() + 1);
     for x in probes {
-        let k = point_to_polygon(x, pr.normal, &ps.vertices, ps.normal);
+        let k = point_to_polygon_with(x, pr.normal, &ps.vertices, ps.normal, &mut clipped);
         if k.is_finite() {
             lo = lo.min(k);
             hi = hi.max(k);
@@ -145,6 +163,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
                 spread_ba: 0.0,
                 visible: 1.0,
                 unoccluded_ab: 0.0,
+                sigma: 0.0,
             },
             trusted: true,
             rays: 0,
@@ -161,11 +180,13 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         }
     }
 
-    /// Two surfaces: the kernel's unoccluded form factor times the rays' visible fraction (as the patch-to-patch
-    /// estimator computes them); the spread is the point-wise form factor's range over probes of the receiver
-    /// times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a shadow edge
-    /// can cross the receiver) and the fraction's standard error; where it is not, the fraction's resolution
-    /// (one ray in `rays_per_pair`) times the unoccluded factor. `None` if the two cannot exchange light.
+    /// Two surfaces: the kernel's unoccluded form factor times the visible fraction (as the patch-to-patch
+    /// estimator computes them, from occlusion rays; exactly 1 without a ray where no face polygon reaches into
+    /// the pair's hull, [`super::shaft`]); the spread is the point-wise form factor's range over probes of the
+    /// receiver times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a
+    /// shadow edge can cross the receiver) and the fraction's standard error; where it is not, its uncertainty
+    /// ([`visibility_uncertainty`]; 0 for a clear shaft) times the unoccluded factor. `None` if the two cannot
+    /// exchange light.
     pub(super) fn surface_pair(
         &self,
         tree: &Tree,
@@ -174,6 +195,27 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         b: u32,
         eb: &Element,
     ) -> Option<Estimate> {
+        let (mut estimate, u_ba) = self.factor(tree, a, ea, b, eb)?;
+        let link = &mut estimate.link;
+        let (v, sigma) = (link.visible, link.sigma);
+        let visibility = if v > 0.0 && v < 1.0 { 1.0 + sigma } else { sigma };
+        link.spread_ab =
+            v * kernel_range(ea, eb).unwrap_or(link.unoccluded_ab) + link.unoccluded_ab * visibility;
+        link.spread_ba = v * kernel_range(eb, ea).unwrap_or(u_ba) + u_ba * visibility;
+        Some(estimate)
+    }
+
+    /// [`Self::surface_pair`] without the spreads (left 0, which saves the probes' kernel evaluations): the form
+    /// factors, the visible fraction and its uncertainty, for a caller that needs no more; and the unoccluded form
+    /// factor from `b` to `a`.
+    pub(super) fn factor(
+        &self,
+        tree: &Tree,
+        a: u32,
+        ea: &Element,
+        b: u32,
+        eb: &Element,
+    ) -> Option<(Estimate, f64)> {
         // Integrated over the smaller of the two (the kernel is exact over the other), the other direction by
         // reciprocity: the quadrature then never has to resolve a small neighbour's peak on a large element.
         let (aa, ab) = (ea.patch().area, eb.patch().area);
@@ -187,33 +229,32 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
         if !(u_ab > 0.0 && u_ab.is_finite() && u_ba.is_finite()) {
             return None;
         }
-        // The stream of the lower key first, so the estimate does not depend on the pair's order (nor, keyed by
-        // the nodes' keys, on when refinement made them).
-        let (ka, kb) = (tree.nodes[a as usize].key, tree.nodes[b as usize].key);
-        let (v, rays) = if ka < kb {
-            self.rules.visible_fraction(self.caster, ea, eb, (ka, kb))
+        let (v, sigma, rays) = if self.shafts && super::shaft::clear(tree, a, b) {
+            (1.0, 0.0, 0)
         } else {
-            self.rules.visible_fraction(self.caster, eb, ea, (kb, ka))
+            // The stream of the lower key first, so the estimate does not depend on the pair's order (nor, keyed
+            // by the nodes' keys, on when refinement made them).
+            let (ka, kb) = (tree.nodes[a as usize].key, tree.nodes[b as usize].key);
+            let (v, rays) = if ka < kb {
+                self.rules.visible_fraction(self.caster, ea, eb, (ka, kb))
+            } else {
+                self.rules.visible_fraction(self.caster, eb, ea, (kb, ka))
+            };
+            let v = if v.is_nan() { 1.0 } else { v };
+            (v, visibility_uncertainty(v, self.rules.rays_per_pair() as f64), rays)
         };
-        let v = if v.is_nan() { 1.0 } else { v };
-        let n = self.rules.rays_per_pair() as f64;
-        let visibility = if v > 0.0 && v < 1.0 { 1.0 + (v * (1.0 - v) / n).sqrt() } else { 1.0 / n };
-        let spread_ab = v * kernel_range(ea, eb).unwrap_or(u_ab) + u_ab * visibility;
-        let spread_ba = v * kernel_range(eb, ea).unwrap_or(u_ba) + u_ba * visibility;
-        Some(Estimate {
-            link: Link {
-                a,
-                b,
-                f_ab: u_ab * v,
-                f_ba: u_ba * v,
-                spread_ab,
-                spread_ba,
-                visible: v,
-                unoccluded_ab: u_ab,
-            },
-            trusted: true,
-            rays,
-        })
+        let link = Link {
+            a,
+            b,
+            f_ab: u_ab * v,
+            f_ba: u_ba * v,
+            spread_ab: 0.0,
+            spread_ba: 0.0,
+            visible: v,
+            unoccluded_ab: u_ab,
+            sigma,
+        };
+        Some((Estimate { link, trusted: true, rays }, u_ba))
     }
 
     /// A cluster at one end (or both): Monte Carlo over area-uniform point pairs with a shadow ray each,
@@ -272,6 +313,7 @@ impl<C: RayCaster + ?Sized> Estimator<'_, C> {
             spread_ba: g_ba.min(1.0) + 2.0 * na.area * se,
             visible: 1.0,
             unoccluded_ab: nb.area * mean,
+            sigma: 0.0,
         };
         Estimate { link, trusted: trusted || mean == 0.0, rays: rays.len() as u64 }
     }
@@ -611,6 +653,7 @@ pub(super) fn split_end(
 mod tests {
     use super::super::testing::{cornell_polygons, within};
     use super::*;
+    use crate::formfactor::point_to_polygon;
     use crate::rgb::Rgb;
 
     /// The oracle's charge for a cluster link with the light in its cluster: never more than the brightest-
@@ -647,6 +690,7 @@ mod tests {
                     spread_ba: 0.0,
                     visible: 1.0,
                     unoccluded_ab: 0.0,
+                    sigma: 0.0,
                 };
                 let charge = link_error(&tree, &spans, &link);
                 let nr = &tree.nodes[r as usize];
@@ -687,8 +731,7 @@ mod tests {
         let (roots, lighting, rules) = cornell_polygons();
         let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
         let caster = crate::formfactor::occluder_scene(&roots, true).unwrap();
-        let estimator =
-            Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1, progress: None };
+        let estimator = super::super::testing::estimator(&rules, &caster);
         let n = tree.nodes.len() as u32;
         let (mut far, mut noisy) = (0, 0);
         for a in (0..n).filter(|&a| tree.is_cluster(a)) {

@@ -9,7 +9,9 @@
 //!   for radiosity in complex environments", SIGGRAPH 1994).
 //! - **Links** (`link`). A link (receiver, sender) carries the receiver-based form factor `F` (receiver gathers
 //!   `F * B_sender` per unit area). Between two surfaces, `F` is the patch estimator's own: the unoccluded kernel
-//!   integral times the visible fraction from occlusion rays (`formfactor::ElementRules`). With a cluster at
+//!   integral times the visible fraction from occlusion rays (`formfactor::ElementRules`), or exactly 1 without a
+//!   ray where no face polygon reaches into the convex hull of the two (`shaft`: shaft culling, Haines and
+//!   Wallace 1991, through the cluster tree's boxes; [`HierarchyOptions::shaft_culling`]). With a cluster at
 //!   either end, `F` is a Monte Carlo estimate over area-uniform point pairs with shadow rays, and the cluster
 //!   receives isotropically: every surface in it gets the same irradiance.
 //! - **Oracle** (`link`, `budget`). Each link has a spread: a bound on how far the form factor of a point of the
@@ -76,7 +78,8 @@
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
-//! node) -> `excess` (chains that gather more than 1) -> `link` (estimates, the per-link oracle, pair refinement)
+//! node) -> `excess` (chains that gather more than 1) -> `shaft` (whether anything can be between two surfaces)
+//! -> `link` (estimates, the per-link oracle, pair refinement)
 //! -> `pieces` (refinement split by receiver subtree and merged) -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
 //! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
@@ -88,6 +91,7 @@ mod link;
 mod network;
 mod pieces;
 mod shadow;
+mod shaft;
 mod shoot;
 mod solve;
 mod span;
@@ -204,6 +208,12 @@ pub struct HierarchyOptions {
     pub pieces: usize,
     /// Print one line per pass on stderr.
     pub progress: bool,
+    /// Shaft culling of surface pairs (Haines and Wallace 1991): where no face polygon reaches into the convex
+    /// hull of a pair, the pair sees itself wholly and casts no ray, and its visible fraction is exact (no ray
+    /// count's resolution in its spread). Requires that the caster hold no occluders but the face polygons
+    /// solved (as [`solve_hierarchical`]'s does); `false` casts rays for every pair (to measure what culling
+    /// changes).
+    pub shaft_culling: bool,
 }
 
 impl Default for HierarchyOptions {
@@ -221,6 +231,7 @@ impl Default for HierarchyOptions {
             form_factors: FormFactorOptions { progress: false, ..FormFactorOptions::default() },
             pieces: DEFAULT_PIECES,
             progress: false,
+            shaft_culling: true,
         }
     }
 }
@@ -509,7 +520,9 @@ fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
 }
 
 /// Solves the scene made of `roots` (one patch per face polygon, with reflectance `rho` and emission `emission`
-/// per polygon) hierarchically, casting occlusion rays at `caster`.
+/// per polygon) hierarchically, casting occlusion rays at `caster`. With [`HierarchyOptions::shaft_culling`] (the
+/// default) no ray is cast between two surfaces that no polygon of `roots` can come between, so `caster` must
+/// hold no occluders but (some of) `roots`.
 ///
 /// # Errors
 /// [`HierarchyError::InvalidOption`] for an option out of range or fewer node slots than the tree over `roots`
@@ -611,6 +624,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         caster,
         cluster_samples: options.cluster_samples,
         seed: options.form_factors.seed,
+        shafts: options.shaft_culling,
         progress: options.progress.then_some(&progress),
     };
     let mut spans = solve::emission_bound(&tree);
@@ -688,8 +702,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
             break;
         }
     }
-    let rays = rules.rays_per_pair() as f64;
-    let (charges, persistent) = budget::leaf_charges(&tree, &spans, &limits, &links, rays, options.epsilon);
+    let (charges, persistent) = budget::leaf_charges(&tree, &spans, &limits, &links, options.epsilon);
     let rho = reflectance_of(&tree, &links, closed);
     let propagate =
         |c: &[f64]| solve::propagate(&tree, &links, (c, &rho), options.solve_tolerance, MAX_SWEEPS);

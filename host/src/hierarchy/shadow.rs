@@ -87,7 +87,6 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
             directions.push(Direction { index, r, s, f, spread, absolute });
         }
     }
-    let n = estimator.rules.rays_per_pair() as f64;
     let found: Vec<Contradicted> = directions
         .par_iter()
         .map(|d| {
@@ -107,14 +106,12 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
                 }
                 out.estimated += 1;
                 // The leaf's own form factor and its uncertainty: one standard error of the visible fraction
-                // where it is partial, one ray's resolution where it is not (as the link estimator charges).
-                let (own, uncertainty) = match estimator.surface_pair(tree, leaf, el, d.s, es) {
+                // where it is partial, one ray's resolution where the rays saw all or nothing, none where the
+                // shaft was clear (as the link estimator charges).
+                let (own, uncertainty) = match estimator.factor(tree, leaf, el, d.s, es).map(|(e, _)| e) {
                     Some(e) => {
                         out.rays += e.rays;
-                        let v = e.link.visible;
-                        let resolution =
-                            if v > 0.0 && v < 1.0 { (v * (1.0 - v) / n).sqrt() } else { 1.0 / n };
-                        (e.link.f_ab, e.link.unoccluded_ab * resolution)
+                        (e.link.f_ab, e.link.unoccluded_ab * e.link.sigma)
                     }
                     None => (0.0, 0.0),
                 };
@@ -234,8 +231,7 @@ mod tests {
             .unwrap();
         let with_plate = occluder_bvh(&roots).unwrap();
         let without_plate = occluder_bvh(&roots[..2]).unwrap();
-        let shadowing =
-            Estimator { rules: &rules, caster: &with_plate, cluster_samples: 32, seed: 1, progress: None };
+        let shadowing = super::super::testing::estimator(&rules, &with_plate);
         let open = Estimator { caster: &without_plate, ..shadowing };
         let top = |tree: &Tree, face: u32| {
             (0..tree.nodes.len() as u32).find(|&k| tree.nodes[k as usize].root == face)

@@ -135,7 +135,7 @@ pub(super) fn shoot(
 
 #[cfg(test)]
 mod tests {
-    use super::super::link::{expand_self, Estimator, Limits, RefineCounts};
+    use super::super::link::{expand_self, Limits, RefineCounts};
     use super::super::pieces::refine;
     use super::super::solve::{emission as node_emission, emission_bound, reflectance, solve};
     use super::super::testing::cornell_polygons;
@@ -165,8 +165,7 @@ mod tests {
             max_links: usize::MAX,
             pieces: 1,
         };
-        let estimator =
-            Estimator { rules: &rules, caster: &caster, cluster_samples: 32, seed: 1, progress: None };
+        let estimator = super::super::testing::estimator(&rules, &caster);
         let mut spans = emission_bound(&tree);
         let (mut candidates, mut links, mut counts) = (Vec::new(), Vec::new(), RefineCounts::default());
         expand_self(&tree, 0, &mut candidates);

@@ -76,6 +76,9 @@ pub(super) struct Tree {
     order: Vec<u32>,
     /// `prefix[k]`: the area of `order[..k]`, for sampling a cluster by area.
     prefix: Vec<f64>,
+    /// The bounding box (least and greatest corner) of every node made with the tree (the clusters and the face
+    /// polygons, which come before any node that refinement makes), for shaft culling.
+    pub(super) boxes: Vec<(DVec3, DVec3)>,
 }
 
 /// The sphere around a point set: its bounding box's centre and half diagonal.
@@ -91,7 +94,8 @@ impl Tree {
     /// The tree over `roots` (one patch per face polygon) with their reflectance and emission: clusters split at
     /// the median centroid along the longest axis of their centroids' bounding box, down to single polygons.
     pub(super) fn new(rules: &ElementRules, roots: &[Patch], rho: &[Rgb], emission: &[Rgb]) -> Tree {
-        let mut tree = Tree { nodes: Vec::new(), order: vec![NONE; roots.len()], prefix: Vec::new() };
+        let mut tree =
+            Tree { nodes: Vec::new(), order: vec![NONE; roots.len()], prefix: Vec::new(), boxes: Vec::new() };
         let mut ids: Vec<usize> = (0..roots.len()).collect();
         tree.build(rules, roots, rho, emission, &mut ids, 0, NONE);
         let mut area = 0.0;
@@ -119,6 +123,7 @@ impl Tree {
         if let [root] = ids {
             let patch = &roots[*root];
             let (center, radius) = bounding_sphere(patch.vertices.iter());
+            self.boxes.push(bounding_box(patch.vertices.iter().copied()));
             self.nodes.push(Node {
                 parent,
                 children: Vec::new(),
@@ -138,6 +143,7 @@ impl Tree {
             return index;
         }
         let (center, radius) = bounding_sphere(ids.iter().flat_map(|&k| roots[k].vertices.iter()));
+        self.boxes.push(bounding_box(ids.iter().flat_map(|&k| roots[k].vertices.iter().copied())));
         self.nodes.push(Node {
             parent,
             children: Vec::new(),
@@ -282,7 +288,7 @@ impl Tree {
 }
 
 /// The bounding box of a point set.
-fn bounding_box(points: impl Iterator<Item = DVec3>) -> (DVec3, DVec3) {
+pub(super) fn bounding_box(points: impl Iterator<Item = DVec3>) -> (DVec3, DVec3) {
     points.fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
         (lo.min(p), hi.max(p))
     })
