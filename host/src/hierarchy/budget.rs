@@ -435,7 +435,7 @@ mod tests {
         tree.split(&rules, sender).unwrap();
         let quarters = tree.nodes[sender as usize].children.clone();
         let caster = occluder_bvh(&roots).unwrap();
-        let estimator = super::super::testing::estimator(&rules, &caster);
+        let estimator = super::super::link::Estimator::for_tests(&rules, &caster);
         for brightness in [[1.0, 2.0, 3.0, 4.0], [0.0, 0.0, 0.0, 8.0], [5.0, 1.0, 1.0, 5.0]] {
             let mut spans = vec![Span::ZERO; tree.nodes.len()];
             let (mut mean, mut square) = (0.0, 0.0);

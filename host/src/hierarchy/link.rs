@@ -91,12 +91,21 @@ pub(super) struct Estimator<'a, C: ?Sized> {
     pub(super) cluster_samples: usize,
     /// Seed of the cluster links' streams.
     pub(super) seed: u64,
+    /// The shadow check's estimates, kept from pass to pass ([`Witnesses`]).
+    pub(super) witnesses: Witnesses,
     /// Whether surface pairs are shaft-culled ([`super::shaft`]): the caster must then hold no occluders but
     /// (some of) the tree's face polygons.
     pub(super) shafts: bool,
     /// Where refinement reports how far it got on stderr (long passes), if anywhere.
     pub(super) progress: Option<&'a Progress>,
 }
+
+/// Estimates of (leaf, sender) pairs without spreads ([`Estimator::factor`]) by the two nodes' keys: the leaf's
+/// form factor towards the sender and that estimate's uncertainty. The shadow check (`shadow`) estimates many of
+/// the same pairs in pass after pass, and an estimate depends on the two nodes alone (their polygons, and their
+/// keys for the random streams), so it is read here instead of made again. For one tree and one caster: an
+/// estimator is made per solve.
+pub(super) type Witnesses = std::sync::Mutex<std::collections::HashMap<(u64, u64), (f64, f64)>>;
 
 /// Refinement's progress lines: at most one every [`Progress::EVERY`] of wall time.
 pub(super) struct Progress {
@@ -150,7 +159,22 @@ fn kernel_range(r: &Element, s: &Element) -> Option<f64> {
     (hi >= lo).then_some(hi - lo)
 }
 
-impl<C: RayCaster + ?Sized> Estimator<'_, C> {
+impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
+    /// The estimator the unit tests use: `rules`, occluders `caster` (no others than the tree's polygons: shaft
+    /// culling is on), 32 point pairs per cluster link, seed 1, no progress output.
+    #[cfg(test)]
+    pub(super) fn for_tests(rules: &'a ElementRules, caster: &'a C) -> Estimator<'a, C> {
+        Estimator {
+            rules,
+            caster,
+            cluster_samples: 32,
+            seed: 1,
+            witnesses: Witnesses::default(),
+            shafts: true,
+            progress: None,
+        }
+    }
+
     /// The estimate of the pair `(a, b)` (distinct, disjoint nodes).
     pub(super) fn estimate(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
         let zero = Estimate {
@@ -731,7 +755,7 @@ mod tests {
         let (roots, lighting, rules) = cornell_polygons();
         let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
         let caster = crate::formfactor::occluder_scene(&roots, true).unwrap();
-        let estimator = super::super::testing::estimator(&rules, &caster);
+        let estimator = Estimator::for_tests(&rules, &caster);
         let n = tree.nodes.len() as u32;
         let (mut far, mut noisy) = (0, 0);
         for a in (0..n).filter(|&a| tree.is_cluster(a)) {

@@ -25,8 +25,6 @@ const SLACK: f64 = 1e-9;
 /// A hull's bounding planes `(n, d)` with `|n| = 1`: a point `x` is inside when `n . x <= d` for every plane.
 struct Shaft {
     planes: Vec<(DVec3, f64)>,
-    /// The vertices of both ends.
-    points: Vec<DVec3>,
     slack: f64,
 }
 
@@ -34,11 +32,7 @@ impl Shaft {
     /// The hull of the convex planar polygons `p` (normal `np`) and `q` (normal `nq`), points within `slack` of
     /// a plane counting as on it.
     fn new(p: &[DVec3], np: DVec3, q: &[DVec3], nq: DVec3, slack: f64) -> Shaft {
-        let mut shaft = Shaft {
-            planes: Vec::with_capacity(2 * p.len() * q.len() + 2),
-            points: p.iter().chain(q).copied().collect(),
-            slack,
-        };
+        let mut shaft = Shaft { planes: Vec::with_capacity(2 * p.len() * q.len() + 2), slack };
         shaft.consider(np, p[0], p, q);
         shaft.consider(nq, q[0], p, q);
         for (from, to) in [(p, q), (q, p)] {
@@ -60,12 +54,7 @@ impl Shaft {
             return;
         }
         let d = n.dot(origin);
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for x in p.iter().chain(q) {
-            let s = n.dot(*x) - d;
-            lo = lo.min(s);
-            hi = hi.max(s);
-        }
+        let (lo, hi) = extent(n, d, p.iter().chain(q));
         let slack = self.slack * length;
         if hi <= slack {
             self.planes.push((n / length, d / length));
@@ -74,21 +63,26 @@ impl Shaft {
         }
     }
 
-    /// Whether a planar polygon (`vertices`, unit `normal`) meets the hull at most on its boundary: every vertex
-    /// lies outside one of the hull's planes or on it, or every point of the two ends lies on one side of the
-    /// polygon's own plane or on it (the hull's planes alone miss a polygon that passes by one of its edges).
-    fn misses_polygon(&self, vertices: &[DVec3], normal: DVec3) -> bool {
-        self.planes.iter().any(|&(n, d)| vertices.iter().all(|v| n.dot(*v) - d >= -self.slack)) || {
-            let d = normal.dot(vertices[0]);
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for x in &self.points {
-                let s = normal.dot(*x) - d;
-                lo = lo.min(s);
-                hi = hi.max(s);
-            }
-            hi <= self.slack || lo >= -self.slack
-        }
+    /// Whether every vertex of a polygon lies outside one of the hull's planes or on it.
+    fn outside(&self, vertices: &[DVec3]) -> bool {
+        self.planes.iter().any(|&(n, d)| vertices.iter().all(|v| n.dot(*v) - d >= -self.slack))
     }
+}
+
+/// The least and greatest of `n . x - d` over `points`.
+fn extent<'a>(n: DVec3, d: f64, points: impl Iterator<Item = &'a DVec3>) -> (f64, f64) {
+    points.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+        let s = n.dot(*x) - d;
+        (lo.min(s), hi.max(s))
+    })
+}
+
+/// Whether every one of `points` lies on one side of the plane through `origin` with unit normal `normal`, or on
+/// it (within `slack`): then a polygon in that plane meets the hull of the points at most on its boundary (the
+/// hull's own planes miss a polygon that passes by one of its edges, and this test is cheaper).
+fn separated<'a>(normal: DVec3, origin: DVec3, points: impl Iterator<Item = &'a DVec3>, slack: f64) -> bool {
+    let (lo, hi) = extent(normal, normal.dot(origin), points);
+    hi <= slack || lo >= -slack
 }
 
 /// Whether no face polygon of the tree other than those that surfaces `a` and `b` were cut from reaches into the
@@ -97,8 +91,8 @@ impl Shaft {
 /// cast at a caster holding no others.
 ///
 /// The tree's clusters and polygons are first tested against the pair's bounding box (which holds the hull; one
-/// that only touches it, within the slack, meets no segment between interior points), and the hull's planes are
-/// made only for a polygon whose box reaches into it.
+/// that only touches it, within the slack, meets no segment between interior points); a polygon whose box reaches
+/// into it is tested by its own plane, and only if that does not separate it, by the hull's planes (made once).
 pub(super) fn clear(tree: &Tree, a: u32, b: u32) -> bool {
     /// Deeper than any median-split cluster tree (its depth is about the logarithm of the polygon count).
     const STACK: usize = 64;
@@ -141,11 +135,19 @@ pub(super) fn clear(tree: &Tree, a: u32, b: u32) -> bool {
                 if node.root == na.root || node.root == nb.root {
                     continue;
                 }
+                let polygon = element.patch();
+                if separated(
+                    polygon.normal,
+                    polygon.vertices[0],
+                    pa.vertices.iter().chain(&pb.vertices),
+                    slack,
+                ) {
+                    continue;
+                }
                 let shaft = shaft.get_or_insert_with(|| {
                     Shaft::new(&pa.vertices, pa.normal, &pb.vertices, pb.normal, slack)
                 });
-                let polygon = element.patch();
-                if shaft.planes.is_empty() || !shaft.misses_polygon(&polygon.vertices, polygon.normal) {
+                if shaft.planes.is_empty() || !shaft.outside(&polygon.vertices) {
                     return false;
                 }
             }
@@ -181,6 +183,8 @@ mod tests {
         let (q, nq) = square(0.0, 0.0, 1.0, 1.0, false);
         let shaft = Shaft::new(&p, np, &q, nq, 1e-12);
         let inside = |x: DVec3| shaft.planes.iter().all(|&(n, d)| n.dot(x) - d <= 1e-12);
+        let misses =
+            |v: &[DVec3], n: DVec3| shaft.outside(v) || separated(n, v[0], p.iter().chain(&q), 1e-12);
         assert!(inside(DVec3::new(0.5, 0.5, 0.5)));
         assert!(inside(DVec3::new(0.0, 1.0, 0.3)), "a point on a side face");
         for outside in [
@@ -193,23 +197,23 @@ mod tests {
         }
         // A small square in the middle blocks; one beside the box, or one in a side plane, does not.
         let (middle, up) = square(0.4, 0.4, 0.5, 0.2, true);
-        assert!(!shaft.misses_polygon(&middle, up));
-        assert!(shaft.misses_polygon(&square(1.1, 0.4, 0.5, 0.2, true).0, up));
+        assert!(!misses(&middle, up));
+        assert!(misses(&square(1.1, 0.4, 0.5, 0.2, true).0, up));
         let side = [DVec3::new(1.0, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0), DVec3::new(1.0, 1.0, 1.0)];
-        assert!(shaft.misses_polygon(&side, DVec3::X));
+        assert!(misses(&side, DVec3::X));
         // A polygon crossing the box though none of its vertices is inside.
         let crossing = [DVec3::new(-1.0, 0.5, 0.5), DVec3::new(2.0, 0.5, 0.5), DVec3::new(0.5, 2.0, 0.5)];
-        assert!(!shaft.misses_polygon(&crossing, DVec3::Z));
+        assert!(!misses(&crossing, DVec3::Z));
         // One passing by the vertical edge at x = y = 1, outside the box: no plane of the box has all its vertices
         // outside, its own plane has all of the box on one side.
         let by_the_edge =
             [DVec3::new(1.5, 0.55, 0.5), DVec3::new(0.55, 1.5, 0.5), DVec3::new(1.0, 1.05, 0.9)];
         let normal = (by_the_edge[1] - by_the_edge[0]).cross(by_the_edge[2] - by_the_edge[0]).normalize();
-        assert!(shaft.misses_polygon(&by_the_edge, normal));
-        assert!(!shaft.planes.iter().any(|&(n, d)| by_the_edge.iter().all(|v| n.dot(*v) - d >= 0.0)));
+        assert!(misses(&by_the_edge, normal));
+        assert!(!shaft.outside(&by_the_edge));
         // Moved to pass through the edge, it blocks.
         let through = by_the_edge.map(|v| v - DVec3::new(0.05, 0.05, 0.0));
-        assert!(!shaft.misses_polygon(&through, normal));
+        assert!(!misses(&through, normal));
     }
 
     #[test]

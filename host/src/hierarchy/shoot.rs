@@ -165,7 +165,7 @@ mod tests {
             max_links: usize::MAX,
             pieces: 1,
         };
-        let estimator = super::super::testing::estimator(&rules, &caster);
+        let estimator = super::super::link::Estimator::for_tests(&rules, &caster);
         let mut spans = emission_bound(&tree);
         let (mut candidates, mut links, mut counts) = (Vec::new(), Vec::new(), RefineCounts::default());
         expand_self(&tree, 0, &mut candidates);

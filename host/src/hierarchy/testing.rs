@@ -1,13 +1,11 @@
 //! What the module's unit tests share: the Cornell box's face polygons with their lighting and the estimator's
 //! rules, and the ancestor test.
 
-use super::link::Estimator;
 use super::tree::{Tree, NONE};
 use crate::formfactor::{ElementRules, FormFactorOptions};
 use crate::lighting::PatchLighting;
 use crate::mesh::{mesh, MeshOptions};
 use crate::patch::Patch;
-use crate::raycast::RayCaster;
 use crate::scene::Scene;
 
 /// The published Cornell box as tree roots (its face polygons, unsubdivided), their lighting, and the default
@@ -34,13 +32,4 @@ pub(super) fn within(tree: &Tree, k: u32, c: u32) -> bool {
         k = tree.nodes[k as usize].parent;
     }
     false
-}
-
-/// The estimator the unit tests use: `rules`, occluders `caster` (no others than the tree's polygons: shaft
-/// culling is on), 32 point pairs per cluster link, seed 1, no progress output.
-pub(super) fn estimator<'a, C: RayCaster + ?Sized>(
-    rules: &'a ElementRules,
-    caster: &'a C,
-) -> Estimator<'a, C> {
-    Estimator { rules, caster, cluster_samples: 32, seed: 1, shafts: true, progress: None }
 }
