@@ -91,21 +91,12 @@ pub(super) struct Estimator<'a, C: ?Sized> {
     pub(super) cluster_samples: usize,
     /// Seed of the cluster links' streams.
     pub(super) seed: u64,
-    /// The shadow check's estimates, kept from pass to pass ([`Witnesses`]).
-    pub(super) witnesses: Witnesses,
     /// Whether surface pairs are shaft-culled ([`super::shaft`]): the caster must then hold no occluders but
     /// (some of) the tree's face polygons.
     pub(super) shafts: bool,
     /// Where refinement reports how far it got on stderr (long passes), if anywhere.
     pub(super) progress: Option<&'a Progress>,
 }
-
-/// Estimates of (leaf, sender) pairs without spreads ([`Estimator::factor`]) by the two nodes' keys: the leaf's
-/// form factor towards the sender and that estimate's uncertainty. The shadow check (`shadow`) estimates many of
-/// the same pairs in pass after pass, and an estimate depends on the two nodes alone (their polygons, and their
-/// keys for the random streams), so it is read here instead of made again. For one tree and one caster: an
-/// estimator is made per solve.
-pub(super) type Witnesses = std::sync::Mutex<std::collections::HashMap<(u64, u64), (f64, f64)>>;
 
 /// Refinement's progress lines: at most one every [`Progress::EVERY`] of wall time.
 pub(super) struct Progress {
@@ -164,15 +155,7 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
     /// culling is on), 32 point pairs per cluster link, seed 1, no progress output.
     #[cfg(test)]
     pub(super) fn for_tests(rules: &'a ElementRules, caster: &'a C) -> Estimator<'a, C> {
-        Estimator {
-            rules,
-            caster,
-            cluster_samples: 32,
-            seed: 1,
-            witnesses: Witnesses::default(),
-            shafts: true,
-            progress: None,
-        }
+        Estimator { rules, caster, cluster_samples: 32, seed: 1, shafts: true, progress: None }
     }
 
     /// The estimate of the pair `(a, b)` (distinct, disjoint nodes).

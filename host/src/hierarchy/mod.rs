@@ -625,7 +625,6 @@ fn solve_checked<C: RayCaster + ?Sized>(
         cluster_samples: options.cluster_samples,
         seed: options.form_factors.seed,
         shafts: options.shaft_culling,
-        witnesses: link::Witnesses::default(),
         progress: options.progress.then_some(&progress),
     };
     let mut spans = solve::emission_bound(&tree);
