@@ -32,7 +32,8 @@
 //!      Or, with [`Refinement::Brightness`] (device tables), pass 1's rule again with the solved radiosity
 //!      (`link::refine_brightness`), plus the links on the chain of every leaf that gathers more than 1 in all,
 //!      where an ancestor's average overstates the leaf's own point form factor most (`excess`), and the
-//!      surface links held at an ancestor that a leaf below sees much less of (`shadow`): the leaf's own
+//!      surface links held at an ancestor that a leaf below sees much less of (`shadow`; links whose shaft is
+//!      clear are not checked, nothing can shadow a leaf below them): the leaf's own
 //!      estimate (its own occlusion rays) witnesses a deviation, split for if it contradicts the link's spread
 //!      beyond the bound per link, or if what the leaf reflects wrongly through it exceeds `epsilon` times the
 //!      leaf's reflected radiosity (dim leaves beside an occluder, which the absolute bound leaves coarse).
