@@ -27,8 +27,8 @@
 //! Links whose shaft was clear (`shaft`: no face polygon can come between their ends) are not checked: no
 //! occluder can shadow a leaf below them, and what is left of a leaf's deviation is the kernel's, which the
 //! link's spread bounds at its probes. The relative rule's hold on such deviations of dim leaves is given up for
-//! it: on the Cornell box that trades a little per-face accuracy for half the refinement time, a better error
-//! for the time spent (the closing notes of issue 18 have the measurements).
+//! it: a little per-face accuracy for much less refinement time (`bench/REPORT.md` has the error against the
+//! seconds; the closing notes of issue 18 compare the two).
 //!
 //! Links with a cluster at either end are not checked: their spread is Smits, Arvo and Greenberg's bound on any
 //! point's form factor (`A_s / (pi d^2)`), which no leaf's overstatement can exceed, and a leaf's own estimate
