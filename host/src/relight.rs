@@ -649,7 +649,7 @@ pub fn write_frames(
     height: u32,
 ) -> Result<Vec<PathBuf>, RelightError> {
     std::fs::create_dir_all(dir).map_err(|e| PictureError::Io { path: dir.to_path_buf(), source: e })?;
-    let camera = default_camera(p)?;
+    let camera = default_camera(p.surfaces())?;
     let tracer = PatchTracer::new(&p.patches)?;
     let trace = |o, d| tracer.closest_hit(o, d);
     let hits = trace_view(&Frame { camera, width, height }, &trace)?;

@@ -1,5 +1,6 @@
-//! Pictures of a prepared scene: the glue between the pipeline ([`Prepared`]), the Embree module and the picture
-//! library.
+//! Pictures of a solved scene: the glue between the solvers (the flat pipeline's [`Prepared`], the hierarchy's
+//! leaves), the Embree module and the picture library. A picture is made of [`Surfaces`]: the scene and the
+//! patches whose radiosity it shows, a flat mesh's patches or a hierarchical solve's leaves alike.
 //!
 //! - [`PatchTracer`]: the patches, fan-triangulated into one Embree mesh, answering closest-hit queries in the
 //!   picture module's terms (patch index and hit point).
@@ -25,6 +26,7 @@ use crate::picture::{PictureError, RgbImage};
 use crate::pipeline::Prepared;
 use crate::reference::{exact_transfer, Method, ReferenceError};
 use crate::rgb::Rgb;
+use crate::scene::Scene;
 
 /// Errors of the view glue; each wraps the module that failed.
 #[derive(Debug, thiserror::Error)]
@@ -38,6 +40,25 @@ pub enum ViewError {
     /// The f64 reference solve failed.
     #[error("f64 reference solve: {0}")]
     Reference(#[from] ReferenceError),
+}
+
+/// What a picture is made of: the scene (its file name picks [`default_camera`], its materials go into a `.glb`)
+/// and the patches whose radiosity the picture shows, each keeping its face: the flat pipeline's adaptive mesh
+/// ([`Prepared::surfaces`]) or a hierarchical solve's leaves (`HierarchicalSolution::leaves`).
+#[derive(Clone, Copy, Debug)]
+pub struct Surfaces<'a> {
+    /// The scene the patches were made from.
+    pub scene: &'a Scene,
+    /// The patches; radiosity vectors given with them have one value per patch, in this order.
+    pub patches: &'a [Patch],
+}
+
+impl Prepared {
+    /// The scene and its adaptive mesh, for pictures.
+    #[must_use]
+    pub fn surfaces(&self) -> Surfaces<'_> {
+        Surfaces { scene: &self.scene, patches: &self.patches }
+    }
 }
 
 /// Most surfaces a primary ray passes through from behind before it gives up (see [`PatchTracer::closest_hit`]).
@@ -150,13 +171,13 @@ pub const LEGEND_MIN_WIDTH: u32 = 256;
 ///
 /// # Errors
 /// As [`auto_camera`].
-pub fn default_camera(prepared: &Prepared) -> Result<Camera, ViewError> {
+pub fn default_camera(surfaces: Surfaces<'_>) -> Result<Camera, ViewError> {
     let cornell =
-        prepared.scene.path.file_stem().is_some_and(|s| s.to_string_lossy().starts_with("cornell-box"));
+        surfaces.scene.path.file_stem().is_some_and(|s| s.to_string_lossy().starts_with("cornell-box"));
     if cornell {
         Ok(Camera::cornell_box())
     } else {
-        auto_camera(&prepared.patches)
+        auto_camera(surfaces.patches)
     }
 }
 
@@ -183,7 +204,7 @@ pub fn auto_camera(patches: &[Patch]) -> Result<Camera, ViewError> {
     Ok(Camera::look_at(centre - DVec3::Z * distance, centre, DVec3::Y, fov)?)
 }
 
-/// Renders a view of `prepared` with per-patch radiosity `b` and returns the picture with its per-pixel data.
+/// Renders a view of `surfaces` with per-patch radiosity `b` and returns the picture with its per-pixel data.
 ///
 /// Shaded views smooth `b` across compatible neighbours ([`SmoothShader`], default options), flat views show
 /// each patch's own `b`; both tone map with the picture module's default (an exposure from a percentile of the visible luminances, extended Reinhard, sRGB).
@@ -192,14 +213,18 @@ pub fn auto_camera(patches: &[Patch]) -> Result<Camera, ViewError> {
 /// # Errors
 /// [`ViewError::Embree`] building the ray-tracing scene; [`ViewError::Picture`] for a bad size, a bad camera,
 /// `b` or the reference of the wrong length, or a non-finite value (naming the patch or pixel).
-pub fn render_view(prepared: &Prepared, b: &[Rgb], options: &RenderOptions<'_>) -> Result<View, ViewError> {
+pub fn render_view(
+    surfaces: Surfaces<'_>,
+    b: &[Rgb],
+    options: &RenderOptions<'_>,
+) -> Result<View, ViewError> {
     let camera = match options.camera {
         Some(c) => c,
-        None => default_camera(prepared)?,
+        None => default_camera(surfaces)?,
     };
     let frame = Frame { camera, width: options.width, height: options.height };
-    let tracer = PatchTracer::new(&prepared.patches)?;
-    let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
+    let tracer = PatchTracer::new(surfaces.patches)?;
+    let shader = SmoothShader::new(surfaces.patches, &ShadingOptions::default())?;
     let colouring = match options.mode {
         RenderMode::Shaded => Colouring::Shaded,
         RenderMode::Flat => Colouring::Flat,
@@ -221,11 +246,11 @@ pub fn render_view(prepared: &Prepared, b: &[Rgb], options: &RenderOptions<'_>) 
 /// # Errors
 /// As [`render_view`].
 pub fn render_scene(
-    prepared: &Prepared,
+    surfaces: Surfaces<'_>,
     b: &[Rgb],
     options: &RenderOptions<'_>,
 ) -> Result<RgbImage, ViewError> {
-    Ok(render_view(prepared, b, options)?.image)
+    Ok(render_view(surfaces, b, options)?.image)
 }
 
 /// `top` above `bottom` (widths are equal for legends made at the view's width; narrower rows are padded black).
@@ -255,20 +280,20 @@ pub struct LightMapFiles {
     pub texel_size: f64,
 }
 
-/// Bakes the light map of `prepared` with radiosity `b` (smooth shading, resolution from `options`) and writes
+/// Bakes the light map of `surfaces` with radiosity `b` (smooth shading, resolution from `options`) and writes
 /// `<stem>.exr`, `<stem>.hdr`, `<stem>.png` and `<stem>.json`. Every OBJ face gets a rectangle.
 ///
 /// # Errors
 /// [`ViewError::Picture`] if a face has no patch, `b` has the wrong length or holds a non-finite value, the
 /// texel size gives a face or the atlas more texels than allowed, or a file cannot be written.
 pub fn write_light_map(
-    prepared: &Prepared,
+    surfaces: Surfaces<'_>,
     b: &[Rgb],
     stem: &Path,
     options: &LightMapOptions,
 ) -> Result<LightMapFiles, ViewError> {
-    let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
-    let map = bake_light_map(&prepared.patches, &shader, b, options)?;
+    let shader = SmoothShader::new(surfaces.patches, &ShadingOptions::default())?;
+    let map = bake_light_map(surfaces.patches, &shader, b, options)?;
     let paths = map.write(stem, None)?;
     Ok(LightMapFiles { paths, width: map.atlas.width, height: map.atlas.height, texel_size: map.texel_size })
 }
@@ -293,7 +318,7 @@ pub struct ExportFiles {
     pub triangles: usize,
 }
 
-/// Bakes the light map of `prepared` with radiosity `b` (as [`write_light_map`]) and writes the scene as binary
+/// Bakes the light map of `surfaces` with radiosity `b` (as [`write_light_map`]) and writes the scene as binary
 /// glTF 2.0 to `path` with the light map embedded ([`crate::picture::glb`]), and its irradiance atlas beside it
 /// as OpenEXR (`path` with extension `.exr`). The tone map suggested in the file is the light map's default
 /// ([`ToneMap::from_percentile`](crate::picture::ToneMap::from_percentile) over the chart texels).
@@ -301,20 +326,20 @@ pub struct ExportFiles {
 /// # Errors
 /// As [`write_light_map`]; [`ViewError::Picture`] also if a face mixes materials.
 pub fn export_glb(
-    prepared: &Prepared,
+    surfaces: Surfaces<'_>,
     b: &[Rgb],
     path: &Path,
     options: &LightMapOptions,
 ) -> Result<ExportFiles, ViewError> {
     use crate::picture::{glb, hdr, ToneMap};
-    let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default())?;
-    let map = bake_light_map(&prepared.patches, &shader, b, options)?;
+    let shader = SmoothShader::new(surfaces.patches, &ShadingOptions::default())?;
+    let map = bake_light_map(surfaces.patches, &shader, b, options)?;
     let tone = ToneMap::from_percentile(
         &map.face_luminances(),
         ToneMap::DEFAULT_PERCENTILE,
         ToneMap::DEFAULT_WHITE,
     )?;
-    let file = glb::encode_glb(&prepared.patches, &prepared.scene.materials, &map, tone)?;
+    let file = glb::encode_glb(surfaces.patches, &surfaces.scene.materials, &map, tone)?;
     let exr = path.with_extension("exr");
     hdr::write_exr(&exr, &file.irradiance)?;
     crate::picture::write_file(path, &file.bytes)?;

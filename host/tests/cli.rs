@@ -633,6 +633,88 @@ fn export_writes_a_glb_beside_its_exr() {
     assert!(radiosity_host::picture::hdr::read_exr(&exr).is_ok());
 }
 
+/// `render`, `lightmap` and `export` with `--method hierarchical` picture the hierarchy's leaves: the .glb holds
+/// exactly the leaves that `solve --method hierarchical` prints at the same settings (each leaf a fan of its
+/// vertex count less two triangles), not the flat mesh; the light map has a chart for every face, as the flat
+/// one does; the patch view is the leaves', not the flat mesh's. `--mode error` (a flat device table's error) and
+/// hierarchical settings with `--method flat` are refused before any work.
+#[test]
+fn hierarchical_pictures_show_the_leaves() {
+    let rooms = scene("two-rooms.obj");
+    let dir = folder("hier-pictures");
+    let path = |name: &str| dir.join(name).display().to_string();
+    let hier = ["--method", "hierarchical", "--epsilon", "0.1", "-q"];
+    let run = |args: &[&str], more: &[&str]| {
+        let out = radiosity(&[args, more].concat());
+        assert!(out.status.success(), "{args:?} {more:?}: {}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let solved: serde_json::Value =
+        serde_json::from_str(&run(&["solve", &rooms, "--format", "json"], &hier)).unwrap();
+    let leaves = solved["patch_table"].as_array().unwrap();
+    assert_eq!(leaves.len(), solved["patches"].as_u64().unwrap() as usize);
+    let fans: usize = leaves.iter().map(|p| p["vertices"].as_array().unwrap().len() - 2).sum();
+    let triangles = |stdout: &str| -> usize {
+        let line =
+            stdout.lines().find(|l| l.contains("triangles, atlas")).unwrap_or_else(|| panic!("{stdout}"));
+        line.split_whitespace().next().unwrap().parse().unwrap()
+    };
+    let hier_glb = triangles(&run(&["export", &rooms, "-o", &path("h.glb")], &hier));
+    let flat_glb = triangles(&run(&["export", &rooms, "-q", "-o", &path("f.glb")], &[]));
+    assert_eq!(hier_glb, fans, "the hierarchical export holds the solve's {} leaves", leaves.len());
+    assert_ne!(
+        flat_glb, fans,
+        "the flat mesh has {flat_glb} triangles: the comparison cannot tell them apart"
+    );
+    // Light maps: one chart per face either way.
+    run(&["lightmap", &rooms, "-o", &path("h")], &hier);
+    run(&["lightmap", &rooms, "-q", "-o", &path("f")], &[]);
+    let charts = |stem: &str| -> usize {
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{stem}.json"))).unwrap())
+                .unwrap();
+        json["faces"].as_array().unwrap().len()
+    };
+    assert_eq!(charts("h"), charts("f"));
+    // The patch views: the leaves are not the flat mesh.
+    run(
+        &["render", &rooms, "--mode", "patches", "--width", "96", "--height", "96", "-o", &path("h.png")],
+        &hier,
+    );
+    run(
+        &[
+            "render",
+            &rooms,
+            "--mode",
+            "patches",
+            "--width",
+            "96",
+            "--height",
+            "96",
+            "-q",
+            "-o",
+            &path("f.png"),
+        ],
+        &[],
+    );
+    assert_ne!(std::fs::read(dir.join("h.png")).unwrap(), std::fs::read(dir.join("f.png")).unwrap());
+    let png = path("x.png");
+    assert_fails(
+        &["render", MISSING, "--method", "hierarchical", "--mode", "error", "-o", &png],
+        &["--mode error", "--method flat"],
+    );
+    for command in ["render", "lightmap", "export"] {
+        assert_fails(
+            &[command, MISSING, "--epsilon", "0.1", "-o", &path("x.glb")],
+            &["--epsilon", "apply to --method hierarchical only"],
+        );
+        assert_fails(
+            &[command, MISSING, "--method", "hierarchical", "--max-patches", "10", "-o", &path("x.glb")],
+            &["--max-patches", "apply to --method flat only"],
+        );
+    }
+}
+
 #[test]
 fn demo_without_qemu_runs_on_the_host_only() {
     let dir = folder("demo");

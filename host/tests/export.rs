@@ -55,7 +55,8 @@ fn exported() -> &'static Exported {
         let prepared = common::coarse_cornell();
         let b = solve_default(&prepared).unwrap();
         let options = LightMapOptions::default();
-        let files = export_glb(&prepared, &b, &scratch().join("cornell-box.glb"), &options).unwrap();
+        let files =
+            export_glb(prepared.surfaces(), &b, &scratch().join("cornell-box.glb"), &options).unwrap();
         let shader = SmoothShader::new(&prepared.patches, &ShadingOptions::default()).unwrap();
         let map = bake_light_map(&prepared.patches, &shader, &b, &options).unwrap();
         Exported { prepared, b, files, map, shader }

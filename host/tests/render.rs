@@ -42,7 +42,7 @@ fn scratch(name: &str) -> PathBuf {
 /// written to the scratch file `name` for a person to look at.
 fn render_to(b: &[Rgb], mode: RenderMode<'_>, name: &str) -> View {
     let options = RenderOptions { camera: None, width: SIZE, height: SIZE, mode };
-    let view = render_view(&cornell().0, b, &options).unwrap();
+    let view = render_view(cornell().0.surfaces(), b, &options).unwrap();
     write_png(&scratch(name), &view.image).unwrap();
     view
 }
@@ -190,7 +190,7 @@ fn patch_and_error_views() {
 fn light_map_maps_every_face() {
     let (p, b) = cornell();
     let stem = scratch("cornell-lightmap");
-    let paths = write_light_map(p, b, &stem, &Default::default()).unwrap().paths;
+    let paths = write_light_map(p.surfaces(), b, &stem, &Default::default()).unwrap().paths;
     for path in &paths {
         assert!(std::fs::metadata(path).unwrap().len() > 0, "{} is empty", path.display());
     }

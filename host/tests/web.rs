@@ -439,7 +439,7 @@ fn first_view_matches_the_flat_render(
     certified: &[Rgb],
 ) {
     let options = RenderOptions { camera: None, width: CANVAS, height: CANVAS, mode: RenderMode::Flat };
-    let view = render_view(p, exact, &options).unwrap();
+    let view = render_view(p.surfaces(), exact, &options).unwrap();
     write_png(&out.join("project-flat.png"), &view.image).unwrap();
     let tone: ToneMap = view.tone.unwrap();
     let json: Value = serde_json::from_slice(&std::fs::read(site.join("scene.json")).unwrap()).unwrap();

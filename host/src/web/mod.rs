@@ -230,11 +230,11 @@ pub fn write_viewer(prepared: &Prepared, dir: &Path, wasm: &Path) -> Result<View
     let baked = bake(&input, &BakeOptions { transfer: true, ..BakeOptions::default() })?;
     let exact = exact_transfer(&p.lighting, &p.form_factors, &Method::for_size(p.patches.len()))?;
     let b = exact.relight(&p.lighting.default_intensity)?;
-    let camera = default_camera(p)?;
+    let camera = default_camera(p.surfaces())?;
     // The tone map of `radiosity render --mode flat` at its default size: the page's first view is that picture.
     let size = TONE_VIEW_SIZE;
     let view = render_view(
-        p,
+        p.surfaces(),
         &b,
         &RenderOptions { camera: Some(camera), width: size, height: size, mode: RenderMode::Flat },
     )?;

@@ -15,7 +15,7 @@ use radiosity_host::picture::lightmap::LightMapOptions;
 use radiosity_host::pipeline::PrepareOptions;
 use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 
-/// The solver of `radiosity solve`.
+/// The f64 solver of `solve`, `bake`, `render`, `lightmap` and `export`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SolveMethod {
     /// The full patch-to-patch form-factor matrix of the adaptive mesh, solved exactly.
@@ -63,7 +63,8 @@ impl From<RefinementArg> for radiosity_host::hierarchy::Refinement {
     }
 }
 
-/// The hierarchical method's settings, shared by `solve` and `bake` (each rejects them with `--method flat`).
+/// The hierarchical method's settings, shared by `solve`, `bake`, `render`, `lightmap` and `export` (each rejects
+/// them with `--method flat`).
 #[derive(Clone, Debug, Default, clap::Args)]
 pub struct HierarchyArgs {
     /// Hierarchical only: error budget per element, relative to the light it reflects, in (0, 1) (smaller is
@@ -73,7 +74,8 @@ pub struct HierarchyArgs {
     pub epsilon: Option<f64>,
     /// Hierarchical only: what the passes after the direct-light pass refine for: `budgets` (every element
     /// within `--epsilon` of its own reflected light) or `brightness` (every link within an absolute power
-    /// bound: far fewer links, for device tables) [default: budgets for `solve`, brightness for `bake`].
+    /// bound: far fewer links, for device tables) [default: budgets for `solve`, `render`, `lightmap` and
+    /// `export`; brightness for `bake`].
     #[arg(long, value_enum)]
     pub refinement: Option<RefinementArg>,
     /// Hierarchical only: most links refinement may hold (accepted and pending together); a scene that needs
@@ -411,6 +413,14 @@ pub enum Command {
     Render {
         #[command(flatten)]
         scene: SceneArgs,
+        /// Solver: `flat` (the adaptive mesh's full form-factor matrix) or `hierarchical` (the patches shown are
+        /// the hierarchy's leaves; not with `--mode error`, which compares a flat device table with the flat
+        /// solve).
+        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
+        method: SolveMethod,
+        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        #[command(flatten)]
+        hierarchy: HierarchyArgs,
         /// Camera as "px,py,pz;tx,ty,tz;ux,uy,uz;fov_degrees" (position; target; up; vertical field of view).
         /// Default: the published Cornell camera for scenes named cornell-box*, else a view of the bounding box.
         #[arg(long, allow_hyphen_values = true)]
@@ -480,6 +490,13 @@ pub enum Command {
     Lightmap {
         #[command(flatten)]
         scene: SceneArgs,
+        /// Solver: `flat` (the adaptive mesh's full form-factor matrix) or `hierarchical` (the light map is
+        /// shaded from the hierarchy's leaves).
+        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
+        method: SolveMethod,
+        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        #[command(flatten)]
+        hierarchy: HierarchyArgs,
         /// Output path without extension (its folder must exist).
         #[arg(short, long, value_name = "STEM")]
         output: PathBuf,
@@ -499,6 +516,13 @@ pub enum Command {
     Export {
         #[command(flatten)]
         scene: SceneArgs,
+        /// Solver: `flat` (the adaptive mesh's full form-factor matrix) or `hierarchical` (the file's patches are
+        /// the hierarchy's leaves, and its light map is shaded from them).
+        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
+        method: SolveMethod,
+        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        #[command(flatten)]
+        hierarchy: HierarchyArgs,
         /// The .glb file to write (its folder must exist); the .exr goes beside it.
         #[arg(short, long, value_name = "OUT.glb")]
         output: PathBuf,

@@ -170,6 +170,38 @@ fn hierarchical_solution(
     Ok((loaded, solution, options))
 }
 
+/// The error for hierarchical settings given with `--method flat`.
+fn reject_hierarchy_args(hierarchy: &args::HierarchyArgs) -> Result<(), BoxError> {
+    if hierarchy.any() {
+        return Err(
+            "--epsilon, --refinement, --max-links and --pieces apply to --method hierarchical only".into()
+        );
+    }
+    Ok(())
+}
+
+/// The scene solved in f64 at its default light intensities for a picture (`render`, `lightmap`, `export`): the
+/// scene, the patches (the adaptive mesh's, or with `--method hierarchical` the hierarchy's leaves, refined by
+/// `budgets` unless `--refinement` says otherwise) and their radiosity.
+fn solve_for_pictures(
+    scene: &args::SceneArgs,
+    method: SolveMethod,
+    hierarchy: &args::HierarchyArgs,
+) -> Result<(Scene, Vec<radiosity_host::patch::Patch>, Vec<Rgb>), BoxError> {
+    match method {
+        SolveMethod::Flat => {
+            reject_hierarchy_args(hierarchy)?;
+            let p = prepare(&scene.scene, &scene.prepare_options())?;
+            let b = view::solve_default(&p)?;
+            Ok((p.scene, p.patches, b))
+        }
+        SolveMethod::Hierarchical => {
+            let (loaded, solution, _) = hierarchical_solution(scene, hierarchy, Refinement::Budgets, None)?;
+            Ok((loaded, solution.leaves, solution.b))
+        }
+    }
+}
+
 /// `radiosity solve --method hierarchical`: the leaves' patch table (CSV), or the statistics and mean radiosity
 /// (text; JSON adds the radiosity per leaf).
 fn solve_hierarchical_command(
@@ -379,12 +411,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             format,
             hierarchy,
         } => {
-            if hierarchy.any() {
-                return Err(
-                    "--epsilon, --refinement, --max-links and --pieces apply to --method hierarchical only"
-                        .into(),
-                );
-            }
+            reject_hierarchy_args(&hierarchy)?;
             let threshold = threshold.unwrap_or(radiosity_host::bake::DEFAULT_THRESHOLD);
             check_scene_args(&scene)?;
             codec_for_bits(bits)?;
@@ -440,12 +467,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             solve_hierarchical_command(&scene, format, &hierarchy, solver, &mut out)?;
         }
         Command::Solve { scene, format, method: SolveMethod::Flat, hierarchy, solver } => {
-            if hierarchy.any() {
-                return Err(
-                    "--epsilon, --refinement, --max-links and --pieces apply to --method hierarchical only"
-                        .into(),
-                );
-            }
+            reject_hierarchy_args(&hierarchy)?;
             if solver.is_some() {
                 return Err(
                     "--solver applies to --method hierarchical only (the flat solve is exact: dense LU, \
@@ -510,7 +532,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
         }
-        Command::Render { scene, camera, width, height, mode, table, output } => {
+        Command::Render { scene, method, hierarchy, camera, width, height, mode, table, output } => {
             check_scene_args(&scene)?;
             radiosity_host::limits::check_image_size("--width/--height", width, height)?;
             let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
@@ -521,15 +543,19 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                         .into(),
                 );
             }
+            if method == SolveMethod::Hierarchical && matches!(mode, RenderModeArg::Error) {
+                return Err("--mode error shows a flat device table's error against the flat f64 solve: it \
+                            takes --method flat"
+                    .into());
+            }
             let table = table.as_deref().map(read_table).transpose()?;
             check_outputs([&output])?;
-            let p = prepare(&scene.scene, &scene.prepare_options())?;
-            let exact = view::solve_default(&p)?;
-            let (b, mode) = match mode {
-                RenderModeArg::Shaded => (exact.clone(), view::RenderMode::Shaded),
-                RenderModeArg::Flat => (exact.clone(), view::RenderMode::Flat),
-                RenderModeArg::Patches => (exact.clone(), view::RenderMode::Patches),
+            let options = |mode| view::RenderOptions { camera, width, height, mode };
+            let image = match mode {
                 RenderModeArg::Error => {
+                    reject_hierarchy_args(&hierarchy)?;
+                    let p = prepare(&scene.scene, &scene.prepare_options())?;
+                    let exact = view::solve_default(&p)?;
                     let bytes = match table {
                         Some(bytes) => bytes,
                         None => table_bytes(&p, None)?,
@@ -537,10 +563,23 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     let intensity: Vec<[f32; 3]> =
                         p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
                     let b = relight::device_answer(&bytes, &intensity)?;
-                    (b, view::RenderMode::Error { reference: &exact })
+                    view::render_scene(
+                        p.surfaces(),
+                        &b,
+                        &options(view::RenderMode::Error { reference: &exact }),
+                    )?
+                }
+                RenderModeArg::Shaded | RenderModeArg::Flat | RenderModeArg::Patches => {
+                    let mode = match mode {
+                        RenderModeArg::Shaded => view::RenderMode::Shaded,
+                        RenderModeArg::Flat => view::RenderMode::Flat,
+                        _ => view::RenderMode::Patches,
+                    };
+                    let (loaded, patches, b) = solve_for_pictures(&scene, method, &hierarchy)?;
+                    let surfaces = view::Surfaces { scene: &loaded, patches: &patches };
+                    view::render_scene(surfaces, &b, &options(mode))?
                 }
             };
-            let image = view::render_scene(&p, &b, &view::RenderOptions { camera, width, height, mode })?;
             write_png(&output, &image)?;
             writeln!(out, "{}", output.display())?;
         }
@@ -605,12 +644,13 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 paths,
             )?;
         }
-        Command::Lightmap { scene, output, light_map } => {
+        Command::Lightmap { scene, method, hierarchy, output, light_map } => {
             check_scene_args(&scene)?;
             let options = light_map_options(&light_map)?;
             check_outputs(["exr", "hdr", "png", "json"].map(|e| output.with_extension(e)))?;
-            let p = prepare(&scene.scene, &scene.prepare_options())?;
-            let files = view::write_light_map(&p, &view::solve_default(&p)?, &output, &options)?;
+            let (loaded, patches, b) = solve_for_pictures(&scene, method, &hierarchy)?;
+            let surfaces = view::Surfaces { scene: &loaded, patches: &patches };
+            let files = view::write_light_map(surfaces, &b, &output, &options)?;
             for path in &files.paths {
                 writeln!(out, "{}", path.display())?;
             }
@@ -620,23 +660,33 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 files.width, files.height, files.texel_size
             )?;
         }
-        Command::Export { scene, output, light_map } => {
+        Command::Export { scene, method, hierarchy, output, light_map } => {
             check_scene_args(&scene)?;
             let options = light_map_options(&light_map)?;
             if output.extension().is_none_or(|e| !e.eq_ignore_ascii_case("glb")) {
                 return Err(format!("{}: the output must be a .glb file", output.display()).into());
             }
             check_outputs([output.clone(), output.with_extension("exr")])?;
-            let p = prepare(&scene.scene, &scene.prepare_options())?;
             let stage = |what: &str| {
                 if !scene.quiet {
                     eprintln!("export: {what}");
                 }
             };
-            stage(&format!("solving {} in f64", counted(p.patches.len(), "patch", "patches")));
-            let b = view::solve_default(&p)?;
-            stage("baking the light map and writing the .glb");
-            let files = view::export_glb(&p, &b, &output, &options)?;
+            stage(match method {
+                SolveMethod::Flat => "solving the adaptive mesh in f64",
+                SolveMethod::Hierarchical => "solving hierarchically in f64",
+            });
+            let (loaded, patches, b) = solve_for_pictures(&scene, method, &hierarchy)?;
+            stage(&format!(
+                "baking the light map of {} and writing the .glb",
+                counted(patches.len(), "patch", "patches")
+            ));
+            let files = view::export_glb(
+                view::Surfaces { scene: &loaded, patches: &patches },
+                &b,
+                &output,
+                &options,
+            )?;
             writeln!(out, "{}", files.glb.display())?;
             writeln!(out, "{}", files.exr.display())?;
             writeln!(
@@ -973,26 +1023,30 @@ fn demo(dir: &std::path::Path, qemu: bool, out: &mut impl Write) -> Result<(), B
     writeln!(out, "\n== pictures (exact f64 solve, published camera)")?;
     let b = view::solve_default(&p)?;
     let image = view::render_scene(
-        &p,
+        p.surfaces(),
         &b,
         &view::RenderOptions { camera: None, width: 512, height: 512, mode: view::RenderMode::Shaded },
     )?;
     let png = dir.join("cornell-box.png");
     write_png(&png, &image)?;
     writeln!(out, "{}", png.display())?;
-    let light_map =
-        view::write_light_map(&p, &b, &dir.join("cornell-box-lightmap"), &LightMapOptions::default())?;
+    let light_map = view::write_light_map(
+        p.surfaces(),
+        &b,
+        &dir.join("cornell-box-lightmap"),
+        &LightMapOptions::default(),
+    )?;
     for path in &light_map.paths {
         writeln!(out, "{}", path.display())?;
     }
-    let glb = view::export_glb(&p, &b, &dir.join("cornell-box.glb"), &LightMapOptions::default())?;
+    let glb = view::export_glb(p.surfaces(), &b, &dir.join("cornell-box.glb"), &LightMapOptions::default())?;
     writeln!(out, "{}", glb.glb.display())?;
     let bytes = std::fs::read(&table).map_err(|e| format!("reading {}: {e}", table.display()))?;
     let intensity: Vec<[f32; 3]> =
         p.lighting.default_intensity.iter().map(|v| v.as_vec3().to_array()).collect();
     let device = relight::device_answer(&bytes, &intensity)?;
     let image = view::render_scene(
-        &p,
+        p.surfaces(),
         &device,
         &view::RenderOptions {
             camera: None,
