@@ -137,6 +137,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             (Refinement::Brightness, 0.0025),
             (Refinement::Brightness, 0.0008),
             (Refinement::Brightness, 0.0002),
+            (Refinement::Brightness, 0.0001),
         ]
     };
     let flat_sizes: &[Option<usize>] =
