@@ -44,7 +44,8 @@ pub enum ViewError {
 
 /// What a picture is made of: the scene (its file name picks [`default_camera`], its materials go into a `.glb`)
 /// and the patches whose radiosity the picture shows, each keeping its face: the flat pipeline's adaptive mesh
-/// ([`Prepared::surfaces`]) or a hierarchical solve's leaves (`HierarchicalSolution::leaves`).
+/// ([`Prepared::surfaces`]) or a hierarchical solve's leaves
+/// ([`HierarchicalSolution::leaves`](crate::hierarchy::HierarchicalSolution::leaves)).
 #[derive(Clone, Copy, Debug)]
 pub struct Surfaces<'a> {
     /// The scene the patches were made from.
