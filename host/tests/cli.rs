@@ -715,6 +715,64 @@ fn hierarchical_pictures_show_the_leaves() {
     }
 }
 
+/// `solve --continuous` compares the answer it prints with the path-traced continuous scene, face by face, for
+/// both methods: each face's "mesh" value in the JSON is the area average of that face's rows of the same JSON's
+/// patch table (the flat mesh's patches, or the hierarchy's leaves), the reference has every face; the text
+/// output prints the table, and after CSV it goes to stderr. A reference setting without `--continuous` is
+/// refused.
+#[test]
+fn solve_continuous_judges_either_answer_per_face() {
+    let squares = scene("perpendicular-squares.obj");
+    let base = ["solve", squares.as_str(), "-q", "--continuous", "--reference-samples", "4096"];
+    for method in
+        [&["--method", "flat", "--max-patches", "32"][..], &["--method", "hierarchical", "--epsilon", "0.1"]]
+    {
+        let out = radiosity(&[&base[..], method, &["--format", "json"]].concat());
+        assert!(
+            out.status.success(),
+            "{method:?}: {:?} {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let faces = doc["discretization"]["faces"].as_array().unwrap_or_else(|| panic!("{doc}"));
+        assert_eq!(faces.len(), 2, "{method:?}");
+        for face in faces {
+            let k = face["face"].as_u64().unwrap();
+            for c in 0..3 {
+                let (mut area, mut sum) = (0.0, 0.0);
+                for p in
+                    doc["patch_table"].as_array().unwrap().iter().filter(|p| p["face"].as_u64() == Some(k))
+                {
+                    let a = p["area"].as_f64().unwrap();
+                    area += a;
+                    sum += a * p["b"][c].as_f64().unwrap();
+                }
+                let mesh = face["mesh"][c].as_f64().unwrap();
+                assert!(
+                    area > 0.0 && (mesh - sum / area).abs() <= 1e-12 * mesh.abs().max(1e-300),
+                    "{method:?}: {face}"
+                );
+                assert!(face["reference"][c].as_f64().unwrap() >= 0.0, "{face}");
+            }
+        }
+        let text = radiosity(&[&base[..], method, &["--format", "text"]].concat());
+        let text = String::from_utf8_lossy(&text.stdout);
+        assert!(text.contains("discretization per face") && text.contains("|d|/SE"), "{method:?}: {text}");
+        // CSV keeps stdout a patch table; the comparison goes to stderr.
+        let csv = radiosity(&[&base[..], method].concat());
+        let (stdout, stderr) = (String::from_utf8_lossy(&csv.stdout), String::from_utf8_lossy(&csv.stderr));
+        assert!(
+            stdout.starts_with("patch,face,") && !stdout.contains("discretization"),
+            "{method:?}: {stdout}"
+        );
+        assert!(stderr.contains("discretization per face"), "{method:?}: {stderr}");
+    }
+    let out = radiosity(&["solve", MISSING, "--reference-se", "0.01"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("--continuous"), "{err}");
+}
+
 #[test]
 fn demo_without_qemu_runs_on_the_host_only() {
     let dir = folder("demo");

@@ -8,7 +8,7 @@ use serde::Serialize;
 use crate::evaluate::{Component, Discretization, QUANTIZATION};
 use crate::metrics::ErrorReport;
 use crate::picture::plot::Plot;
-use crate::rgb::{self, Rgb};
+use crate::rgb::Rgb;
 
 /// One device frame compared with the exact answer.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -167,7 +167,7 @@ impl fmt::Display for CheckReport {
             }
         }
         if let Some(d) = &self.discretization {
-            write_discretization(f, d)?;
+            write!(f, "{d}")?;
         }
         writeln!(
             f,
@@ -221,39 +221,4 @@ impl fmt::Display for CheckReport {
         }
         Ok(())
     }
-}
-
-/// The discretization rows: per face, the mesh and reference luminance, the relative difference per channel,
-/// the reference's relative standard error and the worst channel's difference in standard errors.
-fn write_discretization(f: &mut fmt::Formatter<'_>, d: &Discretization) -> fmt::Result {
-    writeln!(
-        f,
-        "\ndiscretization per face: f64 mesh answer (area-averaged) vs continuous reference; noise floor \
-         (reference SE, rel L2) {:.3e}",
-        d.noise_rel_l2
-    )?;
-    writeln!(f, "reference: {}", d.reference_summary)?;
-    writeln!(
-        f,
-        "{:>5} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}  source",
-        "face", "mesh Y", "ref Y", "diff r", "diff g", "diff b", "rel SE", "|d|/SE"
-    )?;
-    for row in &d.faces {
-        let (_, sigmas) = row.worst_channel();
-        let diff = row.relative_difference;
-        writeln!(
-            f,
-            "{:>5} {:>11.5e} {:>11.5e} {:>+9.3e} {:>+9.3e} {:>+9.3e} {:>9.2e} {:>8.1}  {}",
-            row.face,
-            rgb::luminance(row.mesh),
-            rgb::luminance(row.reference),
-            diff.x,
-            diff.y,
-            diff.z,
-            row.reference_relative_se,
-            sigmas,
-            row.source
-        )?;
-    }
-    Ok(())
 }

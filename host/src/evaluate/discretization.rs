@@ -8,6 +8,8 @@
 //! weighted by face area) include the reference's noise: [`Discretization::noise_rel_l2`] is the relative L2
 //! of the reference's standard errors, what the component would read if the mesh were exact.
 
+use std::fmt;
+
 use serde::Serialize;
 
 use super::{Component, EvaluateError};
@@ -15,7 +17,7 @@ use crate::input::check_len;
 use crate::metrics::{self, MetricsError};
 use crate::montecarlo::ContinuousReference;
 use crate::patch::Patch;
-use crate::rgb::Rgb;
+use crate::rgb::{self, Rgb};
 
 /// Component name of [`discretization`], as reports show it.
 pub const DISCRETIZATION: &str = "discretization";
@@ -69,6 +71,44 @@ pub struct Discretization {
     pub noise_rel_l2: f64,
     /// The reference's own summary (paths, rays, time, target).
     pub reference_summary: String,
+}
+
+/// The rows as `radiosity check --continuous` and `radiosity solve --continuous` print them, after a blank line: per
+/// face, the mesh and reference luminance, the relative difference per channel, the reference's relative standard
+/// error and the worst channel's difference in standard errors.
+impl fmt::Display for Discretization {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "\ndiscretization per face: f64 mesh answer (area-averaged) vs continuous reference; noise floor \
+             (reference SE, rel L2) {:.3e}",
+            self.noise_rel_l2
+        )?;
+        writeln!(f, "reference: {}", self.reference_summary)?;
+        writeln!(
+            f,
+            "{:>5} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>8}  source",
+            "face", "mesh Y", "ref Y", "diff r", "diff g", "diff b", "rel SE", "|d|/SE"
+        )?;
+        for row in &self.faces {
+            let (_, sigmas) = row.worst_channel();
+            let diff = row.relative_difference;
+            writeln!(
+                f,
+                "{:>5} {:>11.5e} {:>11.5e} {:>+9.3e} {:>+9.3e} {:>+9.3e} {:>9.2e} {:>8.1}  {}",
+                row.face,
+                rgb::luminance(row.mesh),
+                rgb::luminance(row.reference),
+                diff.x,
+                diff.y,
+                diff.z,
+                row.reference_relative_se,
+                sigmas,
+                row.source
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// Compares the mesh answer `b` (one value per patch of `patches`) with `continuous`, face by face.

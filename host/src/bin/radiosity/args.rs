@@ -156,8 +156,16 @@ pub struct CheckArgs {
     /// are not exactly reciprocal).
     #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
     pub row_sum_tolerance: f64,
+    /// The discretization component (`--continuous`).
+    #[command(flatten)]
+    pub reference: ContinuousArgs,
+}
+
+/// `--continuous` and its reference's settings (`check`, `solve`).
+#[derive(Clone, Debug, clap::Args)]
+pub struct ContinuousArgs {
     /// Add the discretization component: path trace the continuous scene (as `radiosity reference`) and
-    /// compare the mesh's f64 answer with it per face. Costs seconds, so it is off by default.
+    /// compare the mesh's f64 answer with it per face (area-averaged). Costs seconds, so it is off by default.
     #[arg(long)]
     pub continuous: bool,
     /// With --continuous: the reference's relative standard error per face.
@@ -169,7 +177,27 @@ pub struct CheckArgs {
     pub reference_samples: Option<u64>,
 }
 
-/// Default relative standard error of `check --continuous`'s reference: well below the percent-level
+impl ContinuousArgs {
+    /// The continuous reference's settings (`None` without `--continuous`), on `scene`'s threads, with its
+    /// progress bar unless `--quiet`.
+    #[must_use]
+    pub fn options(&self, scene: &SceneArgs) -> Option<ReferenceOptions> {
+        self.continuous.then(|| ReferenceOptions {
+            samples: match self.reference_samples {
+                Some(n) => SampleCount::PerFace(n),
+                None => SampleCount::TargetRelative {
+                    target: self.reference_se,
+                    max_samples: montecarlo::DEFAULT_MAX_SAMPLES,
+                },
+            },
+            threads: scene.threads,
+            progress: !scene.quiet,
+            ..ReferenceOptions::default()
+        })
+    }
+}
+
+/// Default relative standard error of the `--continuous` reference (`check`, `solve`): well below the percent-level
 /// differences the discretization component is meant to show.
 pub const CHECK_REFERENCE_SE: f64 = 0.002;
 
@@ -201,18 +229,7 @@ impl CheckArgs {
     /// its progress bar unless `--quiet`).
     #[must_use]
     pub fn options(&self, scene: &SceneArgs) -> CheckOptions {
-        let continuous = self.continuous.then(|| ReferenceOptions {
-            samples: match self.reference_samples {
-                Some(n) => SampleCount::PerFace(n),
-                None => SampleCount::TargetRelative {
-                    target: self.reference_se,
-                    max_samples: montecarlo::DEFAULT_MAX_SAMPLES,
-                },
-            },
-            threads: scene.threads,
-            progress: !scene.quiet,
-            ..ReferenceOptions::default()
-        });
+        let continuous = self.reference.options(scene);
         CheckOptions {
             bits: self.bits,
             codec: None,
@@ -379,7 +396,9 @@ pub enum Command {
     /// default) solves the adaptive mesh's full form-factor matrix exactly (dense LU up to 4096 patches,
     /// Gauss-Seidel above); `--method hierarchical` links clusters and elements where the light needs them,
     /// refined until what every element may gather wrongly is within `--epsilon` of its reflected light (the
-    /// patches are then the hierarchy's leaves).
+    /// patches are then the hierarchy's leaves). With `--continuous`, every face's area-averaged answer against the
+    /// path-traced continuous scene follows (as `check --continuous`: how far this mesh or hierarchy is from the
+    /// scene's exact answer), after the text summary, in the JSON as `discretization`, or on stderr after CSV.
     Solve {
         #[command(flatten)]
         scene: SceneArgs,
@@ -399,6 +418,8 @@ pub enum Command {
         /// (progressive refinement, the order a device relights in); both reach the same answer.
         #[arg(long, value_enum)]
         solver: Option<HierarchySolverArg>,
+        #[command(flatten)]
+        reference: ContinuousArgs,
     },
     /// Path trace the continuous scene (no mesh) and print every face's (OBJ face, or glTF triangle or joined fan) area-averaged radiosity with its
     /// standard error: the answer that `solve`'s mesh answer should approach as the mesh is refined.

@@ -20,6 +20,7 @@ use radiosity_host::output::{patch_json, write_patch_csv};
 
 mod args;
 use args::{Cli, Command, Format, RenderModeArg, ReportFormat, SolveMethod};
+use radiosity_host::montecarlo::ReferenceOptions;
 use radiosity_host::picture::lightmap::LightMapOptions;
 use radiosity_host::picture::{camera::Camera, write_png};
 use radiosity_host::pipeline::Prepared;
@@ -170,6 +171,30 @@ fn hierarchical_solution(
     Ok((loaded, solution, options))
 }
 
+/// `solve --continuous`'s reference settings (`None` without it), checked before any work.
+fn continuous_settings(
+    scene: &args::SceneArgs,
+    reference: &args::ContinuousArgs,
+) -> Result<Option<ReferenceOptions>, BoxError> {
+    let settings = reference.options(scene);
+    if let Some(s) = &settings {
+        radiosity_host::montecarlo::validate_options(s)?;
+    }
+    Ok(settings)
+}
+
+/// The discretization component of an f64 answer `b` on `patches` (a flat mesh or the hierarchy's leaves) of
+/// `scene`: the continuous reference path traced with `settings`, compared face by face.
+fn against_continuous(
+    scene: &Scene,
+    patches: &[radiosity_host::patch::Patch],
+    b: &[Rgb],
+    settings: &ReferenceOptions,
+) -> Result<radiosity_host::evaluate::Discretization, BoxError> {
+    let continuous = radiosity_host::montecarlo::continuous_reference(scene, settings)?;
+    Ok(radiosity_host::evaluate::discretization(patches, b, &continuous)?)
+}
+
 /// The error for hierarchical settings given with `--method flat`.
 fn reject_hierarchy_args(hierarchy: &args::HierarchyArgs) -> Result<(), BoxError> {
     if hierarchy.any() {
@@ -209,9 +234,13 @@ fn solve_hierarchical_command(
     format: Format,
     hierarchy: &args::HierarchyArgs,
     solver: Option<args::HierarchySolverArg>,
+    continuous: Option<&ReferenceOptions>,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
     let (loaded, solution, options) = hierarchical_solution(scene, hierarchy, Refinement::Budgets, solver)?;
+    let discretization = continuous
+        .map(|settings| against_continuous(&loaded, &solution.leaves, &solution.b, settings))
+        .transpose()?;
     let area: f64 = solution.leaves.iter().map(|q| q.area).sum();
     let mean_of =
         |v: &[Rgb]| solution.leaves.iter().zip(v).fold(Rgb::ZERO, |m, (q, &b)| m + q.area * b / area);
@@ -231,7 +260,10 @@ fn solve_hierarchical_command(
     };
     match format {
         Format::Csv => {
-            write_patch_csv(out, &solution.leaves, &solution.rho, &solution.emission, &solution.b)?
+            write_patch_csv(out, &solution.leaves, &solution.rho, &solution.emission, &solution.b)?;
+            if let Some(d) = &discretization {
+                eprint!("{d}");
+            }
         }
         Format::Text => {
             let rgb = |v: Rgb| format!("{:.6e} {:.6e} {:.6e}", v.x, v.y, v.z);
@@ -248,6 +280,9 @@ fn solve_hierarchical_command(
                 )?;
             }
             writeln!(out, "(--format csv prints the leaves' patch table, --format json both)")?;
+            if let Some(d) = &discretization {
+                write!(out, "{d}")?;
+            }
         }
         Format::Json => {
             let groups: Vec<serde_json::Value> = groups
@@ -257,6 +292,7 @@ fn solve_hierarchical_command(
             let doc = serde_json::json!({
                 "method": "hierarchical",
                 "solver": solver,
+                "discretization": discretization,
                 "epsilon": options.epsilon,
                 "refinement": format!("{:?}", options.refinement).to_lowercase(),
                 "patches": solution.leaves.len(),
@@ -462,11 +498,12 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Hierarchical, hierarchy, solver } => {
+        Command::Solve { scene, format, method: SolveMethod::Hierarchical, hierarchy, solver, reference } => {
             check_scene_args(&scene)?;
-            solve_hierarchical_command(&scene, format, &hierarchy, solver, &mut out)?;
+            let continuous = continuous_settings(&scene, &reference)?;
+            solve_hierarchical_command(&scene, format, &hierarchy, solver, continuous.as_ref(), &mut out)?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Flat, hierarchy, solver } => {
+        Command::Solve { scene, format, method: SolveMethod::Flat, hierarchy, solver, reference } => {
             reject_hierarchy_args(&hierarchy)?;
             if solver.is_some() {
                 return Err(
@@ -476,10 +513,14 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 );
             }
             check_scene_args(&scene)?;
+            let continuous = continuous_settings(&scene, &reference)?;
             let p = prepare(&scene.scene, &scene.prepare_options())?;
             let l = &p.lighting;
             let tv = exact_transfer(l, &p.form_factors, &Method::for_size(p.patches.len()))?;
             let b = tv.relight(&l.default_intensity)?;
+            let discretization = continuous
+                .map(|settings| against_continuous(&p.scene, &p.patches, &b, &settings))
+                .transpose()?;
             let e = l.default_emission();
             let area: f64 = p.patches.iter().map(|q| q.area).sum();
             let mean = |v: &[Rgb]| -> Rgb {
@@ -492,7 +533,12 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 .map(|(&g, t)| (p.scene.light_groups[g].name.as_str(), mean(t)))
                 .collect();
             match format {
-                Format::Csv => write_patch_csv(&mut out, &p.patches, &l.rho, &e, &b)?,
+                Format::Csv => {
+                    write_patch_csv(&mut out, &p.patches, &l.rho, &e, &b)?;
+                    if let Some(d) = &discretization {
+                        eprint!("{d}");
+                    }
+                }
                 Format::Text => {
                     let rgb = |v: Rgb| format!("{:.6e} {:.6e} {:.6e}", v.x, v.y, v.z);
                     writeln!(out, "patches                {}", p.patches.len())?;
@@ -511,6 +557,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                         )?;
                     }
                     writeln!(out, "(--format csv prints the patch table, --format json both)")?;
+                    if let Some(d) = &discretization {
+                        write!(out, "{d}")?;
+                    }
                 }
                 Format::Json => {
                     let groups: Vec<serde_json::Value> = groups
@@ -520,6 +569,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     let doc = serde_json::json!({
                         "method": "flat",
                         "patches": p.patches.len(),
+                        "discretization": discretization,
                         "relative_residual": tv.residual,
                         "mean_radiosity": mean(&b),
                         "mean_static_radiosity": mean(&tv.b_static),
