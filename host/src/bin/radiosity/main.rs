@@ -593,17 +593,22 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                         .into(),
                 );
             }
-            if method == SolveMethod::Hierarchical && matches!(mode, RenderModeArg::Error) {
-                return Err("--mode error shows a flat device table's error against the flat f64 solve: it \
-                            takes --method flat"
-                    .into());
+            match (method, mode) {
+                (SolveMethod::Hierarchical, RenderModeArg::Error) => {
+                    return Err(
+                        "--mode error shows a flat device table's error against the flat f64 solve: it \
+                                takes --method flat"
+                            .into(),
+                    );
+                }
+                (SolveMethod::Flat, _) => reject_hierarchy_args(&hierarchy)?,
+                (SolveMethod::Hierarchical, _) => {}
             }
             let table = table.as_deref().map(read_table).transpose()?;
             check_outputs([&output])?;
             let options = |mode| view::RenderOptions { camera, width, height, mode };
             let image = match mode {
                 RenderModeArg::Error => {
-                    reject_hierarchy_args(&hierarchy)?;
                     let p = prepare(&scene.scene, &scene.prepare_options())?;
                     let exact = view::solve_default(&p)?;
                     let bytes = match table {
