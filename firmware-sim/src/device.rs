@@ -388,7 +388,7 @@ impl core::error::Error for RunError {}
 /// # Errors
 /// [`RunError::GroupCount`] if `intensity` does not have one entry per light group, [`RunError::Solver`] if a
 /// change is rejected.
-pub fn apply_intensities<D: DeviceSolver>(
+pub fn apply_intensities<D: DeviceSolver + ?Sized>(
     solver: &mut D,
     intensity: &[[f32; 3]],
     frame: Option<u32>,
@@ -413,7 +413,7 @@ pub fn apply_intensities<D: DeviceSolver>(
 ///
 /// # Errors
 /// As [`apply_intensities`].
-pub fn run_frame<D: DeviceSolver>(
+pub fn run_frame<D: DeviceSolver + ?Sized>(
     solver: &mut D,
     frame: &Frame<'_>,
     index: u32,

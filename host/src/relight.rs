@@ -24,17 +24,14 @@ use serde::Serialize;
 use thiserror::Error;
 
 use crate::bake::BakedHierarchy;
-use crate::formfactor::{compute_form_factors, FormFactorError, FormFactorOptions};
-use crate::hierarchy::HierarchicalSolution;
-use crate::lighting::PatchLighting;
+use crate::formfactor::FormFactorError;
+use crate::hierarchy::{dense_on_leaves, DenseError, HierarchicalSolution};
 use crate::metrics::{self, ErrorReport, MetricsError};
 use crate::picture::render::{trace_view, write_frame_sequence, Frame};
 use crate::picture::shading::{ShadingOptions, SmoothShader};
 use crate::picture::PictureError;
 use crate::pipeline::Prepared;
-use crate::reference::{
-    exact_transfer, transfer_vectors, LightGroupEmission, Method, RadiositySystem, ReferenceError,
-};
+use crate::reference::{exact_transfer, Method, ReferenceError};
 use crate::rgb::Rgb;
 use crate::scene::Scene;
 use crate::view::{default_camera, PatchTracer, ViewError};
@@ -500,20 +497,10 @@ pub fn relight_hierarchical(
     let selected = select_scripts(&file, scripts_path, options)?;
     let script_error = |reason: String| RelightError::Scripts { path: scripts_path.to_path_buf(), reason };
 
-    // The dense answer of the same leaves: the estimator's raw rows may exceed 1 by its quadrature error next to
-    // adjacent neighbours; any excess that keeps rho times the row sum below 1 leaves the system a contraction.
-    let (ff, _) = compute_form_factors(
-        &solution.leaves,
-        &FormFactorOptions { progress: false, ..FormFactorOptions::default() },
-    )?;
-    let lighting = PatchLighting::new(scene, &solution.leaves);
-    let rho_max = lighting.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
-    let system = RadiositySystem::with_row_sum_tolerance(&lighting.rho, &ff, 0.5 * (1.0 / rho_max - 1.0))?;
-    let dense = transfer_vectors(
-        system,
-        &LightGroupEmission::of(&lighting),
-        &Method::for_size(solution.leaves.len()),
-    )?;
+    let dense = dense_on_leaves(scene, solution).map_err(|e| match e {
+        DenseError::FormFactors(e) => RelightError::FormFactors(e),
+        DenseError::Reference(e) => RelightError::Reference(e),
+    })?;
     let area: Vec<f64> = baked.solution_leaf.iter().map(|&l| solution.leaves[l].area).collect();
     let mut rows = Vec::new();
     let mut first_script_frames = Vec::new();

@@ -773,6 +773,78 @@ fn solve_continuous_judges_either_answer_per_face() {
     assert!(!out.status.success() && err.contains("--continuous"), "{err}");
 }
 
+/// `check --method hierarchical` bakes the hierarchy's table and runs core's hierarchical solver on it: the
+/// report's elements are the leaves `solve --method hierarchical --refinement brightness` makes at the same
+/// epsilon (brightness is check's default, as bake's), its components are the hierarchical table's steps, and
+/// at the default setting the device's error against the hierarchical solve is within what the components it
+/// telescopes through allow. Each component `e_k` is relative to its own answer, whose norm is at most
+/// `(1 + e_j)` times the next one's, so `total <= S * prod(1 + e_k) <= S * exp(S)` with `S` their sum. Settings
+/// of the other method, and a table file with `--method hierarchical`, are refused before any work.
+#[test]
+fn check_hierarchical_traces_the_tables_error() {
+    let rooms = scene("two-rooms.obj");
+    let hier = ["--method", "hierarchical", "--epsilon", "0.1", "-q", "--format", "json"];
+    let run = |args: &[&str]| -> serde_json::Value {
+        let out = radiosity(&[args, &hier[..]].concat());
+        assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let doc = run(&["check", &rooms, "--relight"]);
+    let solved = run(&["solve", &rooms, "--refinement", "brightness"]);
+    assert_eq!(doc["method"], "hierarchical");
+    assert_eq!(doc["patches"], solved["patches"], "the check's elements are the solve's leaves");
+    let components = doc["components"].as_array().unwrap();
+    let names: Vec<&str> = components.iter().map(|c| c["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        [
+            "hierarchy (links)",
+            "table closure",
+            "quantization",
+            "iteration truncation",
+            "arithmetic (f32)",
+            "arithmetic (fixed)"
+        ]
+    );
+    let part = |name: &str| -> f64 {
+        components.iter().find(|c| c["name"] == name).unwrap()["error"]["rel_l2"].as_f64().unwrap()
+    };
+    for arith in ["f32", "fixed"] {
+        let sum: f64 =
+            ["table closure", "quantization", "iteration truncation", &format!("arithmetic ({arith})")]
+                .iter()
+                .map(|n| part(n))
+                .sum();
+        let settings = doc["settings"].as_array().unwrap();
+        let total = settings.iter().find(|s| s["arith"] == arith && s["setting"] == 0).unwrap()["error"]
+            ["rel_l2"]
+            .as_f64()
+            .unwrap();
+        assert!(total <= sum * sum.exp(), "{arith}: device vs solve {total:e} > components {sum:e}");
+        assert_eq!(
+            settings.iter().filter(|s| s["arith"] == arith).count(),
+            4,
+            "{arith}: the relight settings"
+        );
+    }
+    assert_fails(
+        &["check", MISSING, "--method", "hierarchical", "--threshold", "0.01"],
+        &["--threshold", "apply to flat tables only"],
+    );
+    assert_fails(
+        &["check", MISSING, "--epsilon", "0.1"],
+        &["--epsilon", "apply to --method hierarchical only"],
+    );
+    assert_fails(
+        &["check", MISSING, "--method", "hierarchical", "--max-patches", "10"],
+        &["--max-patches", "apply to --method flat only"],
+    );
+    assert_fails(
+        &["check", "/nonexistent-scene/t.rft", "--scene", MISSING, "--method", "hierarchical"],
+        &["--method hierarchical", "relight"],
+    );
+}
+
 #[test]
 fn demo_without_qemu_runs_on_the_host_only() {
     let dir = folder("demo");

@@ -9,11 +9,11 @@ pub use super::faces::FaceErrors;
 use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
-use crate::formfactor::{compute_form_factors, FormFactorOptions};
-use crate::hierarchy::{solve_hierarchical, HierarchyOptions, Refinement};
+use crate::hierarchy::{dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement};
+use crate::lighting::PatchLighting;
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
 use crate::pipeline::{prepare, PrepareOptions};
-use crate::reference::{exact_transfer, solve_many, Method, RadiositySystem};
+use crate::reference::{exact_transfer, Method};
 use crate::scene::Scene;
 
 /// Largest leaf count at which the hierarchy is also compared with the dense solve of its leaves.
@@ -185,17 +185,10 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         let seconds = start.elapsed().as_secs_f64();
         let got = face_means(&sol.leaves, &sol.b, &reference);
         let vs_dense = if sol.leaves.len() <= DENSE_LIMIT {
-            let (ff, _) = compute_form_factors(
-                &sol.leaves,
-                &FormFactorOptions { progress: false, ..FormFactorOptions::default() },
-            )
-            .map_err(|e| BenchError::Options(format!("dense form factors of the leaves: {e}")))?;
-            // Raw rows, as the hierarchy's are: any excess keeping rho * row sum below 1 leaves the system a
-            // contraction (see the hierarchy tests).
-            let rho_max = sol.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
-            let system = RadiositySystem::with_row_sum_tolerance(&sol.rho, &ff, 0.5 * (1.0 / rho_max - 1.0))?;
-            let dense = solve_many(system, &[&sol.emission], &Method::for_size(sol.leaves.len()))?.remove(0);
-            Some(face_errors(&got, &face_means(&sol.leaves, &dense.b, &reference), &judged))
+            let dense = dense_on_leaves(&scene, &sol)
+                .map_err(|e| BenchError::Options(e.to_string()))?
+                .relight(&PatchLighting::new(&scene, &sol.leaves).default_intensity)?;
+            Some(face_errors(&got, &face_means(&sol.leaves, &dense, &reference), &judged))
         } else {
             None
         };

@@ -1,11 +1,13 @@
 //! The device part of a check: the solver run on the table exactly as the firmware runs it, frame by frame.
 
-use firmware_sim::device::{self, RunError};
+use firmware_sim::device::{self, DeviceSolver, RunError};
 use firmware_sim::sim::Arith;
-use radiosity_core::{Config, Fixed, Outcome, OwnedBuffers, Scalar, Solver, Table};
+use radiosity_core::{
+    hier_convergence_floor, Config, Fixed, HierOwnedBuffers, HierSolver, HierTable, Outcome, OwnedBuffers,
+    Scalar, Solver, SolverError, Table,
+};
 
 use super::{CheckError, CheckOptions, CheckReport, Frame, Setting, MAX_FRAMES};
-use crate::bake::Decoded;
 use crate::evaluate::{Component, EvaluateError, ITERATION_TRUNCATION};
 use crate::metrics;
 use crate::reference::{Radiosity, TransferVectors};
@@ -13,35 +15,94 @@ use crate::rgb::Rgb;
 
 /// The answers the device is compared with.
 pub(super) struct Answers<'a> {
-    /// The scene's exact transfer vectors (every frame is compared with them, relit).
+    /// The exact transfer vectors (every frame is compared with them, relit), in the table's element order.
     pub(super) exact: &'a TransferVectors,
+    /// What they are the answer of, for the report (e.g. "scene matrix, transfer vectors relit").
+    pub(super) exact_is: &'a str,
     /// The scene's default intensities (the first light setting).
     pub(super) default_intensity: &'a [Rgb],
-    /// The decoded table.
-    pub(super) decoded: &'a Decoded,
-    /// Its f64 answer (what the device converges to).
+    /// The largest per-channel power the decoded table emits at the default intensities (what
+    /// [`CheckOptions::tolerance`] is relative to).
+    pub(super) max_power: f64,
+    /// The decoded table's f64 answer (what the device converges to).
     pub(super) device: &'a Radiosity,
-    /// Patch areas.
+    /// Element areas (patches or leaves, table order).
     pub(super) area: &'a [f64],
     /// Names of the dynamic light groups, in table order.
     pub(super) light_groups: &'a [String],
+}
+
+/// The factor over fixed point's convergence floor a raised (or suggested) tolerance gets.
+const FLOOR_MARGIN: f64 = 1.01;
+
+/// The table a check runs the device on: flat (format version 3) or hierarchical (version 5).
+#[derive(Clone, Copy)]
+pub(super) enum DeviceTable<'t> {
+    /// Core's [`Solver`] on a flat table.
+    Flat(&'t Table<'t>),
+    /// Core's [`HierSolver`] on a hierarchical table.
+    Hier(&'t HierTable<'t>),
+}
+
+impl DeviceTable<'_> {
+    /// Runs `f` on a new solver of arithmetic `S` for the table (cold start), in buffers sized for it.
+    fn with_solver<S: Scalar, R>(
+        self,
+        config: Config<S>,
+        f: impl FnOnce(&mut dyn DeviceSolver<Scalar = S>) -> Result<R, CheckError>,
+        err: impl Fn(SolverError) -> CheckError,
+    ) -> Result<R, CheckError> {
+        match self {
+            DeviceTable::Flat(table) => {
+                let mut store = OwnedBuffers::<S>::for_table(table);
+                f(&mut Solver::new(table, store.buffers(), config).map_err(err)?)
+            }
+            DeviceTable::Hier(table) => {
+                let mut store = HierOwnedBuffers::<S>::for_table(table);
+                f(&mut HierSolver::new(table, store.buffers(), config).map_err(err)?)
+            }
+        }
+    }
+
+    /// The smallest tolerance (power units) fixed point converges to on this table (core's
+    /// `convergence_floor`, `hier_convergence_floor`).
+    fn fixed_floor(self) -> f64 {
+        match self {
+            DeviceTable::Flat(table) => f64::from(radiosity_core::convergence_floor::<Fixed>(table).to_f32()),
+            DeviceTable::Hier(table) => f64::from(hier_convergence_floor::<Fixed>(table).to_f32()),
+        }
+    }
+
+    /// Table entries: the flat table's stored form factors, or the hierarchical table's links.
+    fn entries(self) -> usize {
+        match self {
+            DeviceTable::Flat(table) => table.entry_count() as usize,
+            DeviceTable::Hier(table) => table.link_count() as usize,
+        }
+    }
+
+    /// The form-factor codec's name.
+    fn codec(self) -> String {
+        match self {
+            DeviceTable::Flat(table) => table.codec().to_string(),
+            DeviceTable::Hier(table) => table.codec().to_string(),
+        }
+    }
 }
 
 /// Runs the device paths on `table` and finishes the report (iteration truncation and arithmetic components
 /// after `components`): every light setting on every path, each frame compared with the exact answer relit,
 /// the converged answer of each path compared with the decoded table's f64 answer.
 pub(super) fn device_part(
-    table: &Table<'_>,
+    table: DeviceTable<'_>,
     table_bytes: usize,
     answers: &Answers<'_>,
     options: &CheckOptions,
     mut components: Vec<Component>,
 ) -> Result<CheckReport, CheckError> {
-    let (dec, area) = (answers.decoded, answers.area);
-    let max_power = (0..3)
-        .map(|c| dec.emission.iter().zip(&dec.area).map(|(e, a)| e[c] * a).sum::<f64>())
-        .fold(0.0, f64::max);
-    let tolerance = options.tolerance * max_power;
+    let (max_power, area) = (answers.max_power, answers.area);
+    let mut tolerance = options.tolerance * max_power;
+    let mut tolerance_raised = false;
     let default = answers.default_intensity.to_vec();
     let groups = default.len();
     let mut schedule = vec![default.clone()];
@@ -59,14 +120,18 @@ pub(super) fn device_part(
     let mut settings = Vec::new();
     let mut frames = Vec::new();
     if options.arith.contains(&Arith::Fixed) {
-        let floor = f64::from(radiosity_core::convergence_floor::<Fixed>(table).to_f32());
-        if tolerance < floor {
+        let floor = table.fixed_floor();
+        if tolerance < floor && options.tolerance_floor {
+            // A margin over the floor, so that its rounding to the solver's scalar stays above it.
+            tolerance = floor * FLOOR_MARGIN;
+            tolerance_raised = true;
+        } else if tolerance < floor {
             return Err(CheckError::Options(format!(
                 "--tolerance {} ({tolerance:.3e} power units) is below fixed point's convergence floor for this \
                  table ({floor:.3e} power units: Q32.32 rounds every receipt, see core's `convergence_floor`); use \
                  --tolerance {:.1e} or more, or --arith f32",
                 options.tolerance,
-                (floor / max_power * 1.01).max(f64::MIN_POSITIVE)
+                (floor / max_power * FLOOR_MARGIN).max(f64::MIN_POSITIVE)
             )));
         }
     }
@@ -97,14 +162,21 @@ pub(super) fn device_part(
         });
     }
     Ok(CheckReport {
+        method: match table {
+            DeviceTable::Flat(_) => "flat",
+            DeviceTable::Hier(_) => "hierarchical",
+        }
+        .into(),
+        exact: answers.exact_is.into(),
         patches: area.len(),
-        entries: table.entry_count() as usize,
+        entries: table.entries(),
         table_bytes,
-        codec: table.codec().to_string(),
+        codec: table.codec(),
         light_groups: answers.light_groups.to_vec(),
         budget: options.budget,
         frames_per_setting: options.frames,
         tolerance,
+        tolerance_raised,
         components,
         quantization_parts: Vec::new(),
         settings,
@@ -123,7 +195,6 @@ pub fn device_converged<S: Scalar>(
     table: &Table<'_>,
     tolerance: f64,
 ) -> Result<Result<Radiosity, radiosity_core::NoProgressReason>, CheckError> {
-    let n = table.patch_count() as usize;
     let mut store = OwnedBuffers::<S>::for_table(table);
     let buffers = store.buffers();
     let config =
@@ -133,23 +204,28 @@ pub fn device_converged<S: Scalar>(
     loop {
         match solver.step(u32::MAX) {
             Outcome::BudgetSpent { .. } => {}
-            Outcome::Converged { .. } => return Ok(Ok(radiosity(&solver, n))),
+            Outcome::Converged { .. } => return Ok(Ok(elements(&solver))),
             Outcome::NoProgress { reason, .. } => return Ok(Err(reason)),
         }
     }
 }
 
 struct Run<'r> {
-    table: &'r Table<'r>,
+    table: DeviceTable<'r>,
     area: &'r [f64],
     schedule: &'r [Vec<Rgb>],
     exact: &'r [Vec<Rgb>],
     options: &'r CheckOptions,
 }
 
-fn radiosity<S: Scalar>(solver: &Solver<'_, S>, n: usize) -> Vec<Rgb> {
-    (0..n as u32)
-        .map(|i| solver.radiosity(i).map_or(Rgb::NAN, |b| Rgb::from_array(b.map(|v| f64::from(v.to_f32())))))
+/// The radiosity of every element the device shows (patches or leaves, table order).
+fn elements<S: Scalar>(solver: &dyn DeviceSolver<Scalar = S>) -> Vec<Rgb> {
+    (0..solver.element_count())
+        .map(|i| {
+            solver
+                .element_radiosity(i)
+                .map_or(Rgb::NAN, |b| Rgb::from_array(b.map(|v| f64::from(v.to_f32()))))
+        })
         .collect()
 }
 
@@ -171,7 +247,7 @@ impl Run<'_> {
         settings: &mut Vec<Setting>,
         frames: &mut Vec<Frame>,
     ) -> Result<(Radiosity, Radiosity), CheckError> {
-        let (table, n) = (self.table, self.area.len());
+        let table = self.table;
         let err = |error| CheckError::Solver { arith: arith.name(), error };
         let config = Config {
             tolerance: S::from_f32(tolerance as f32),
@@ -179,15 +255,29 @@ impl Run<'_> {
         };
 
         // Converged reference of this arithmetic: one unbounded step sequence, cold start.
-        let converged = {
-            let mut store = OwnedBuffers::<S>::for_table(table);
-            let mut solver = Solver::new(table, store.buffers(), config).map_err(err)?;
-            while let Outcome::BudgetSpent { .. } = solver.step(u32::MAX) {}
-            radiosity(&solver, n)
-        };
+        let converged = table.with_solver(
+            config,
+            |solver| {
+                while let Outcome::BudgetSpent { .. } = solver.step(u32::MAX) {}
+                Ok(elements(solver))
+            },
+            err,
+        )?;
+        let truncated =
+            table.with_solver(config, |solver| self.settings(solver, arith, settings, frames), err)?;
+        Ok((converged, truncated))
+    }
 
-        let mut store = OwnedBuffers::<S>::for_table(table);
-        let mut solver = Solver::new(table, store.buffers(), config).map_err(err)?;
+    /// The light settings in order on `solver` (cold), frame by frame as the firmware runs them; returns the
+    /// answer after the first setting's frames.
+    fn settings<S: Scalar>(
+        &self,
+        solver: &mut dyn DeviceSolver<Scalar = S>,
+        arith: Arith,
+        settings: &mut Vec<Setting>,
+        frames: &mut Vec<Frame>,
+    ) -> Result<Radiosity, CheckError> {
+        let err = |error| CheckError::Solver { arith: arith.name(), error };
         let mut truncated = Vec::new();
         for (s, (intensity, exact)) in self.schedule.iter().zip(self.exact).enumerate() {
             // The firmware's frame loop: groups whose intensity changed are set, then one bounded step.
@@ -199,14 +289,14 @@ impl Run<'_> {
             while count < limit {
                 let frame = device::Frame { budget: self.options.budget, intensity: &intensity_f32 };
                 let (light_units, o) =
-                    device::run_frame(&mut solver, &frame, count as u32).map_err(|e| match e {
+                    device::run_frame(solver, &frame, count as u32).map_err(|e| match e {
                         RunError::Solver { error, .. } | RunError::Buffers { error } => err(error),
                         other => CheckError::Options(other.to_string()),
                     })?;
                 relight_work += u64::from(light_units);
                 count += 1;
                 work += u64::from(o.used());
-                let b = radiosity(&solver, n);
+                let b = elements(solver);
                 let e = metrics::compare(&b, exact, self.area)?;
                 frames.push(Frame {
                     arith,
@@ -242,6 +332,6 @@ impl Run<'_> {
                 error,
             });
         }
-        Ok((converged, truncated))
+        Ok(truncated)
     }
 }

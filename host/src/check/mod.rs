@@ -42,6 +42,27 @@
 //! A table already baked is checked with [`check_table`] (`radiosity check TABLE.rft --scene SCENE.obj`):
 //! the table is matched to the scene first ([`match_scene`]); see there which components it can separate.
 //!
+//! # Hierarchical tables
+//! [`check_hierarchical`] (`radiosity check --method hierarchical`) bakes a hierarchical solution into a
+//! hierarchical table (format version 5, [`crate::bake::bake_hierarchy`]) and runs core's hierarchical solver on
+//! it through the same frame loop (the elements are the table's leaves). Every frame is compared with the
+//! hierarchical f64 solve relit at the frame's intensities ([`crate::hierarchy::HierarchicalSolution::transfer`]),
+//! and the components follow the table's steps instead of the flat table's:
+//!
+//! | component | answer | against |
+//! |---|---|---|
+//! | discretization (optional) | hierarchical f64 solve, averaged per face | continuous path-traced reference |
+//! | hierarchy (links), up to [`crate::reference::MAX_DENSE_PATCHES`] leaves | hierarchical f64 solve | dense f64 solve of the same leaves ([`crate::hierarchy::dense_on_leaves`]) |
+//! | table closure | f64 solve of the table's system (the bake's chain cap, or a closed scene's self-links) | hierarchical f64 solve |
+//! | quantization | f64 solve of the decoded table ([`crate::bake::BakedHierarchy::decoded_radiosity`]) | f64 solve of the table's system |
+//! | iteration truncation, arithmetic | as above | as above |
+//!
+//! Device minus hierarchical answer telescopes through closure, quantization and arithmetic (plus truncation);
+//! the links' component is what the hierarchy itself gets wrong on its own leaves, the discretization what its
+//! leaves get wrong against the scene. There is no form-factor estimation or sparsification component: the
+//! refinement's leaves depend on its estimates (a finer estimate makes another tree), and a hierarchical table
+//! keeps every link.
+//!
 //! The shooting form (`F~_ij = A_j F_ji / A_i`, [`crate::bake::shooting_form`]) is what shooting with stored rows
 //! converges to, so the sparsification and quantization components use it on both sides. The "f64 solve of the
 //! decoded table" is what the device converges to ([`crate::bake::Decoded::solution`]): with a solved static base, the
@@ -51,6 +72,7 @@
 //! the tolerance [`CheckOptions::tolerance`] times the largest per-channel emitted power.
 
 mod device;
+mod hier;
 mod report;
 mod table;
 
@@ -61,6 +83,7 @@ use radiosity_core::FfCodec;
 use thiserror::Error;
 
 pub use device::device_converged;
+pub use hier::{check_hierarchical, HIERARCHY_LINKS, TABLE_CLOSURE};
 pub use report::{CheckReport, Frame, Setting};
 pub use table::{check_table, check_table_file, form_factor_distance, match_scene, WRONG_SCENE_FRACTION};
 
@@ -73,7 +96,8 @@ use crate::metrics::MetricsError;
 use crate::montecarlo::{continuous_reference, validate_options, MonteCarloError, ReferenceOptions};
 use crate::pipeline::{prepare, PipelineError, PrepareOptions, Prepared};
 use crate::reference::{exact_transfer, Method, Radiosity, ReferenceError, TransferVectors};
-use device::{device_part, Answers};
+use crate::rgb::Rgb;
+use device::{device_part, Answers, DeviceTable};
 
 /// Settings of a check.
 #[derive(Clone, Debug, PartialEq)]
@@ -96,6 +120,11 @@ pub struct CheckOptions {
     pub relight: bool,
     /// Solver tolerance as a fraction of the largest per-channel emitted power `sum_i E_i A_i`.
     pub tolerance: f64,
+    /// When the fixed-point path runs and [`CheckOptions::tolerance`] is below fixed point's convergence floor
+    /// for the table (Q32.32 rounds every receipt: core's `convergence_floor`), raise it to that floor for both
+    /// paths (the report says so, [`CheckReport::tolerance_raised`]) instead of refusing. The command line sets
+    /// it when `--tolerance` is not given.
+    pub tolerance_floor: bool,
     /// The form-factor estimation component's reference uses this many times the samples and the rays.
     pub ff_factor: usize,
     /// Slack on row sums of the shooting form above 1 in the f64 solves ([`BakeOptions::row_sum_tolerance`]).
@@ -115,6 +144,7 @@ impl Default for CheckOptions {
             arith: Arith::ALL.to_vec(),
             relight: false,
             tolerance: 1e-6,
+            tolerance_floor: true,
             ff_factor: 4,
             row_sum_tolerance: DEFAULT_ROW_SUM_TOLERANCE,
             continuous: None,
@@ -155,6 +185,9 @@ pub enum CheckError {
     /// The continuous reference of the discretization component failed (or its options are bad).
     #[error(transparent)]
     MonteCarlo(#[from] MonteCarloError),
+    /// The dense answer of a hierarchy's leaves (its links' component) failed.
+    #[error(transparent)]
+    Dense(#[from] crate::hierarchy::DenseError),
     /// The table file could not be read.
     #[error("reading table {path}: {message}")]
     ReadTable {
@@ -197,9 +230,13 @@ pub fn check_scene(
     check(&p, prepare_options, options)
 }
 
-/// Checks every option that needs no computation (`check_scene` and `check_table_file` call it before they
-/// prepare the scene, so a bad option is reported at once).
-pub(crate) fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
+/// Checks every option that needs no computation (`check_scene`, `check_table_file` and `check_hierarchical`
+/// call it first, so a bad option is reported at once; `radiosity check --method hierarchical` before its
+/// solve).
+///
+/// # Errors
+/// [`CheckError::Options`] (or the bake's or reference's error) naming the option.
+pub fn check_options(options: &CheckOptions) -> Result<(), CheckError> {
     if options.codec.is_none() {
         codec_for_bits(options.bits)?;
     }
@@ -305,13 +342,23 @@ pub fn check(
     let answers = Answers {
         exact: &exact,
         default_intensity: &p.lighting.default_intensity,
-        decoded: &evaluation.decoded,
+        exact_is: EXACT_FLAT,
+        max_power: max_power(&evaluation.decoded.emission, &evaluation.decoded.area),
         device: &evaluation.device,
         area: &evaluation.area,
         light_groups: &dynamic_group_names(p),
     };
-    let report = device_part(&table, baked.table.len(), &answers, options, components)?;
+    let report = device_part(DeviceTable::Flat(&table), baked.table.len(), &answers, options, components)?;
     Ok(CheckReport { discretization, quantization_parts: evaluation.quantization_parts.clone(), ..report })
+}
+
+/// What a flat check compares every frame with.
+const EXACT_FLAT: &str = "exact f64 (scene matrix, transfer vectors relit)";
+
+/// The largest per-channel power of `emission` (W/m^2) over elements of `area`: what
+/// [`CheckOptions::tolerance`] is relative to.
+fn max_power(emission: &[Rgb], area: &[f64]) -> f64 {
+    (0..3).map(|c| emission.iter().zip(area).map(|(e, a)| e[c] * a).sum::<f64>()).fold(0.0, f64::max)
 }
 
 /// Names of the dynamic light groups of `p`, in table order.

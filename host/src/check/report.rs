@@ -57,9 +57,14 @@ pub struct Setting {
 /// The result of a check.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CheckReport {
-    /// Patches.
+    /// The table's method: `flat` (patch-to-patch form factors) or `hierarchical` (a tree and links).
+    pub method: String,
+    /// What every frame is compared with ("the exact answer"): for a flat table the f64 solve of the scene's
+    /// matrix, for a hierarchical one the hierarchical f64 solve; both relit at the frame's intensities.
+    pub exact: String,
+    /// Patches (of a flat table) or leaves (of a hierarchical one): the elements the device gives radiosity for.
     pub patches: usize,
-    /// Table entries.
+    /// Table entries: stored form factors (flat) or links (hierarchical).
     pub entries: usize,
     /// Table bytes.
     pub table_bytes: usize,
@@ -73,6 +78,9 @@ pub struct CheckReport {
     pub frames_per_setting: Option<usize>,
     /// Solver tolerance in power units.
     pub tolerance: f64,
+    /// Whether the tolerance asked for was below fixed point's convergence floor for this table and was raised to
+    /// it ([`super::CheckOptions::tolerance_floor`]).
+    pub tolerance_raised: bool,
     /// The error decomposition.
     pub components: Vec<Component>,
     /// The quantization component split by code, printed under it (empty for a table checked without its
@@ -136,16 +144,25 @@ impl CheckReport {
 
 impl fmt::Display for CheckReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (elements, entries) =
+            if self.method == "hierarchical" { ("leaves", "links") } else { ("patches", "entries") };
         writeln!(
             f,
-            "table: {} patches, {} entries, {} bytes, codec {}; budget {} units/frame, frames {}, tolerance {:.3e}",
+            "table ({}): {} {elements}, {} {entries}, {} bytes, codec {}; budget {} units/frame, frames {}, \
+             tolerance {:.3e}{}",
+            self.method,
             self.patches,
             self.entries,
             self.table_bytes,
             self.codec,
             self.budget,
             self.frames_per_setting.map_or("to convergence".to_string(), |n| n.to_string()),
-            self.tolerance
+            self.tolerance,
+            if self.tolerance_raised {
+                " (raised to fixed point's convergence floor for this table)"
+            } else {
+                ""
+            }
         )?;
         writeln!(f, "light groups (table order): {}", self.light_groups.join(", "))?;
         writeln!(f, "\nerror decomposition (default intensities)")?;
@@ -169,10 +186,7 @@ impl fmt::Display for CheckReport {
         if let Some(d) = &self.discretization {
             write!(f, "{d}")?;
         }
-        writeln!(
-            f,
-            "\ndevice vs exact f64 (scene matrix, transfer vectors relit), last frame of each setting"
-        )?;
+        writeln!(f, "\ndevice vs {}, last frame of each setting", self.exact)?;
         let first_group = self.light_groups.first().map_or("none", String::as_str);
         writeln!(
             f,

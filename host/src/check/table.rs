@@ -4,11 +4,12 @@ use std::path::Path;
 
 use radiosity_core::Table;
 
-use super::device::{device_part, Answers};
+use super::device::{device_part, Answers, DeviceTable};
 use super::{
     check_options, discretization_part, dynamic_group_names, evaluation_options, exact_transfer_of,
     CheckError, CheckOptions, CheckReport,
 };
+use super::{max_power, EXACT_FLAT};
 use crate::bake::{self, decode_table};
 use crate::evaluate;
 use crate::pipeline::{prepare, PrepareOptions, Prepared};
@@ -82,12 +83,13 @@ pub fn check_table(bytes: &[u8], p: &Prepared, options: &CheckOptions) -> Result
     let answers = Answers {
         exact: &exact,
         default_intensity: &p.lighting.default_intensity,
-        decoded: &decoded,
+        exact_is: EXACT_FLAT,
+        max_power: max_power(&decoded.emission, &decoded.area),
         device: &device,
         area: &area,
         light_groups: &dynamic_group_names(p),
     };
-    let report = device_part(&table, bytes.len(), &answers, options, components)?;
+    let report = device_part(DeviceTable::Flat(&table), bytes.len(), &answers, options, components)?;
     Ok(CheckReport { discretization, ..report })
 }
 

@@ -68,9 +68,9 @@
 //! table's chains send on all the power they hold and the furnace is exact there too.
 //!
 //! # Status
-//! Not yet the default of any command: `solve --method hierarchical` only (links refined for the default light
-//! intensities; the answer is also split by light source, [`HierarchicalSolution::transfer`]). Scenes
-//! with many small, nearly touching surfaces (`scenes/make_office.py`) solve only when small: the budget passes
+//! Not yet the default of any command: `--method hierarchical` of `solve`, `render`, `lightmap`, `export`, `bake`
+//! and `check` (links refined for the default light intensities; the answer is also split by light source,
+//! [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces (`scenes/make_office.py`) solve only when small: the budget passes
 //! push links down to the leaves (each leaf's chain charges add up), so links grow much faster than leaves, and
 //! a refinement that would exceed [`HierarchyOptions::max_links`] stops with [`HierarchyError::TooManyLinks`]
 //! (the closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair
@@ -84,9 +84,10 @@
 //! -> `pieces` (refinement split by receiver subtree and merged) -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
 //! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
-//! results).
+//! results); `dense` (the dense f64 answer on the leaves, [`dense_on_leaves`]: what the hierarchy is judged against).
 
 mod budget;
+mod dense;
 mod excess;
 mod link;
 mod network;
@@ -113,6 +114,7 @@ use crate::reference::TransferVectors;
 use crate::rgb::{max_channel, Rgb};
 use crate::scene::Scene;
 
+pub use dense::{dense_on_leaves, DenseError};
 pub use network::{LinkNetwork, NetworkLink, NetworkNode};
 
 use link::{expand_self, link_error, split_either, split_link, Estimator, Limits, Link, RefineCounts};

@@ -63,7 +63,7 @@ impl From<RefinementArg> for radiosity_host::hierarchy::Refinement {
     }
 }
 
-/// The hierarchical method's settings, shared by `solve`, `bake`, `render`, `lightmap` and `export` (each rejects
+/// The hierarchical method's settings, shared by `solve`, `bake`, `check`, `render`, `lightmap` and `export` (each rejects
 /// them with `--method flat`).
 #[derive(Clone, Debug, Default, clap::Args)]
 pub struct HierarchyArgs {
@@ -75,7 +75,7 @@ pub struct HierarchyArgs {
     /// Hierarchical only: what the passes after the direct-light pass refine for: `budgets` (every element
     /// within `--epsilon` of its own reflected light) or `brightness` (every link within an absolute power
     /// bound: far fewer links, for device tables) [default: budgets for `solve`, `render`, `lightmap` and
-    /// `export`; brightness for `bake`].
+    /// `export`; brightness for `bake` and `check`].
     #[arg(long, value_enum)]
     pub refinement: Option<RefinementArg>,
     /// Hierarchical only: most links refinement may hold (accepted and pending together); a scene that needs
@@ -130,9 +130,10 @@ pub struct CheckArgs {
     /// Form-factor code width: 16 or 8 (others are rejected by the bake).
     #[arg(long, default_value_t = 16)]
     pub bits: u32,
-    /// Sparsification threshold: largest fraction of a row's energy that may be dropped.
-    #[arg(long, default_value_t = bake::DEFAULT_THRESHOLD)]
-    pub threshold: f64,
+    /// Flat tables only: sparsification threshold, the largest fraction of a row's energy that may be dropped
+    /// [default: 0.001].
+    #[arg(long)]
+    pub threshold: Option<f64>,
     /// Work units per frame.
     #[arg(long, value_name = "UNITS", default_value_t = CheckOptions::default().budget)]
     pub budget: u32,
@@ -145,17 +146,19 @@ pub struct CheckArgs {
     /// Relight after the default setting: all dynamic groups to 0, back to default, then (1, 0.2, 0.2) x default.
     #[arg(long)]
     pub relight: bool,
-    /// Solver tolerance as a fraction of the largest per-channel emitted power.
-    #[arg(long, default_value_t = CheckOptions::default().tolerance)]
-    pub tolerance: f64,
-    /// The form-factor component's reference matrix uses this many times the samples and rays (1: skip; at
-    /// most 64).
-    #[arg(long, value_name = "K", default_value_t = CheckOptions::default().ff_factor)]
-    pub ff_factor: usize,
-    /// Slack on row sums of the shooting form `A_j F_ji / A_i` above 1 in the f64 solves (estimated form factors
-    /// are not exactly reciprocal).
-    #[arg(long, value_name = "S", default_value_t = bake::DEFAULT_ROW_SUM_TOLERANCE)]
-    pub row_sum_tolerance: f64,
+    /// Solver tolerance as a fraction of the largest per-channel emitted power [default: 0.000001, raised to
+    /// fixed point's convergence floor for the table when that is higher and fixed point runs; a tolerance
+    /// given below the floor is refused].
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Flat tables only: the form-factor component's reference matrix uses this many times the samples and rays
+    /// (1: skip; at most 64) [default: 4].
+    #[arg(long, value_name = "K")]
+    pub ff_factor: Option<usize>,
+    /// Flat tables only: slack on row sums of the shooting form `A_j F_ji / A_i` above 1 in the f64 solves
+    /// (estimated form factors are not exactly reciprocal) [default: 0.0001].
+    #[arg(long, value_name = "S")]
+    pub row_sum_tolerance: Option<f64>,
     /// The discretization component (`--continuous`).
     #[command(flatten)]
     pub reference: ContinuousArgs,
@@ -233,16 +236,32 @@ impl CheckArgs {
         CheckOptions {
             bits: self.bits,
             codec: None,
-            threshold: self.threshold,
+            threshold: self.threshold.unwrap_or(bake::DEFAULT_THRESHOLD),
             budget: self.budget,
             frames: self.frames,
             arith: self.arith.paths().to_vec(),
             relight: self.relight,
-            tolerance: self.tolerance,
-            ff_factor: self.ff_factor,
-            row_sum_tolerance: self.row_sum_tolerance,
+            tolerance: self.tolerance.unwrap_or(CheckOptions::default().tolerance),
+            tolerance_floor: self.tolerance.is_none(),
+            ff_factor: self.ff_factor.unwrap_or(CheckOptions::default().ff_factor),
+            row_sum_tolerance: self.row_sum_tolerance.unwrap_or(bake::DEFAULT_ROW_SUM_TOLERANCE),
             continuous,
         }
+    }
+
+    /// The error for a flat table's setting given with `--method hierarchical`.
+    ///
+    /// # Errors
+    /// Naming the settings that do not apply.
+    pub fn reject_flat_settings(&self) -> Result<(), String> {
+        if self.threshold.is_some() || self.ff_factor.is_some() || self.row_sum_tolerance.is_some() {
+            return Err(
+                "--threshold, --ff-factor and --row-sum-tolerance apply to flat tables only (a hierarchical \
+                        table keeps every link, and its form factors are the refinement's own)"
+                    .into(),
+            );
+        }
+        Ok(())
     }
 }
 
@@ -599,6 +618,10 @@ pub enum Command {
     ///
     /// `radiosity check TABLE.rft --scene SCENE.obj` checks an existing table instead: it must have been baked
     /// from SCENE with the same meshing options (else a clear error naming the first difference).
+    ///
+    /// `--method hierarchical` bakes a hierarchical table instead and runs core's hierarchical solver on it, every
+    /// frame against the hierarchical f64 solve; the decomposition then has the hierarchy's links (against a
+    /// dense solve of the same leaves), the table's closure, the codes, iteration and arithmetic.
     Check {
         /// The scene's OBJ or glTF (.gltf, .glb) file, or a table (.rft) together with `--scene`.
         #[command(flatten)]
@@ -606,6 +629,15 @@ pub enum Command {
         /// With a table as the first argument: the scene it was baked from.
         #[arg(long = "scene", id = "table_scene", value_name = "SCENE")]
         table_scene: Option<PathBuf>,
+        /// The table to bake and check: `flat` (patch-to-patch form factors of the adaptive mesh) or
+        /// `hierarchical` (the hierarchical solve's tree and links, relit by core's hierarchical solver; every
+        /// frame is compared with the hierarchical f64 solve, and the decomposition adds the links against a
+        /// dense solve of the same leaves, up to 4096 leaves, and the table's closure).
+        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
+        method: SolveMethod,
+        /// Settings of `--method hierarchical` (its default refinement here: `brightness`, as `bake`'s).
+        #[command(flatten)]
+        hierarchy: HierarchyArgs,
         #[command(flatten)]
         check: CheckArgs,
         /// Also plot the error decomposition to STEM.svg and STEM.png (their folder must exist): per arithmetic

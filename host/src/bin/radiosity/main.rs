@@ -824,7 +824,20 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 files.dir.display()
             )?;
         }
-        Command::Check { scene, table_scene, check, plot, format } => {
+        Command::Check { scene, table_scene, method, hierarchy, check, plot, format } => {
+            match method {
+                SolveMethod::Flat => reject_hierarchy_args(&hierarchy)?,
+                SolveMethod::Hierarchical => {
+                    check.reject_flat_settings()?;
+                    if table_scene.is_some() {
+                        return Err(
+                            "--method hierarchical bakes its table from the scene: checking a table \
+                                    file is for flat tables (run `radiosity relight` on a hierarchical one)"
+                                .into(),
+                        );
+                    }
+                }
+            }
             if table_scene.is_none() && scene.scene.extension().is_some_and(|e| e == "rft") {
                 return Err(format!(
                     "{} is a table: give the scene it was baked from with --scene SCENE.obj",
@@ -837,6 +850,13 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 check_outputs(plot_files(stem))?;
             }
             let report = match table_scene {
+                None if method == SolveMethod::Hierarchical => {
+                    let options = check.options(&scene);
+                    radiosity_host::check::check_options(&options)?;
+                    let (loaded, solution, _) =
+                        hierarchical_solution(&scene, &hierarchy, Refinement::Brightness, None)?;
+                    radiosity_host::check::check_hierarchical(&loaded, &solution, &options)?
+                }
                 Some(obj) => radiosity_host::check::check_table_file(
                     &scene.scene,
                     &obj,
@@ -854,8 +874,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 ReportFormat::Text => write!(out, "{report}")?,
             }
             if let Some(stem) = plot {
+                let elements = if method == SolveMethod::Hierarchical { "leaves" } else { "patches" };
                 let title =
-                    format!("Error decomposition: {} ({} patches)", scene.scene.display(), report.patches);
+                    format!("Error decomposition: {} ({} {elements})", scene.scene.display(), report.patches);
                 let (svg, png) = report.decomposition_plot(&title).write(&stem, 800, 500)?;
                 // After JSON the paths would break the document: they go to stderr.
                 match format {
