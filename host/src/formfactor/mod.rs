@@ -24,6 +24,14 @@
 //!   is fully visible or fully hidden from `i`, whatever the ray count. Visibility and `w` are symmetric in `x` and
 //!   `y`, so one estimate per unordered pair serves both `F_ij` and `F_ji` (`v̂_ij = v̂_ji`): each pair's rays are
 //!   cast once, and reciprocity `A_i F_ij = A_j F_ji` holds up to the quadrature error of `U` alone.
+//!   In the near field (the larger patch's area above [`NEAR_FIELD_SOLID_ANGLE`] times the squared distance
+//!   between the centroids) the kernel is concentrated on the part of the larger patch close to the smaller, which
+//!   area-uniform points seldom reach: a chair seat's underside over a floor patch ten times its size hidden right
+//!   below it by the chair's base had its few rays land on the floor's far, visible parts, and its row summed to
+//!   1.29. There the rays go from stratified points `x` of the smaller patch to points of the larger drawn
+//!   uniformly in the solid angle `Ω(x)` it subtends from `x` (Arvo's spherical-triangle sampling, `solidangle`),
+//!   each weighted by `Ω(x) cos θ_x`: the same ratio `∫∫ K V / ∫∫ K` (the kernel over the sampling density), with
+//!   the rays where the kernel is.
 //!
 //! # Why this estimator
 //! Rays only decide visibility; the 1/r² geometry, which dominates the variance of plain area-sampling Monte Carlo
@@ -107,7 +115,8 @@
 //! # Files
 //! `options` (settings) -> `kernel` (Lambert's contour sum, `edge_angle`) -> `quadrature` (Gauss-Legendre
 //! rules, stratified points) -> `nearfield` (far-, near-field and sliver rules) -> `rows` (the row passes and
-//! escape rays, over any [`RayCaster`]; the per-pair functions `unoccluded_pair` and `visible_fraction`) ->
+//! escape rays, over any [`RayCaster`]; the per-pair functions `unoccluded_pair` and `visible_fraction`, with
+//! `solidangle`'s draws in the near field) ->
 //! `element` (the same per-pair estimates for elements made on the fly, for the hierarchy) -> this module
 //! (checks, assembly, closure, statistics).
 
@@ -117,6 +126,7 @@ mod nearfield;
 mod options;
 mod quadrature;
 mod rows;
+mod solidangle;
 
 use std::io::IsTerminal;
 use std::time::{Duration, Instant};
@@ -131,6 +141,7 @@ pub(crate) use kernel::point_to_polygon_with;
 pub use nearfield::{far_field_order, FAR_FIELD_GAP, NEAR_FIELD_DEPTH, NEAR_FIELD_MAX_DEPTH, SLIVER_DEPTH};
 pub use options::{ClosureMode, FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
 pub(crate) use quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler};
+pub use rows::NEAR_FIELD_SOLID_ANGLE;
 
 use crate::embree::{Device, EmbreeError, SceneOptions, TriangleScene};
 use crate::patch::{Closure, FormFactorMatrix, Patch, ReciprocityChange};

@@ -14,6 +14,7 @@ use super::nearfield::{
 };
 use super::options::{FormFactorOptions, ESCAPE_RAYS_PER_PATCH};
 use super::quadrature::{cosine_direction, grid, tangent_frame, PolygonSampler, Quadrature};
+use super::solidangle::polygon_point;
 use crate::patch::Patch;
 use crate::raycast::{unit_factor, Ray, RayCaster};
 use crate::rng::SplitMix64;
@@ -283,14 +284,45 @@ pub(super) fn visible_fraction<C: RayCaster + ?Sized>(
     buffers: &mut RayBuffers,
 ) -> (f64, u64) {
     let RayBuffers { origins, targets, rays, weights, occluded } = buffers;
+    rays.clear();
+    weights.clear();
+    // Near field (the larger patch large for the distance between the two): the kernel is concentrated on the
+    // parts of the larger that lie close to the smaller, which area-uniform points seldom reach; there the rays
+    // go from stratified points of the smaller to points of the larger drawn uniformly in the solid angle it
+    // subtends (`solidangle`), each weighted by that solid angle times the cosine at the smaller's point, which
+    // estimates the same kernel-weighted fraction with the rays where the kernel is.
+    let d2 = patch_i.centroid.distance_squared(patch_j.centroid);
+    let (small, large) = if patch_i.area <= patch_j.area {
+        ((patch_i, sampler_i), patch_j)
+    } else {
+        ((patch_j, sampler_j), patch_i)
+    };
+    if large.area > NEAR_FIELD_SOLID_ANGLE * d2 {
+        small.1.stratified(rays_per_pair, rng, origins);
+        rng.shuffle(origins);
+        let (a, b) = grid(rays_per_pair);
+        let mut cells: Vec<(usize, usize)> = (0..b).flat_map(|r| (0..a).map(move |c| (c, r))).collect();
+        rng.shuffle(&mut cells);
+        for (x, &(col, row)) in origins.iter().zip(&cells).take(rays_per_pair) {
+            let u = (col as f64 + rng.open_unit()) / a as f64;
+            let v = (row as f64 + rng.open_unit()) / b as f64;
+            let Some((y, omega)) = polygon_point(*x, &large.vertices, large.normal, u, v) else { continue };
+            let d = y - *x;
+            let (cos_x, cos_y) = (small.0.normal.dot(d), -large.normal.dot(d));
+            let w = omega * cos_x.max(0.0) / d.length();
+            if w > 0.0 && cos_y > 0.0 && w.is_finite() {
+                rays.push(segment(*x, y, offset));
+                weights.push(w);
+            }
+        }
+        return weighted_fraction(caster, rays, weights, occluded);
+    }
     // Stratified points on i paired with stratified points on j through random permutations of both (the pairs
     // are stratified in each patch and random across them).
     sampler_i.stratified(rays_per_pair, rng, origins);
     sampler_j.stratified(rays_per_pair, rng, targets);
     rng.shuffle(origins);
     rng.shuffle(targets);
-    rays.clear();
-    weights.clear();
     for (x, y) in origins.iter().zip(targets.iter()).take(rays_per_pair) {
         let d = *y - *x;
         let r2 = d.length_squared();
@@ -302,6 +334,22 @@ pub(super) fn visible_fraction<C: RayCaster + ?Sized>(
             weights.push(w);
         }
     }
+    weighted_fraction(caster, rays, weights, occluded)
+}
+
+/// The larger patch's area over the squared distance between the centroids above which a pair's rays are drawn
+/// in solid angle (`visible_fraction`): a patch that large for its distance subtends a sizeable solid angle, and
+/// its kernel varies across it.
+pub const NEAR_FIELD_SOLID_ANGLE: f64 = 0.05;
+
+/// Casts `rays` and returns the weighted share of them that are not occluded and the rays cast; NaN when there
+/// are none with weight (no evidence either way).
+fn weighted_fraction<C: RayCaster + ?Sized>(
+    caster: &C,
+    rays: &[Ray],
+    weights: &[f64],
+    occluded: &mut Vec<bool>,
+) -> (f64, u64) {
     occluded.clear();
     occluded.resize(rays.len(), false);
     caster.occluded_many(rays, occluded);
