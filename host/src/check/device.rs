@@ -21,8 +21,8 @@ pub(super) struct Answers<'a> {
     pub(super) exact_is: &'a str,
     /// The scene's default intensities (the first light setting).
     pub(super) default_intensity: &'a [Rgb],
-    /// The largest per-channel power the decoded table emits at the default intensities (what
-    /// [`CheckOptions::tolerance`] is relative to).
+    /// The largest per-channel power the elements emit at the default intensities (the decoded table's for a flat
+    /// check, the solve's for a hierarchical one): what [`CheckOptions::tolerance`] is relative to.
     pub(super) max_power: f64,
     /// The decoded table's f64 answer (what the device converges to).
     pub(super) device: &'a Radiosity,
