@@ -779,7 +779,8 @@ fn solve_continuous_judges_either_answer_per_face() {
 /// at the default setting the device's error against the hierarchical solve is within what the components it
 /// telescopes through allow. Each component `e_k` is relative to its own answer, whose norm is at most
 /// `(1 + e_j)` times the next one's, so `total <= S * prod(1 + e_k) <= S * exp(S)` with `S` their sum. Settings
-/// of the other method, and a table file with `--method hierarchical`, are refused before any work.
+/// of the other method, and a table file with `--method hierarchical`, are refused before any work; the
+/// lights-off setting prints the device's distance from dark, not an infinite relative error.
 #[test]
 fn check_hierarchical_traces_the_tables_error() {
     let rooms = scene("two-rooms.obj");
@@ -827,6 +828,13 @@ fn check_hierarchical_traces_the_tables_error() {
             "{arith}: the relight settings"
         );
     }
+    // The Cornell box's lights-off setting has no relative error (its only light is dynamic, so the exact answer
+    // is zero): the text says how far from dark the device is instead of printing an infinity.
+    let cornell = scene("cornell-box.obj");
+    let text =
+        radiosity(&["check", &cornell, "--relight", "--method", "hierarchical", "--epsilon", "0.1", "-q"]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("f32 setting 1: the exact answer is zero") && !text.contains(" inf "), "{text}");
     assert_fails(
         &["check", MISSING, "--method", "hierarchical", "--threshold", "0.01"],
         &["--threshold", "apply to flat tables only"],

@@ -206,18 +206,34 @@ impl fmt::Display for CheckReport {
                 .intensity
                 .first()
                 .map_or("-".to_string(), |v| format!("({:.2}, {:.2}, {:.2})", v[0], v[1], v[2]));
+            // With every light off the exact answer is zero and a relative error has no meaning: the device's
+            // distance from dark is its RMS radiosity instead.
+            let (rel, max) = if s.error.rel_l2.is_finite() {
+                (format!("{:.3e}", s.error.rel_l2), format!("{:.3e}", s.error.max_rel))
+            } else {
+                ("dark".to_string(), "-".to_string())
+            };
             writeln!(
                 f,
-                "{:<6} {:<3} {:<24} {:>7} {:>12} {:>10} {:>10.3e} {:>10.3e} {:>10}",
+                "{:<6} {:<3} {:<24} {:>7} {:>12} {:>10} {:>10} {:>10} {:>10}",
                 s.arith.name(),
                 s.setting,
                 i,
                 s.frames,
                 s.work,
                 s.relight_work,
-                s.error.rel_l2,
-                s.error.max_rel,
+                rel,
+                max,
                 s.converged
+            )?;
+        }
+        for s in self.settings.iter().filter(|s| !s.error.rel_l2.is_finite()) {
+            writeln!(
+                f,
+                "  {} setting {}: the exact answer is zero (no light); the device's RMS radiosity {:.3e} W/m^2",
+                s.arith.name(),
+                s.setting,
+                s.error.abs_rms
             )?;
         }
         writeln!(f, "\nfirst frames of setting 0 (all frames: --format json)")?;
