@@ -96,6 +96,17 @@ pub struct CheckReport {
 }
 
 impl CheckReport {
+    /// What the table's elements and entries are called: patches and entries of a flat table, leaves and links of
+    /// a hierarchical one.
+    #[must_use]
+    pub fn element_names(&self) -> (&'static str, &'static str) {
+        if self.method == "hierarchical" {
+            ("leaves", "links")
+        } else {
+            ("patches", "entries")
+        }
+    }
+
     /// The error decomposition as grouped bars: one group per arithmetic path (`f32`, `fixed`), one bar per
     /// component (relative L2 of `B`, area-weighted) on its own, the path's own arithmetic component among
     /// them, and last the measured total: the device's error against the exact answer at the default setting.
@@ -144,8 +155,7 @@ impl CheckReport {
 
 impl fmt::Display for CheckReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (elements, entries) =
-            if self.method == "hierarchical" { ("leaves", "links") } else { ("patches", "entries") };
+        let (elements, entries) = self.element_names();
         writeln!(
             f,
             "table ({}): {} {elements}, {} {entries}, {} bytes, codec {}; budget {} units/frame, frames {}, \

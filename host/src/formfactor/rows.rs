@@ -270,6 +270,8 @@ pub(super) struct RayBuffers {
     rays: Vec<Ray>,
     weights: Vec<f64>,
     occluded: Vec<bool>,
+    /// Near field: the cells of the unit square the solid-angle draws are stratified over, shuffled.
+    cells: Vec<(usize, usize)>,
 }
 
 /// The kernel-weighted visible fraction of the pair `(i, j)` from `rays_per_pair` rays (see the module docs of
@@ -283,7 +285,7 @@ pub(super) fn visible_fraction<C: RayCaster + ?Sized>(
     offset: f64,
     buffers: &mut RayBuffers,
 ) -> (f64, u64) {
-    let RayBuffers { origins, targets, rays, weights, occluded } = buffers;
+    let RayBuffers { origins, targets, rays, weights, occluded, cells } = buffers;
     rays.clear();
     weights.clear();
     // Near field (the larger patch large for the distance between the two): the kernel is concentrated on the
@@ -301,9 +303,10 @@ pub(super) fn visible_fraction<C: RayCaster + ?Sized>(
         small.1.stratified(rays_per_pair, rng, origins);
         rng.shuffle(origins);
         let (a, b) = grid(rays_per_pair);
-        let mut cells: Vec<(usize, usize)> = (0..b).flat_map(|r| (0..a).map(move |c| (c, r))).collect();
-        rng.shuffle(&mut cells);
-        for (x, &(col, row)) in origins.iter().zip(&cells).take(rays_per_pair) {
+        cells.clear();
+        cells.extend((0..b).flat_map(|r| (0..a).map(move |c| (c, r))));
+        rng.shuffle(cells);
+        for (x, &(col, row)) in origins.iter().zip(cells.iter()).take(rays_per_pair) {
             let u = (col as f64 + rng.open_unit()) / a as f64;
             let v = (row as f64 + rng.open_unit()) / b as f64;
             let Some((y, omega)) = polygon_point(*x, &large.vertices, large.normal, u, v) else { continue };

@@ -56,32 +56,27 @@ pub(super) fn polygon_point(
     u: f64,
     v: f64,
 ) -> Option<(DVec3, f64)> {
-    let fan = |k: usize| (vertices[0], vertices[k], vertices[k + 1]);
-    let mut omegas = [0.0f64; 8];
+    // The fan from the first vertex; each triangle's solid angle is recomputed in the second pass rather than
+    // kept, so that polygons of any vertex count need no buffer.
     let triangles = vertices.len().checked_sub(2)?;
-    if triangles > omegas.len() {
-        return None;
-    }
-    let mut total = 0.0;
-    for (k, omega) in omegas.iter_mut().enumerate().take(triangles) {
-        let (a, b, c) = fan(k + 1);
-        *omega = triangle_solid_angle(x, a, b, c);
-        total += *omega;
-    }
+    let omega = |k: usize| triangle_solid_angle(x, vertices[0], vertices[k + 1], vertices[k + 2]);
+    let total: f64 = (0..triangles).map(omega).sum();
     if total <= 0.0 || !total.is_finite() {
         return None;
     }
     // The triangle by its share of the solid angle, `u` rescaled within it.
     let mut pick = u * total;
     let mut k = 0;
-    while k + 1 < triangles && pick >= omegas[k] {
-        pick -= omegas[k];
+    let mut chosen = omega(0);
+    while k + 1 < triangles && pick >= chosen {
+        pick -= chosen;
         k += 1;
+        chosen = omega(k);
     }
-    let u_in = (pick / omegas[k]).clamp(0.0, 1.0);
-    let (a, b, c) = fan(k + 1);
+    let u_in = (pick / chosen).clamp(0.0, 1.0);
+    let (a, b, c) = (vertices[0], vertices[k + 1], vertices[k + 2]);
     let dir = |p: DVec3| (p - x).try_normalize();
-    let direction = spherical_triangle_direction(dir(a)?, dir(b)?, dir(c)?, omegas[k], u_in, v)?;
+    let direction = spherical_triangle_direction(dir(a)?, dir(b)?, dir(c)?, chosen, u_in, v)?;
     // Where the direction meets the polygon's plane.
     let along = normal.dot(direction);
     if along == 0.0 {
@@ -132,5 +127,22 @@ mod tests {
         assert!((fraction - inner).abs() <= 4.0 * se, "{fraction} vs {inner} (se {se})");
         // From the polygon's own plane it subtends nothing.
         assert!(polygon_point(DVec3::new(3.0, 0.0, h), &square, DVec3::Z, 0.5, 0.5).is_none());
+        // A polygon of many vertices (a regular 16-gon over the point): every draw lands on it, and its solid angle
+        // is the fan's from another vertex order (triangles from the centre) to rounding.
+        let n = 16;
+        let ring: Vec<DVec3> = (0..n)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / n as f64;
+                DVec3::new(a * t.cos(), a * t.sin(), h)
+            })
+            .collect();
+        let centre = DVec3::new(0.0, 0.0, h);
+        let from_centre: f64 =
+            (0..n).map(|k| triangle_solid_angle(x, centre, ring[k], ring[(k + 1) % n])).sum();
+        for (u, v) in [(0.01, 0.5), (0.5, 0.5), (0.99, 0.3)] {
+            let (p, omega) = polygon_point(x, &ring, DVec3::Z, u, v).expect("a draw on the 16-gon");
+            assert!((omega - from_centre).abs() <= 1e-12 * from_centre, "{omega} vs {from_centre}");
+            assert!((p.z - h).abs() <= 1e-12 && p.truncate().length() <= a + 1e-12, "{p}");
+        }
     }
 }

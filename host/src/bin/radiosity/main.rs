@@ -874,7 +874,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 ReportFormat::Text => write!(out, "{report}")?,
             }
             if let Some(stem) = plot {
-                let elements = if method == SolveMethod::Hierarchical { "leaves" } else { "patches" };
+                let (elements, _) = report.element_names();
                 let title =
                     format!("Error decomposition: {} ({} {elements})", scene.scene.display(), report.patches);
                 let (svg, png) = report.decomposition_plot(&title).write(&stem, 800, 500)?;
