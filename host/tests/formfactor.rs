@@ -334,7 +334,7 @@ fn a_hidden_near_field_is_found_at_the_default_ray_count() {
     // And each estimate's spread: the ratio's variance is about E[w^2 (V - v)^2] / (R E[w]^2) <= (1 + CV^2) / R
     // times the largest (V - v)^2, max(v, 1 - v)^2 (stratification lowers it), so F's standard deviation is at most
     // U sqrt((4/3) / 16) max(v, 1 - v); the sample's own standard deviation is off by about 1 / sqrt(2 (n - 1))
-    // of itself, and 4 of those are allowed. Area-uniform rays spread 2.5 times as wide here.
+    // of itself, and 4 of those are allowed. Area-uniform rays spread wider than this bound here.
     let (u, v) = (entry(&open, 0, 1), exact / entry(&open, 0, 1));
     let spread =
         u * (4.0 / 3.0 / 16.0f64).sqrt() * v.max(1.0 - v) * (1.0 + 4.0 / (2.0 * (seeds - 1) as f64).sqrt());

@@ -26,9 +26,9 @@
 //!   cast once, and reciprocity `A_i F_ij = A_j F_ji` holds up to the quadrature error of `U` alone.
 //!   In the near field (the larger patch's area above [`NEAR_FIELD_SOLID_ANGLE`] times the squared distance
 //!   between the centroids) the kernel is concentrated on the part of the larger patch close to the smaller, which
-//!   area-uniform points seldom reach: a chair seat's underside over a floor patch ten times its size hidden right
-//!   below it by the chair's base had its few rays land on the floor's far, visible parts, and its row summed to
-//!   1.29. There the rays go from stratified points `x` of the smaller patch to points of the larger drawn
+//!   area-uniform points seldom reach: a chair seat's underside over a much larger floor patch, hidden right below
+//!   it by the chair's base, had its few rays land on the floor's far, visible parts, and its row summed to well
+//!   over 1 (the test `a_hidden_near_field_is_found_at_the_default_ray_count` has the case). There the rays go from stratified points `x` of the smaller patch to points of the larger drawn
 //!   uniformly in the solid angle `Ω(x)` it subtends from `x` (Arvo's spherical-triangle sampling, `solidangle`),
 //!   each weighted by `Ω(x) cos θ_x`: the same ratio `∫∫ K V / ∫∫ K` (the kernel over the sampling density), with
 //!   the rays where the kernel is.
