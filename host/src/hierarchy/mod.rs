@@ -635,6 +635,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let mut candidates = Vec::new();
     expand_self(&tree, 0, &mut candidates);
     let mut counts = RefineCounts::default();
+    let mut leaf_estimates = shadow::LeafEstimates::default();
     let mut passes = Vec::new();
     let mut solution;
     loop {
@@ -662,12 +663,14 @@ fn solve_checked<C: RayCaster + ?Sized>(
             .map_err(in_pass)?;
         } else {
             refining = std::time::Instant::now();
-            let pass = match options.refinement {
-                Refinement::Budgets => budget::refine_budgets,
-                Refinement::Brightness => refine_brightness_pass,
-            };
-            pass(&mut tree, &estimator, &mut spans, &limits, options.epsilon, &mut links, &mut counts)
-                .map_err(in_pass)?;
+            let (t, e, s, l, c) = (&mut tree, &estimator, &mut spans, &limits, &mut counts);
+            match options.refinement {
+                Refinement::Budgets => budget::refine_budgets(t, e, s, l, options.epsilon, &mut links, c),
+                Refinement::Brightness => {
+                    refine_brightness_pass(t, e, s, l, options.epsilon, &mut links, c, &mut leaf_estimates)
+                }
+            }
+            .map_err(in_pass)?;
         }
         refine_time += refining.elapsed();
         solution = solve_with(&tree, &links, &solve::emission(&tree), options, closed)?;
@@ -738,10 +741,11 @@ fn solve_checked<C: RayCaster + ?Sized>(
 /// One pass of brightness refinement after a solve: `link::refine_brightness` with the links on the chain of
 /// every leaf that gathers more than 1 in all (no tolerance: the device's table must cap whatever excess is left,
 /// `excess`) and the links a leaf below them contradicts (`shadow`), split whatever their error. Returns the
-/// links split.
+/// links split. `known` carries the shadow check's leaf estimates from pass to pass.
 ///
 /// # Errors
 /// As `link::refine_brightness`.
+#[allow(clippy::too_many_arguments)]
 fn refine_brightness_pass<C: RayCaster + ?Sized>(
     tree: &mut Tree,
     estimator: &Estimator<'_, C>,
@@ -750,9 +754,10 @@ fn refine_brightness_pass<C: RayCaster + ?Sized>(
     epsilon: f64,
     links: &mut Vec<link::Link>,
     counts: &mut RefineCounts,
+    known: &mut shadow::LeafEstimates,
 ) -> Result<u64, HierarchyError> {
     let mut split_at = excess::overstated(tree, links, 0.0);
-    let shadowed = shadow::contradicted(tree, estimator, spans, limits.threshold, epsilon, links);
+    let shadowed = shadow::contradicted(tree, estimator, spans, limits.threshold, epsilon, links, known);
     counts.estimated += shadowed.estimated;
     counts.rays += shadowed.rays;
     split_at.extend(shadowed.links);

@@ -22,7 +22,10 @@
 //!   blocks turned from the light).
 //!
 //! Cost: a leaf is estimated only where the link could break either rule were the leaf to see nothing of the
-//! sender (its whole `f` as the deviation), and a link's leaves only until one breaks a rule.
+//! sender (its whole `f` as the deviation), and a link's leaves only until one breaks a rule. A (leaf, sender)
+//! estimate is kept in [`LeafEstimates`] across the passes: a link that no pass splits is checked again in every
+//! pass (the solved radiosity, and so the rules, change), but its leaves' estimates do not (they are the seeded
+//! estimator's, a function of the two nodes alone), so each is made once.
 //!
 //! Links whose shaft was clear (`shaft`: no face polygon can come between their ends) are not checked: no
 //! occluder can shadow a leaf below them, and what is left of a leaf's deviation is the kernel's, which the
@@ -33,6 +36,8 @@
 //! Links with a cluster at either end are not checked: their spread is Smits, Arvo and Greenberg's bound on any
 //! point's form factor (`A_s / (pi d^2)`), which no leaf's overstatement can exceed, and a leaf's own estimate
 //! towards a cluster would be a point-pair Monte Carlo estimate like the link's, no better than it.
+
+use std::collections::HashMap;
 
 use rayon::prelude::*;
 
@@ -53,6 +58,15 @@ pub(super) struct Contradicted {
     pub(super) rays: u64,
 }
 
+/// The (leaf, sender) estimates made so far, by node index (a node keeps its index once made: refinement
+/// renumbers only the nodes it makes, `Tree::renumber_from`): the leaf's own form factor towards the sender and
+/// its uncertainty, as [`contradicted`] uses them.
+#[derive(Debug, Default)]
+pub(super) struct LeafEstimates(HashMap<(u32, u32), (f64, f64)>);
+
+/// One (leaf, sender) estimate: the pair and the leaf's own form factor with its uncertainty.
+type LeafEstimate = ((u32, u32), (f64, f64));
+
 /// One direction of a link to check: the receiving end `r` (a surface with children), the sender `s`, the
 /// receiver's form factor `f` and its spread, and whether the oracle's bound could be exceeded at all.
 #[derive(Clone, Copy)]
@@ -67,7 +81,8 @@ struct Direction {
 
 /// The links of `links` that a leaf below one of their ends contradicts (see the module docs), with `spans` the
 /// solved brightness of the nodes, `threshold` the oracle's bound per link (W) and `epsilon` the error allowed
-/// per leaf relative to its reflected radiosity.
+/// per leaf relative to its reflected radiosity. `known` holds the estimates of earlier calls on the same tree
+/// (grown, not changed, since) and gets this call's; only the estimates made here are counted.
 pub(super) fn contradicted<C: RayCaster + ?Sized>(
     tree: &Tree,
     estimator: &Estimator<'_, C>,
@@ -75,6 +90,7 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
     threshold: f64,
     epsilon: f64,
     links: &[Link],
+    known: &mut LeafEstimates,
 ) -> Contradicted {
     let weight = |r: u32, s: u32| max_channel(tree.nodes[r as usize].rho_max * spans[s as usize].hi);
     let mut directions = Vec::new();
@@ -95,11 +111,13 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
             directions.push(Direction { index, r, s, f, spread, absolute });
         }
     }
-    let found: Vec<Contradicted> = directions
+    let cache = &known.0;
+    let found: Vec<(Contradicted, Vec<LeafEstimate>)> = directions
         .par_iter()
         .map(|d| {
             let mut out = Contradicted::default();
-            let Some(es) = tree.nodes[d.s as usize].element() else { return out };
+            let mut made = Vec::new();
+            let Some(es) = tree.nodes[d.s as usize].element() else { return (out, made) };
             let bound = threshold / (tree.nodes[d.r as usize].area * weight(d.r, d.s));
             let sent = spans[d.s as usize].mean;
             for leaf in leaves_below(tree, d.r) {
@@ -112,30 +130,38 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
                 if !d.absolute && !(*rho * d.f * sent).cmpgt(allowed).any() {
                     continue;
                 }
-                out.estimated += 1;
                 // The leaf's own form factor and its uncertainty: one standard error of the visible fraction
                 // where it is partial, one ray's resolution where the rays saw all or nothing, none where the
                 // shaft was clear (as the link estimator charges).
-                let (own, uncertainty) = match estimator.factor(tree, leaf, el, d.s, es).map(|(e, _)| e) {
-                    Some(e) => {
-                        out.rays += e.rays;
-                        (e.link.f_ab, e.link.unoccluded_ab * e.link.sigma)
+                let (own, uncertainty) = match cache.get(&(leaf, d.s)) {
+                    Some(&known) => known,
+                    None => {
+                        out.estimated += 1;
+                        let fresh = match estimator.factor(tree, leaf, el, d.s, es).map(|(e, _)| e) {
+                            Some(e) => {
+                                out.rays += e.rays;
+                                (e.link.f_ab, e.link.unoccluded_ab * e.link.sigma)
+                            }
+                            None => (0.0, 0.0),
+                        };
+                        made.push(((leaf, d.s), fresh));
+                        fresh
                     }
-                    None => (0.0, 0.0),
                 };
                 let deviation = d.f - own - uncertainty;
                 let absolute = d.absolute && deviation > d.spread && deviation > bound;
                 let relative = deviation > 0.0 && (*rho * deviation * sent).cmpgt(allowed).any();
                 if absolute || relative {
                     out.links.push((d.index, d.r));
-                    return out;
+                    return (out, made);
                 }
             }
-            out
+            (out, made)
         })
         .collect();
     let mut out = Contradicted::default();
-    for one in found {
+    for (one, made) in found {
+        known.0.extend(made);
         out.estimated += one.estimated;
         out.rays += one.rays;
         out.links.extend(one.links);
@@ -263,10 +289,12 @@ mod tests {
             let limits = Limits { threshold, min_area: 0.0, max_nodes: 10_000, max_links: 10_000, pieces: 1 };
             let mut links = vec![link];
             let mut counts = RefineCounts::default();
+            let mut known = LeafEstimates::default();
             // Each round pushes the contradicted links one level down; the tree has two levels below the floor.
             for _ in 0..4 {
                 let found = if check {
-                    contradicted(&tree, &shadowing, &spans, threshold, DEFAULT_EPSILON, &links).links
+                    contradicted(&tree, &shadowing, &spans, threshold, DEFAULT_EPSILON, &links, &mut known)
+                        .links
                 } else {
                     Vec::new()
                 };
