@@ -490,6 +490,8 @@ fn a_bake_says_what_it_will_cost_and_why_the_mesh_stops_below_its_budget() {
     let out = radiosity(&[
         "solve",
         &scene("facing-squares.obj"),
+        "--method",
+        "flat",
         "--samples",
         "4",
         "--rays",
@@ -660,7 +662,8 @@ fn hierarchical_pictures_show_the_leaves() {
         line.split_whitespace().next().unwrap().parse().unwrap()
     };
     let hier_glb = triangles(&run(&["export", &rooms, "-o", &path("h.glb")], &hier));
-    let flat_glb = triangles(&run(&["export", &rooms, "-q", "-o", &path("f.glb")], &[]));
+    let flat = ["--method", "flat", "-q"];
+    let flat_glb = triangles(&run(&["export", &rooms, "-o", &path("f.glb")], &flat));
     assert_eq!(hier_glb, fans, "the hierarchical export holds the solve's {} leaves", leaves.len());
     assert_ne!(
         flat_glb, fans,
@@ -668,7 +671,7 @@ fn hierarchical_pictures_show_the_leaves() {
     );
     // Light maps: one chart per face either way.
     run(&["lightmap", &rooms, "-o", &path("h")], &hier);
-    run(&["lightmap", &rooms, "-q", "-o", &path("f")], &[]);
+    run(&["lightmap", &rooms, "-o", &path("f")], &flat);
     let charts = |stem: &str| -> usize {
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{stem}.json"))).unwrap())
@@ -682,20 +685,8 @@ fn hierarchical_pictures_show_the_leaves() {
         &hier,
     );
     run(
-        &[
-            "render",
-            &rooms,
-            "--mode",
-            "patches",
-            "--width",
-            "96",
-            "--height",
-            "96",
-            "-q",
-            "-o",
-            &path("f.png"),
-        ],
-        &[],
+        &["render", &rooms, "--mode", "patches", "--width", "96", "--height", "96", "-o", &path("f.png")],
+        &flat,
     );
     assert_ne!(std::fs::read(dir.join("h.png")).unwrap(), std::fs::read(dir.join("f.png")).unwrap());
     let png = path("x.png");
@@ -705,7 +696,7 @@ fn hierarchical_pictures_show_the_leaves() {
     );
     for command in ["render", "lightmap", "export"] {
         assert_fails(
-            &[command, MISSING, "--epsilon", "0.1", "-o", &path("x.glb")],
+            &[command, MISSING, "--method", "flat", "--epsilon", "0.1", "-o", &path("x.glb")],
             &["--epsilon", "apply to --method hierarchical only"],
         );
         assert_fails(
@@ -901,11 +892,11 @@ fn hierarchical_solve_by_shooting() {
         assert!(g > 0.0 && (g - s).abs() <= 1e-6 * g, "channel {c}: gathering {g}, shooting {s}");
     }
     assert_fails(
-        &["solve", MISSING, "--solver", "shooting"],
+        &["solve", MISSING, "--method", "flat", "--solver", "shooting"],
         &["--solver applies to --method hierarchical only"],
     );
     assert_fails(
-        &["solve", MISSING, "--max-links", "10"],
+        &["solve", MISSING, "--method", "dense", "--max-links", "10"],
         &["--max-links and --pieces apply to --method hierarchical only"],
     );
     let out = radiosity(&["solve", MISSING, "--method", "hierarchical", "--pieces", "0"]);
@@ -927,6 +918,43 @@ fn hierarchical_solve_by_shooting() {
         err.contains("two-rooms.obj") && err.contains("more than 50 links") && err.contains("--max-links"),
         "{err}"
     );
+}
+
+/// The f64 answers default to the hierarchy: `solve` without `--method` is `--method hierarchical --refinement
+/// brightness --epsilon 0.0005`, byte for byte (and not the device tables' epsilon of 0.03, which gives other
+/// leaves here), and its JSON says so; a meshing option (`--max-patches`) asks for the flat mesh instead, and
+/// `--method dense` is `--method flat`.
+#[test]
+fn the_hierarchy_is_the_default_answer_and_a_mesh_option_asks_for_the_flat_one() {
+    let squares = scene("facing-squares.obj");
+    let solve = |more: &[&str]| {
+        let out = radiosity(&[&["solve", squares.as_str(), "-q"][..], more].concat());
+        assert!(out.status.success(), "{more:?}: {}", String::from_utf8_lossy(&out.stderr));
+        out.stdout
+    };
+    let default = solve(&[]);
+    let explicit = ["--method", "hierarchical", "--refinement", "brightness", "--epsilon"];
+    assert_eq!(default, solve(&[&explicit[..], &["0.0005"]].concat()));
+    assert_ne!(
+        default,
+        solve(&[&explicit[..], &["0.03"]].concat()),
+        "the default epsilon is not the tables'"
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&solve(&["--format", "json"])).unwrap();
+    assert_eq!(
+        (&doc["method"], &doc["refinement"], doc["epsilon"].as_f64()),
+        (&serde_json::json!("hierarchical"), &serde_json::json!("brightness"), Some(0.0005)),
+        "{}",
+        doc["stats"]
+    );
+    let flat = solve(&["--method", "flat"]);
+    assert_ne!(flat, default);
+    assert_eq!(solve(&["--method", "dense"]), flat);
+    let meshed = String::from_utf8(solve(&["--max-patches", "8"])).unwrap();
+    assert_eq!(meshed.lines().count(), 1 + 8, "a header and the 8 patches of the flat mesh: {meshed}");
+    let doc: serde_json::Value =
+        serde_json::from_slice(&solve(&["--max-patches", "8", "--format", "json"])).unwrap();
+    assert_eq!(doc["method"], "flat");
 }
 
 /// `view --web`: its help says what the folder holds and how to serve it; a missing wasm build fails before the

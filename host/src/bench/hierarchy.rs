@@ -136,6 +136,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             (Refinement::Brightness, 0.005),
             (Refinement::Brightness, 0.0025),
             (Refinement::Brightness, 0.0008),
+            (Refinement::Brightness, 0.0005),
             (Refinement::Brightness, 0.0002),
             (Refinement::Brightness, 0.0001),
         ]

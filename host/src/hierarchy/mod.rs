@@ -68,9 +68,10 @@
 //! table's chains send on all the power they hold and the furnace is exact there too.
 //!
 //! # Status
-//! Not yet the default of any command: `--method hierarchical` of `solve`, `render`, `lightmap`, `export`, `bake`
-//! and `check` (links refined for the default light intensities; the answer is also split by light source,
-//! [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces (`scenes/make_office.py`) solve only when small: the budget passes
+//! The command line's default for the f64 answers of `solve`, `render`, `lightmap` and `export` (with
+//! [`Refinement::Brightness`]; these options' own default stays [`Refinement::Budgets`]), and `--method
+//! hierarchical` of `bake` and `check` (links refined for the default light intensities; the answer is also split
+//! by light source, [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces (`scenes/make_office.py`) solve only when small: the budget passes
 //! push links down to the leaves (each leaf's chain charges add up), so links grow much faster than leaves, and
 //! a refinement that would exceed [`HierarchyOptions::max_links`] stops with [`HierarchyError::TooManyLinks`]
 //! (the closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair

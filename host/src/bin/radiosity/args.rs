@@ -18,7 +18,9 @@ use radiosity_host::regress::{RegressOptions, DEFAULT_SEEDS};
 /// The f64 solver of `solve`, `bake`, `render`, `lightmap` and `export`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SolveMethod {
-    /// The full patch-to-patch form-factor matrix of the adaptive mesh, solved exactly.
+    /// The full patch-to-patch form-factor matrix of the adaptive mesh, solved exactly (also `dense`: the
+    /// reference the hierarchy is judged against).
+    #[value(alias = "dense")]
     Flat,
     /// Hierarchical radiosity with clustering (links refined to `--epsilon`).
     Hierarchical,
@@ -67,15 +69,17 @@ impl From<RefinementArg> for radiosity_host::hierarchy::Refinement {
 /// them with `--method flat`).
 #[derive(Clone, Debug, Default, clap::Args)]
 pub struct HierarchyArgs {
-    /// Hierarchical only: error budget per element, relative to the light it reflects, in (0, 1) (smaller is
-    /// more accurate and costs more elements and links; the direct-light refinement, and `--refinement
-    /// brightness`, use 1% of it times the brightest face's emitted power per link) [default: 0.03].
+    /// Hierarchical only: error bound, in (0, 1) (smaller is more accurate and costs more elements and links).
+    /// The direct-light refinement and `--refinement brightness` allow each link to misplace 1% of it times
+    /// the brightest face's emitted power; `--refinement budgets` allows each element that share of the light
+    /// it reflects [default: 0.0005 for the brightness refinement of `solve`, `render`, `lightmap` and
+    /// `export` (`bench/REPORT.md`, "Hierarchy against flat", has the error and seconds per epsilon); 0.03
+    /// otherwise (device tables: `bake`, `check`)].
     #[arg(long, value_name = "E")]
     pub epsilon: Option<f64>,
     /// Hierarchical only: what the passes after the direct-light pass refine for: `budgets` (every element
     /// within `--epsilon` of its own reflected light) or `brightness` (every link within an absolute power
-    /// bound: far fewer links, for device tables) [default: budgets for `solve`, `render`, `lightmap` and
-    /// `export`; brightness for `bake` and `check`].
+    /// bound: far fewer links; the default).
     #[arg(long, value_enum)]
     pub refinement: Option<RefinementArg>,
     /// Hierarchical only: most links refinement may hold (accepted and pending together); a scene that needs
@@ -89,6 +93,13 @@ pub struct HierarchyArgs {
     /// anyway) [default: 1].
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub pieces: Option<u32>,
+}
+
+/// The method of the commands whose product is an f64 answer (`solve`, `render`, `lightmap`, `export`): the one
+/// asked for, else the flat mesh's when a meshing option asks for a mesh (`--no-subdivide`, `--max-patches`,
+/// `--max-patch-edge`), else the hierarchy.
+pub fn answer_method(method: Option<SolveMethod>, scene: &SceneArgs) -> SolveMethod {
+    method.unwrap_or(if scene.asks_for_a_mesh() { SolveMethod::Flat } else { SolveMethod::Hierarchical })
 }
 
 impl HierarchyArgs {
@@ -411,11 +422,11 @@ pub enum Command {
         no_qemu: bool,
     },
     /// Solve the scene in f64 and print the patch table:
-    /// `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. `--method flat` (the
-    /// default) solves the adaptive mesh's full form-factor matrix exactly (dense LU up to 4096 patches,
-    /// Gauss-Seidel above); `--method hierarchical` links clusters and elements where the light needs them,
-    /// refined until what every element may gather wrongly is within `--epsilon` of its reflected light (the
-    /// patches are then the hierarchy's leaves). With `--continuous`, every face's area-averaged answer against the
+    /// `patch,face,cx,cy,cz,nx,ny,nz,area,rho_r,rho_g,rho_b,e_r,e_g,e_b,b_r,b_g,b_b`. `--method hierarchical`
+    /// (the default) links clusters and elements where the light needs them, refined until no link may
+    /// misplace more light than `--epsilon` allows (the patches are then the hierarchy's leaves); `--method
+    /// flat` (or `dense`, the default when a meshing option is given) solves the adaptive mesh's full
+    /// form-factor matrix exactly (dense LU up to 4096 patches, Gauss-Seidel above). With `--continuous`, every face's area-averaged answer against the
     /// path-traced continuous scene follows (as `check --continuous`: how far this mesh or hierarchy is from the
     /// scene's exact answer), after the text summary, in the JSON as `discretization`, or on stderr after CSV.
     Solve {
@@ -426,11 +437,12 @@ pub enum Command {
         /// vertices (`patch_table`).
         #[arg(long, value_enum, default_value_t = Format::Csv)]
         format: Format,
-        /// Solver: `flat` (a form factor for every pair of patches) or `hierarchical` (links between clusters
-        /// and elements; `--max-patches`, `--max-patch-edge` and `--no-subdivide` do not apply to it).
-        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
-        method: SolveMethod,
-        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        /// Solver: `hierarchical` (links between clusters and elements; `--max-patches`, `--max-patch-edge`
+        /// and `--no-subdivide` do not apply to it) or `flat`, also `dense` (a form factor for every pair of
+        /// patches of the adaptive mesh) [default: hierarchical; flat when a meshing option is given].
+        #[arg(long, value_enum)]
+        method: Option<SolveMethod>,
+        /// Settings of `--method hierarchical` (default: brightness refinement at epsilon 0.0005).
         #[command(flatten)]
         hierarchy: HierarchyArgs,
         /// Hierarchical only: `gathering` (Jacobi sweeps over all links, the default) or `shooting`
@@ -453,12 +465,12 @@ pub enum Command {
     Render {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Solver: `flat` (the adaptive mesh's full form-factor matrix) or `hierarchical` (the patches shown are
-        /// the hierarchy's leaves; not with `--mode error`, which compares a flat device table with the flat
-        /// solve).
-        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
-        method: SolveMethod,
-        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        /// Solver: `hierarchical` (the patches shown are the hierarchy's leaves; not with `--mode error`, which
+        /// compares a flat device table with the flat solve) or `flat`, also `dense` (the adaptive mesh's full
+        /// form-factor matrix) [default: hierarchical; flat with `--mode error` or a meshing option].
+        #[arg(long, value_enum)]
+        method: Option<SolveMethod>,
+        /// Settings of `--method hierarchical` (default: brightness refinement at epsilon 0.0005).
         #[command(flatten)]
         hierarchy: HierarchyArgs,
         /// Camera as "px,py,pz;tx,ty,tz;ux,uy,uz;fov_degrees" (position; target; up; vertical field of view).
@@ -530,11 +542,12 @@ pub enum Command {
     Lightmap {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Solver: `flat` (the adaptive mesh's full form-factor matrix) or `hierarchical` (the light map is
-        /// shaded from the hierarchy's leaves).
-        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
-        method: SolveMethod,
-        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        /// Solver: `hierarchical` (the light map is shaded from the hierarchy's leaves) or `flat`, also `dense`
+        /// (the adaptive mesh's full form-factor matrix) [default: hierarchical; flat when a meshing option is
+        /// given].
+        #[arg(long, value_enum)]
+        method: Option<SolveMethod>,
+        /// Settings of `--method hierarchical` (default: brightness refinement at epsilon 0.0005).
         #[command(flatten)]
         hierarchy: HierarchyArgs,
         /// Output path without extension (its folder must exist).
@@ -556,11 +569,12 @@ pub enum Command {
     Export {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Solver: `flat` (the adaptive mesh's full form-factor matrix) or `hierarchical` (the file's patches are
-        /// the hierarchy's leaves, and its light map is shaded from them).
-        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
-        method: SolveMethod,
-        /// Settings of `--method hierarchical` (its default refinement here: `budgets`).
+        /// Solver: `hierarchical` (the file's patches are the hierarchy's leaves, and its light map is shaded
+        /// from them) or `flat`, also `dense` (the adaptive mesh's full form-factor matrix) [default:
+        /// hierarchical; flat when a meshing option is given].
+        #[arg(long, value_enum)]
+        method: Option<SolveMethod>,
+        /// Settings of `--method hierarchical` (default: brightness refinement at epsilon 0.0005).
         #[command(flatten)]
         hierarchy: HierarchyArgs,
         /// The .glb file to write (its folder must exist); the .exr goes beside it.
@@ -747,7 +761,9 @@ pub enum RenderModeArg {
     Error,
 }
 
-/// Options shared by the commands that read a scene.
+/// Options shared by the commands that read a scene. The meshing options (`--no-subdivide`, `--max-patch-edge`,
+/// `--max-patches`) shape the flat solve's mesh; in `solve`, `render`, `lightmap` and `export`, whose default is
+/// the hierarchy, giving one selects the flat solve.
 #[derive(Args)]
 pub struct SceneArgs {
     /// The scene: an OBJ file (its MTL files are read too) or a glTF 2.0 file (.gltf with its buffers and
@@ -786,6 +802,12 @@ pub struct SceneArgs {
 }
 
 impl SceneArgs {
+    /// Whether a meshing option asks for the flat solve's adaptive mesh (`--no-subdivide`, `--max-patches`,
+    /// `--max-patch-edge`; the hierarchy subdivides where its epsilon asks instead).
+    pub fn asks_for_a_mesh(&self) -> bool {
+        self.no_subdivide || self.max_patches.is_some() || self.max_patch_edge.is_some()
+    }
+
     /// The pipeline options these arguments select.
     pub fn prepare_options(&self) -> PrepareOptions {
         PrepareOptions {

@@ -124,12 +124,27 @@ fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
     Ok(bytes)
 }
 
-/// The scene of `scene` solved hierarchically with the given options (the rest at their defaults), with the
-/// scene's warnings, repair notes and the solve's statistics on stderr unless `--quiet`.
+/// The default `--epsilon` of brightness refinement where the product is the f64 answer itself (`solve`,
+/// `render`, `lightmap`, `export`): the bench's Cornell box rows (`bench/REPORT.md`, "Hierarchy against flat")
+/// put its worst face against the continuous reference well below the flat solve's at its default mesh, for
+/// about twice the flat default's seconds; device tables keep [`DEFAULT_EPSILON`], sized for a device's memory.
+const ANSWER_EPSILON: f64 = 0.0005;
+
+/// What a hierarchical solve is for, which sets its defaults: both refine by brightness; an f64 answer
+/// (`solve`, `render`, `lightmap`, `export`) at [`ANSWER_EPSILON`], a device table (`bake`, `check`) at
+/// [`DEFAULT_EPSILON`] (also the default of `--refinement budgets` everywhere).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Purpose {
+    Answer,
+    Table,
+}
+
+/// The scene of `scene` solved hierarchically with the given options (the rest at their defaults for
+/// `purpose`), with the scene's warnings, repair notes and the solve's statistics on stderr unless `--quiet`.
 fn hierarchical_solution(
     scene: &args::SceneArgs,
     hierarchy: &args::HierarchyArgs,
-    default_refinement: Refinement,
+    purpose: Purpose,
     solver: Option<args::HierarchySolverArg>,
 ) -> Result<(Scene, HierarchicalSolution, HierarchyOptions), BoxError> {
     if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
@@ -137,10 +152,15 @@ fn hierarchical_solution(
                     hierarchy subdivides where --epsilon asks)"
             .into());
     }
+    let refinement = hierarchy.refinement.map_or(Refinement::Brightness, Into::into);
+    let default_epsilon = match (purpose, refinement) {
+        (Purpose::Answer, Refinement::Brightness) => ANSWER_EPSILON,
+        _ => DEFAULT_EPSILON,
+    };
     let options = HierarchyOptions {
-        epsilon: hierarchy.epsilon.unwrap_or(DEFAULT_EPSILON),
+        epsilon: hierarchy.epsilon.unwrap_or(default_epsilon),
         solver: solver.map_or_else(Default::default, Into::into),
-        refinement: hierarchy.refinement.map_or(default_refinement, Into::into),
+        refinement,
         max_links: hierarchy.max_links.unwrap_or(DEFAULT_MAX_LINKS),
         pieces: hierarchy.pieces.map_or(radiosity_host::hierarchy::DEFAULT_PIECES, |n| n as usize),
         form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
@@ -206,8 +226,8 @@ fn reject_hierarchy_args(hierarchy: &args::HierarchyArgs) -> Result<(), BoxError
 }
 
 /// The scene solved in f64 at its default light intensities for a picture (`render`, `lightmap`, `export`): the
-/// scene, the patches (the adaptive mesh's, or with `--method hierarchical` the hierarchy's leaves, refined by
-/// `budgets` unless `--refinement` says otherwise) and their radiosity.
+/// scene, the patches (the adaptive mesh's, or with `--method hierarchical` the hierarchy's leaves, at the f64
+/// answers' defaults, [`Purpose::Answer`]) and their radiosity.
 fn solve_for_pictures(
     scene: &args::SceneArgs,
     method: SolveMethod,
@@ -221,7 +241,7 @@ fn solve_for_pictures(
             Ok((p.scene, p.patches, b))
         }
         SolveMethod::Hierarchical => {
-            let (loaded, solution, _) = hierarchical_solution(scene, hierarchy, Refinement::Budgets, None)?;
+            let (loaded, solution, _) = hierarchical_solution(scene, hierarchy, Purpose::Answer, None)?;
             Ok((loaded, solution.leaves, solution.b))
         }
     }
@@ -237,7 +257,7 @@ fn solve_hierarchical_command(
     continuous: Option<&ReferenceOptions>,
     out: &mut impl Write,
 ) -> Result<(), BoxError> {
-    let (loaded, solution, options) = hierarchical_solution(scene, hierarchy, Refinement::Budgets, solver)?;
+    let (loaded, solution, options) = hierarchical_solution(scene, hierarchy, Purpose::Answer, solver)?;
     let discretization = continuous
         .map(|settings| against_continuous(&loaded, &solution.leaves, &solution.b, settings))
         .transpose()?;
@@ -419,8 +439,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 );
             }
             check_outputs([output.clone()])?;
-            let (loaded, solution, _) =
-                hierarchical_solution(&scene, &hierarchy, Refinement::Brightness, None)?;
+            let (loaded, solution, _) = hierarchical_solution(&scene, &hierarchy, Purpose::Table, None)?;
             let baked = bake_hierarchy(&loaded, &solution, bits, transfer)?;
             let summary = HierBakeSummary::measure(&baked, &solution)?;
             files::write_atomic(&output, &baked.table)?;
@@ -498,12 +517,14 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             radiosity_host::bench::run(&args.options())?;
             writeln!(out, "wrote {}", args.out.join("REPORT.md").display())?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Hierarchical, hierarchy, solver, reference } => {
+        Command::Solve { scene, format, method, hierarchy, solver, reference }
+            if args::answer_method(method, &scene) == SolveMethod::Hierarchical =>
+        {
             check_scene_args(&scene)?;
             let continuous = continuous_settings(&scene, &reference)?;
             solve_hierarchical_command(&scene, format, &hierarchy, solver, continuous.as_ref(), &mut out)?;
         }
-        Command::Solve { scene, format, method: SolveMethod::Flat, hierarchy, solver, reference } => {
+        Command::Solve { scene, format, method: _, hierarchy, solver, reference } => {
             reject_hierarchy_args(&hierarchy)?;
             if solver.is_some() {
                 return Err(
@@ -584,6 +605,11 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         }
         Command::Render { scene, method, hierarchy, camera, width, height, mode, table, output } => {
             check_scene_args(&scene)?;
+            // A device table's error map is the flat solve's picture: the default there.
+            let method = match (method, mode) {
+                (None, RenderModeArg::Error) => SolveMethod::Flat,
+                _ => args::answer_method(method, &scene),
+            };
             radiosity_host::limits::check_image_size("--width/--height", width, height)?;
             let camera = camera.map(|c| Camera::parse(&c)).transpose()?;
             if table.is_some() && !matches!(mode, RenderModeArg::Error) {
@@ -701,6 +727,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         }
         Command::Lightmap { scene, method, hierarchy, output, light_map } => {
             check_scene_args(&scene)?;
+            let method = args::answer_method(method, &scene);
             let options = light_map_options(&light_map)?;
             check_outputs(["exr", "hdr", "png", "json"].map(|e| output.with_extension(e)))?;
             let (loaded, patches, b) = solve_for_pictures(&scene, method, &hierarchy)?;
@@ -717,6 +744,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
         }
         Command::Export { scene, method, hierarchy, output, light_map } => {
             check_scene_args(&scene)?;
+            let method = args::answer_method(method, &scene);
             let options = light_map_options(&light_map)?;
             if output.extension().is_none_or(|e| !e.eq_ignore_ascii_case("glb")) {
                 return Err(format!("{}: the output must be a .glb file", output.display()).into());
@@ -854,7 +882,7 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                     let options = check.options(&scene);
                     radiosity_host::check::check_options(&options)?;
                     let (loaded, solution, _) =
-                        hierarchical_solution(&scene, &hierarchy, Refinement::Brightness, None)?;
+                        hierarchical_solution(&scene, &hierarchy, Purpose::Table, None)?;
                     radiosity_host::check::check_hierarchical(&loaded, &solution, &options)?
                 }
                 Some(obj) => radiosity_host::check::check_table_file(
