@@ -11,6 +11,14 @@ use crate::patch::Patch;
 use crate::raycast::RayCaster;
 use crate::rng::SplitMix64;
 
+thread_local! {
+    /// The kernel integral's buffers, reused by every pair a thread estimates (a pair's estimate does not depend
+    /// on what they held before).
+    static PAIR_SCRATCH: std::cell::RefCell<PairScratch> = std::cell::RefCell::default();
+    /// The visibility rays' buffers, likewise.
+    static RAY_BUFFERS: std::cell::RefCell<RayBuffers> = std::cell::RefCell::default();
+}
+
 /// One element: a planar convex polygon ([`Patch`]) with the quadrature rules and the stratified sampler the
 /// estimator uses on it.
 #[derive(Clone, Debug)]
@@ -19,6 +27,8 @@ pub struct Element {
     sampler: PolygonSampler,
     quadrature: Quadrature,
     far_quadrature: Quadrature,
+    /// The polygon's bounding sphere (centre, radius) and its sliver width ([`Receiver`]'s, made once).
+    shape: (glam::DVec3, f64, Option<f64>),
 }
 
 impl Element {
@@ -26,6 +36,19 @@ impl Element {
     #[must_use]
     pub fn patch(&self) -> &Patch {
         &self.patch
+    }
+
+    /// The element as a near-field receiver judged by the distance to its polygon ([`Receiver::by_polygon`]).
+    fn receiver(&self) -> Receiver<'_> {
+        let (center, radius, sliver_width) = self.shape;
+        Receiver {
+            center,
+            radius,
+            vertices: &self.patch.vertices,
+            normal: self.patch.normal,
+            sliver_width,
+            polygon_gap: true,
+        }
     }
 
     /// The point of the polygon at `(s, t)` in the open unit square, by an area-preserving map (uniform `(s, t)`
@@ -84,10 +107,15 @@ impl ElementRules {
     /// `patch` as an element (its rules precomputed).
     #[must_use]
     pub fn element(&self, patch: Patch) -> Element {
+        let shape = {
+            let r = Receiver::by_polygon(&patch);
+            (r.center, r.radius, r.sliver_width)
+        };
         Element {
             sampler: PolygonSampler::new(&patch.vertices),
             quadrature: Quadrature::new(&patch.vertices, &self.rule),
             far_quadrature: Quadrature::new(&patch.vertices, &self.far_rule),
+            shape,
             patch,
         }
     }
@@ -102,8 +130,8 @@ impl ElementRules {
         }
         // Near and far judged by the distance to the polygons: an element is often far smaller than the face
         // polygon (or the coarse piece) it exchanges with.
-        let own = Receiver::by_polygon(&i.patch);
-        let receiver = Receiver::by_polygon(&j.patch);
+        let own = i.receiver();
+        let receiver = j.receiver();
         let sender = Sender {
             patch: &i.patch,
             quadrature: &i.quadrature,
@@ -111,15 +139,9 @@ impl ElementRules {
             own: &own,
         };
         let mut kernels = 0;
-        unoccluded_pair(
-            &sender,
-            &j.patch,
-            &receiver,
-            &self.rule,
-            self.far_field,
-            &mut PairScratch::default(),
-            &mut kernels,
-        )
+        PAIR_SCRATCH.with_borrow_mut(|scratch| {
+            unoccluded_pair(&sender, &j.patch, &receiver, &self.rule, self.far_field, scratch, &mut kernels)
+        })
     }
 
     /// The kernel-weighted visible fraction of the pair from [`Self::rays_per_pair`] rays between stratified
@@ -133,14 +155,16 @@ impl ElementRules {
         stream: (u64, u64),
     ) -> (f64, u64) {
         let mut rng = SplitMix64::for_stream(self.seed, stream.0, stream.1);
-        visible_fraction(
-            caster,
-            (&i.patch, &i.sampler),
-            (&j.patch, &j.sampler),
-            &mut rng,
-            self.rays_per_pair,
-            f64::from(caster.offset()),
-            &mut RayBuffers::default(),
-        )
+        RAY_BUFFERS.with_borrow_mut(|buffers| {
+            visible_fraction(
+                caster,
+                (&i.patch, &i.sampler),
+                (&j.patch, &j.sampler),
+                &mut rng,
+                self.rays_per_pair,
+                f64::from(caster.offset()),
+                buffers,
+            )
+        })
     }
 }

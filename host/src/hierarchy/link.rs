@@ -139,15 +139,21 @@ fn kernel_range(r: &Element, s: &Element) -> Option<f64> {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     let probes =
         std::iter::once(pr.centroid).chain(pr.vertices.iter().map(|&p| p + PROBE_INSET * (pr.centroid - p)));
-    let mut clipped = Vec::with_capacity(ps.vertices.len() + 1);
-    for x in probes {
-        let k = point_to_polygon_with(x, pr.normal, &ps.vertices, ps.normal, &mut clipped);
-        if k.is_finite() {
-            lo = lo.min(k);
-            hi = hi.max(k);
+    CLIPPED.with_borrow_mut(|clipped| {
+        for x in probes {
+            let k = point_to_polygon_with(x, pr.normal, &ps.vertices, ps.normal, clipped);
+            if k.is_finite() {
+                lo = lo.min(k);
+                hi = hi.max(k);
+            }
         }
-    }
+    });
     (hi >= lo).then_some(hi - lo)
+}
+
+thread_local! {
+    /// [`kernel_range`]'s clipped polygon, reused by every pair a thread estimates.
+    static CLIPPED: std::cell::RefCell<Vec<glam::DVec3>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
