@@ -54,12 +54,10 @@ impl Shaft {
             return;
         }
         let d = n.dot(origin);
-        let (lo, hi) = extent(n, d, p.iter().chain(q));
-        let slack = self.slack * length;
-        if hi <= slack {
-            self.planes.push((n / length, d / length));
-        } else if lo >= -slack {
-            self.planes.push((-n / length, -d / length));
+        match sides(n, d, p.iter().chain(q), self.slack * length) {
+            (false, _) => self.planes.push((n / length, d / length)),
+            (true, false) => self.planes.push((-n / length, -d / length)),
+            (true, true) => {}
         }
     }
 
@@ -69,20 +67,28 @@ impl Shaft {
     }
 }
 
-/// The least and greatest of `n . x - d` over `points`.
-fn extent<'a>(n: DVec3, d: f64, points: impl Iterator<Item = &'a DVec3>) -> (f64, f64) {
-    points.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+/// Whether some of `points` lie above the plane `n . x = d` by more than `slack` (`n . x - d > slack`), and
+/// whether some lie below it by more than `slack`; it stops looking once both are found (most candidate planes
+/// of a hull have points on both sides).
+fn sides<'a>(n: DVec3, d: f64, points: impl Iterator<Item = &'a DVec3>, slack: f64) -> (bool, bool) {
+    let (mut above, mut below) = (false, false);
+    for x in points {
         let s = n.dot(*x) - d;
-        (lo.min(s), hi.max(s))
-    })
+        above |= s > slack;
+        below |= s < -slack;
+        if above && below {
+            break;
+        }
+    }
+    (above, below)
 }
 
 /// Whether every one of `points` lies on one side of the plane through `origin` with unit normal `normal`, or on
 /// it (within `slack`): then a polygon in that plane meets the hull of the points at most on its boundary (the
 /// hull's own planes miss a polygon that passes by one of its edges, and this test is cheaper).
 fn separated<'a>(normal: DVec3, origin: DVec3, points: impl Iterator<Item = &'a DVec3>, slack: f64) -> bool {
-    let (lo, hi) = extent(normal, normal.dot(origin), points);
-    hi <= slack || lo >= -slack
+    let (above, below) = sides(normal, normal.dot(origin), points, slack);
+    !(above && below)
 }
 
 /// Whether no face polygon of the tree other than those that surfaces `a` and `b` were cut from reaches into the

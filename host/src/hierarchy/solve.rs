@@ -74,6 +74,12 @@ pub(super) fn emission_bound(tree: &Tree) -> Vec<Span> {
     spans
 }
 
+/// What the sweeps read of each link, `(a, b, f_ab, f_ba)`, packed in the links' order (a sweep then streams a
+/// third of the bytes of the whole links).
+fn transfers(links: &[Link]) -> Vec<(u32, u32, f64, f64)> {
+    links.iter().map(|l| (l.a, l.b, l.f_ab, l.f_ba)).collect()
+}
+
 /// Jacobi sweeps with emission `e` and reflectance `rho` per node (zero on clusters) until the relative change is
 /// at most `tolerance` or `max_sweeps` ran.
 pub(super) fn solve(
@@ -89,13 +95,14 @@ pub(super) fn solve(
     let mut spans = vec![Span::ZERO; n];
     pull(tree, &mut b, &e, &mut spans);
     let mut gathered = vec![Rgb::ZERO; n];
+    let transfers = transfers(links);
     let mut sweeps = 0;
     let mut change = f64::INFINITY;
     while sweeps < max_sweeps && change > tolerance {
         gathered.iter_mut().for_each(|g| *g = Rgb::ZERO);
-        for link in links {
-            gathered[link.a as usize] += link.f_ab * b[link.b as usize];
-            gathered[link.b as usize] += link.f_ba * b[link.a as usize];
+        for &(a, b_end, f_ab, f_ba) in &transfers {
+            gathered[a as usize] += f_ab * b[b_end as usize];
+            gathered[b_end as usize] += f_ba * b[a as usize];
         }
         // Push in index order: a parent's total is final before its children add it.
         let (mut moved, mut total) = (0.0, 0.0);
@@ -142,6 +149,7 @@ pub(super) fn propagate(
     let rho: Vec<f64> = rho.iter().map(|r| max_channel(*r)).collect();
     let mut e = source.to_vec();
     let mut gathered = vec![0.0; n];
+    let transfers = transfers(links);
     for _ in 0..max_sweeps {
         // Area means up the tree, so that links read a sender's average error.
         for k in (0..n).rev() {
@@ -153,9 +161,9 @@ pub(super) fn propagate(
             }
         }
         gathered.iter_mut().for_each(|g| *g = 0.0);
-        for link in links {
-            gathered[link.a as usize] += link.f_ab * e[link.b as usize];
-            gathered[link.b as usize] += link.f_ba * e[link.a as usize];
+        for &(a, b, f_ab, f_ba) in &transfers {
+            gathered[a as usize] += f_ab * e[b as usize];
+            gathered[b as usize] += f_ba * e[a as usize];
         }
         let (mut moved, mut total) = (0.0, 0.0);
         for k in 0..n {

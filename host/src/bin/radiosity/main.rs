@@ -125,12 +125,13 @@ fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
 }
 
 /// The default `--epsilon` of brightness refinement where the product is the f64 answer itself (`solve`,
-/// `render`, `lightmap`, `export`): the bench's Cornell box rows (`bench/REPORT.md`, "Hierarchy against flat")
-/// put its worst face against the continuous reference well below the flat solve's at its default mesh, for
-/// about twice the flat default's seconds; device tables keep [`DEFAULT_EPSILON`], sized for a device's memory.
+/// `render`, `lightmap`, `export`): where the bench's Cornell box rows (`bench/REPORT.md`, "Hierarchy against
+/// flat") put the hierarchy's worst face against the continuous reference below the flat solve's at its
+/// default mesh, at a few seconds; device tables keep [`DEFAULT_EPSILON`], sized for a device's memory.
 const ANSWER_EPSILON: f64 = 0.0005;
 
-/// What a hierarchical solve is for, which sets its defaults: both refine by brightness; an f64 answer
+/// What a hierarchical solve is for, which sets its defaults: both refine by brightness unless `--refinement`
+/// says otherwise; an f64 answer
 /// (`solve`, `render`, `lightmap`, `export`) at [`ANSWER_EPSILON`], a device table (`bake`, `check`) at
 /// [`DEFAULT_EPSILON`] (also the default of `--refinement budgets` everywhere).
 #[derive(Clone, Copy, PartialEq, Eq)]
