@@ -148,7 +148,7 @@ fn hierarchical_solution(
     purpose: Purpose,
     solver: Option<args::HierarchySolverArg>,
 ) -> Result<(Scene, HierarchicalSolution, HierarchyOptions), BoxError> {
-    if scene.no_subdivide || scene.max_patches.is_some() || scene.max_patch_edge.is_some() {
+    if scene.asks_for_a_mesh() {
         return Err("--no-subdivide, --max-patches and --max-patch-edge apply to --method flat only (the \
                     hierarchy subdivides where --epsilon asks)"
             .into());
