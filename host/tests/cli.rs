@@ -1050,3 +1050,21 @@ fn hierarchical_bake_writes_a_table_that_inspect_reads() {
     assert_fails(&["bake", MISSING, "--epsilon", "0.1", "-o", table], &["--max-links and --pieces apply"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A hierarchy option out of range is refused before the scene is read (a large scene's repair takes a while):
+/// with a scene path that does not exist, the error names the option, not the file.
+#[test]
+fn a_bad_hierarchy_option_is_refused_before_the_scene_is_read() {
+    for (option, value) in
+        [("--epsilon", "1"), ("--epsilon", "0"), ("--epsilon", "NaN"), ("--max-links", "0")]
+    {
+        let out = radiosity(&["solve", "/nonexistent/scene.obj", "-q", option, value]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{option} {value} was accepted");
+        let name = option.trim_start_matches("--").replace('-', "_");
+        assert!(
+            err.contains(&format!("invalid hierarchy option {name}")) && !err.contains("nonexistent"),
+            "{option} {value}: {err}"
+        );
+    }
+}

@@ -482,6 +482,7 @@ pub fn solve_hierarchical(
     scene: &Scene,
     options: &HierarchyOptions,
 ) -> Result<HierarchicalSolution, HierarchyError> {
+    check_options(options)?;
     let roots =
         mesh(scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(scene) })?.patches;
     let lighting = PatchLighting::new(scene, &roots);
@@ -497,6 +498,18 @@ pub fn solve_hierarchical(
     solve_hierarchy_sources(&roots, &lighting.rho, &lighting.default_emission(), &sources, &caster, options)
 }
 
+impl HierarchyOptions {
+    /// Checks every option's range, as the solves do before any work; callers that load or repair a scene first
+    /// call it before that, so that a bad option is reported at once.
+    ///
+    /// # Errors
+    /// [`HierarchyError::InvalidOption`] naming the first option out of range.
+    pub fn validate(&self) -> Result<(), HierarchyError> {
+        check_options(self)
+    }
+}
+
+/// See [`HierarchyOptions::validate`].
 fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
     let bad = |name, problem: &str| Err(HierarchyError::InvalidOption { name, problem: problem.to_owned() });
     if !(options.epsilon > 0.0 && options.epsilon < 1.0) {

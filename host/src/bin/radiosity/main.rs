@@ -168,6 +168,8 @@ fn hierarchical_solution(
         progress: !scene.quiet,
         ..HierarchyOptions::default()
     };
+    // Before loading: a large scene's repair takes a while, and a bad option needs none of it.
+    options.validate()?;
     let mut loaded = Scene::load(&scene.scene)?;
     if !scene.quiet {
         for w in &loaded.warnings {
