@@ -452,8 +452,10 @@ fn bad_options_and_dark_scenes_are_refused() {
 /// The answer split by light source on the same links: the two-rooms scene has a static light (room B) and a
 /// dynamic lamp (room A). Relit at the default intensities, the split answer is the solve's own: each of the
 /// `1 + groups` source solves and the main one stop at a relative change of at most `tol`, leaving an error of
-/// at most `tol q / (1 - q)` each (`q` the iteration's contraction, observed from the main solve's sweeps), so
-/// the two differ by at most `(2 + groups) tol / (1 - q)` relative. Each source lights something, and the lamp's
+/// at most `tol q / (1 - q)` each, so the two differ by at most `(2 + groups) tol / (1 - q)` relative. `q` is the
+/// iteration's contraction as the source solves observed it: each starts cold (from its emission) and ran from a
+/// change of at most 1 to `tol`, so `tol^(1 / n)` with `n` their total sweeps is at least any one's (the main
+/// solve starts warm from the pass before, so its sweeps say less). Each source lights something, and the lamp's
 /// vector scales: intensity 2 doubles its share exactly (the relight is linear).
 #[test]
 fn the_answer_splits_by_light_source_and_relights() {
@@ -466,7 +468,7 @@ fn the_answer_splits_by_light_source_and_relights() {
     assert!(total(&transfer.b_static) > 0.0 && total(&transfer.t[0]) > 0.0, "both sources light something");
     let relit = transfer.relight(&[Rgb::ONE]).unwrap();
     let tol = options.solve_tolerance;
-    let q = tol.powf(1.0 / sol.stats.sweeps as f64);
+    let q = tol.powf(1.0 / transfer.sweeps as f64);
     let diff: f64 = sol
         .leaves
         .iter()

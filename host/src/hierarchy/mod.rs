@@ -45,9 +45,10 @@
 //!   can run in independent pieces split by receiver subtree, each on its own copy of the tree, and merge into
 //!   what one piece makes: new nodes and links are put in an order that depends on what they are
 //!   ([`HierarchyOptions::pieces`]; a test merges 2, 3 and 7 pieces bit for bit into the one-piece answer).
-//! - **Solve** (`solve`): Jacobi sweeps with push-pull, or (`shoot`, [`HierarchySolver::Shooting`]) progressive
-//!   refinement: the nodes with the most unshot power shoot over their links. Passes alternate solve and budget refinement until no
-//!   link is split or the passes run out.
+//! - **Solve** (`solve`): Jacobi sweeps with push-pull, each pass's starting from the pass before's answer (new
+//!   nodes at their parent's), or (`shoot`, [`HierarchySolver::Shooting`]) progressive refinement: the nodes with
+//!   the most unshot power shoot over their links. Passes alternate solve and refinement until no link is split
+//!   or the passes run out.
 //! - **Claimed error**. After the last solve, each leaf's chain charge `c` (what it may gather wrongly per bounce)
 //!   is propagated through the same operator, `e = c + rho H e`: the oracle's claimed bound on each leaf's
 //!   radiosity error ([`HierarchicalSolution::error_bound`]), against which the tests judge the answer.
@@ -396,7 +397,8 @@ pub struct HierarchyStats {
     /// (`sum A e / sum A max_c B`); `None` if the bound diverges (a leaf's `rho` times its total form factor
     /// reaches 1).
     pub claimed_error: Option<f64>,
-    /// Push-pull sweeps of the last solve (gathering), or its shots (shooting).
+    /// Push-pull sweeps of the last solve (gathering, which starts from the answer of the pass before), or its
+    /// shots (shooting, from the emission).
     pub sweeps: usize,
     /// Smallest and largest total form factor a leaf gathers through (its links and its ancestors'): the
     /// hierarchy's row sums, 1 in a closed scene.
@@ -652,6 +654,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let mut leaf_estimates = shadow::LeafEstimates::default();
     let mut passes = Vec::new();
     let mut solution;
+    let mut solution_b: Vec<Rgb> = Vec::new();
     loop {
         let before = counts;
         let pass = passes.len() + 1;
@@ -687,7 +690,10 @@ fn solve_checked<C: RayCaster + ?Sized>(
             .map_err(in_pass)?;
         }
         refine_time += refining.elapsed();
-        solution = solve_with(&tree, &links, &solve::emission(&tree), options, closed)?;
+        // Warm from the last pass's answer: refinement changes it little, and the sweeps then settle sooner.
+        let warm = (!passes.is_empty()).then_some(solution_b.as_slice());
+        solution = solve_with(&tree, &links, &solve::emission(&tree), options, closed, warm)?;
+        solution_b.clone_from(&solution.b);
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
         passes.push(PassStats {
             links: links.len(),
@@ -741,7 +747,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 .iter()
                 .map(|n| if n.root == tree::NONE { Rgb::ZERO } else { source[n.root as usize] })
                 .collect();
-            let s = solve_with(&tree, &links, &e, options, closed)?;
+            let s = solve_with(&tree, &links, &e, options, closed, None)?;
             residual = residual.max(s.change);
             sweeps += s.sweeps;
             per_source.push(order.iter().map(|&k| s.b[k]).collect::<Vec<Rgb>>());
@@ -822,7 +828,8 @@ fn refine_brightness<C: RayCaster + ?Sized>(
     Ok(split)
 }
 
-/// The system on `links` solved with emission `e` per node by the chosen solver.
+/// The system on `links` solved with emission `e` per node by the chosen solver; gathering starts from `warm`
+/// (an earlier pass's radiosity per node) if given, shooting always from the emission.
 ///
 /// # Errors
 /// [`HierarchyError::NotConverged`] if it does not reach the tolerance, diverges (NaN or infinity: some leaf
@@ -833,11 +840,14 @@ fn solve_with(
     e: &[Rgb],
     options: &HierarchyOptions,
     closed: bool,
+    warm: Option<&[Rgb]>,
 ) -> Result<solve::NodeRadiosity, HierarchyError> {
     let rho = reflectance_of(tree, links, closed);
     let system = (e, rho.as_slice());
     let solution = match options.solver {
-        HierarchySolver::Gathering => solve::solve(tree, links, system, options.solve_tolerance, MAX_SWEEPS),
+        HierarchySolver::Gathering => {
+            solve::solve(tree, links, system, warm, options.solve_tolerance, MAX_SWEEPS)
+        }
         HierarchySolver::Shooting => shoot::shoot(tree, links, system, options.solve_tolerance, MAX_SWEEPS),
     };
     if solution.change.is_nan() || solution.change > options.solve_tolerance {

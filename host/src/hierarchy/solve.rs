@@ -81,17 +81,29 @@ fn transfers(links: &[Link]) -> Vec<(u32, u32, f64, f64)> {
 }
 
 /// Jacobi sweeps with emission `e` and reflectance `rho` per node (zero on clusters) until the relative change is
-/// at most `tolerance` or `max_sweeps` ran.
+/// at most `tolerance` or `max_sweeps` ran, from the emission or, warm, from `start` (a radiosity per node of an
+/// earlier solve of the same tree before refinement added nodes: a node it does not cover starts at its parent's).
 pub(super) fn solve(
     tree: &Tree,
     links: &[Link],
     (e, rho): (&[Rgb], &[Rgb]),
+    start: Option<&[Rgb]>,
     tolerance: f64,
     max_sweeps: usize,
 ) -> NodeRadiosity {
     let n = tree.nodes.len();
     let e = e.to_vec();
     let mut b = e.clone();
+    if let Some(start) = start {
+        for k in 0..n {
+            let parent = tree.nodes[k].parent;
+            b[k] = match start.get(k) {
+                Some(&s) => s,
+                None if parent != NONE => b[parent as usize],
+                None => e[k],
+            };
+        }
+    }
     let mut spans = vec![Span::ZERO; n];
     pull(tree, &mut b, &e, &mut spans);
     let mut gathered = vec![Rgb::ZERO; n];
