@@ -72,10 +72,10 @@
 //! The command line's default for the f64 answers of `solve`, `render`, `lightmap` and `export` (with
 //! [`Refinement::Brightness`]; these options' own default stays [`Refinement::Budgets`]), and `--method
 //! hierarchical` of `bake` and `check` (links refined for the default light intensities; the answer is also split
-//! by light source, [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces (`scenes/make_office.py`) need many links per leaf: a
-//! cluster link is charged its whole transfer (isotropic reception, an average radiosity sent), so where light is
-//! bright, links reach the surfaces, and the budget passes push them down to the leaves; links grow much faster
-//! than leaves, and a refinement that would exceed [`HierarchyOptions::max_links`] stops with
+//! by light source, [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces
+//! (`scenes/make_office.py`) need many links per leaf: a cluster link is charged its whole transfer (isotropic
+//! reception, an average radiosity sent), so where light is bright, links reach the surfaces, and the budget
+//! passes push them down to the leaves; links grow much faster than leaves, and a refinement that would exceed [`HierarchyOptions::max_links`] stops with
 //! [`HierarchyError::TooManyLinks`] (the full office solves only at a coarse epsilon with a raised limit; the
 //! closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair
 //! estimate is untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway

@@ -144,11 +144,6 @@ mod tests {
     use crate::formfactor::occluder_scene;
     use crate::rgb::{max_channel, Rgb};
 
-    /// On the Cornell box's direct-light links, shooting and gathering reach the same radiosity: both stop at a
-    /// residual of `tol` of the total power, and the error left after a residual `r` is at most `r / (1 - q)`,
-    /// `q` the operator's contraction per sweep (observed: the gathering went from a change of at most 1 to
-    /// `tol` in its sweeps); so the two differ by at most `2 tol / (1 - q)` relative, area-weighted. (The row
-    /// sums do not bound `q` here: a hierarchy's leaf row sums exceed 1 where ancestors' averages overstate.)
     /// The Cornell box's tree and direct-light links at a coarse bound.
     fn direct_links() -> (Tree, Vec<super::super::link::Link>) {
         let (roots, lighting, rules) = cornell_polygons();
@@ -186,6 +181,11 @@ mod tests {
         diff / total
     }
 
+    /// On the Cornell box's direct-light links, shooting and gathering reach the same radiosity: both stop at a
+    /// residual of `tol` of the total power, and the error left after a residual `r` is at most `r / (1 - q)`,
+    /// `q` the operator's contraction per sweep (observed: the gathering went from a change of at most 1 to
+    /// `tol` in its sweeps); so the two differ by at most `2 tol / (1 - q)` relative, area-weighted. (The row
+    /// sums do not bound `q` here: a hierarchy's leaf row sums exceed 1 where ancestors' averages overstate.)
     #[test]
     fn shooting_reaches_the_gathering_answer() {
         let (tree, links) = direct_links();

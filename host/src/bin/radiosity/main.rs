@@ -131,9 +131,8 @@ fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
 const ANSWER_EPSILON: f64 = 0.0005;
 
 /// What a hierarchical solve is for, which sets its defaults: both refine by brightness unless `--refinement`
-/// says otherwise; an f64 answer
-/// (`solve`, `render`, `lightmap`, `export`) at [`ANSWER_EPSILON`], a device table (`bake`, `check`) at
-/// [`DEFAULT_EPSILON`] (also the default of `--refinement budgets` everywhere).
+/// says otherwise; an f64 answer (`solve`, `render`, `lightmap`, `export`) at [`ANSWER_EPSILON`], a device table
+/// (`bake`, `check`) at [`DEFAULT_EPSILON`] (also the default of `--refinement budgets` everywhere).
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Purpose {
     Answer,

@@ -99,6 +99,7 @@ fn sees_out(k: usize, targets: &[Target<'_>], bvh: &Bvh, hidden: &[bool], tol: f
     let u = n.any_orthonormal_vector();
     let w = n.cross(u);
     let points = std::iter::once(p.centroid).chain(p.vertices.iter().map(|&v| 0.5 * (p.centroid + v)));
+    let mut stack = Vec::new();
     for x in points {
         for (r, &(polar, count)) in RINGS.iter().enumerate() {
             let (sin, cos) = polar.to_radians().sin_cos();
@@ -106,7 +107,7 @@ fn sees_out(k: usize, targets: &[Target<'_>], bvh: &Bvh, hidden: &[bool], tol: f
                 let azimuth = std::f64::consts::TAU * (i as f64 + 0.5 * r as f64) / count as f64;
                 let (sa, ca) = azimuth.sin_cos();
                 let d = n * cos + (u * ca + w * sa) * sin;
-                match first_hit(k, x, d, targets, bvh, tol) {
+                match first_hit(k, x, d, targets, (bvh, &mut stack), tol) {
                     None => return Sight::Out,
                     Some(j) if d.dot(targets[j].poly.normal) < 0.0 && !hidden[j] => return Sight::Through(j),
                     Some(_) => {}
@@ -118,10 +119,17 @@ fn sees_out(k: usize, targets: &[Target<'_>], bvh: &Bvh, hidden: &[bool], tol: f
 }
 
 /// The first piece (other than `k`) that the ray from `x` along unit `d` hits beyond the tolerance: the nearest,
-/// the lowest index among equally near ones; `None` if it leaves the scene.
-fn first_hit(k: usize, x: DVec3, d: DVec3, targets: &[Target<'_>], bvh: &Bvh, tol: f64) -> Option<usize> {
+/// the lowest index among equally near ones; `None` if it leaves the scene. `stack` is the traversal's, reused.
+fn first_hit(
+    k: usize,
+    x: DVec3,
+    d: DVec3,
+    targets: &[Target<'_>],
+    (bvh, stack): (&Bvh, &mut Vec<usize>),
+    tol: f64,
+) -> Option<usize> {
     let mut best: Option<(f64, usize)> = None;
-    bvh.visit(x, d, |j| {
+    bvh.visit(x, d, stack, |j| {
         let t = &targets[j];
         if j == k {
             return best.map(|b| b.0);
@@ -178,8 +186,7 @@ impl Bvh {
         let boxes: Vec<(DVec3, DVec3)> = pieces
             .iter()
             .map(|p| {
-                let lo = p.vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-                let hi = p.vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+                let (lo, hi) = super::bounds(&p.vertices);
                 (lo - DVec3::splat(margin), hi + DVec3::splat(margin))
             })
             .collect();
@@ -223,16 +230,18 @@ impl Bvh {
         bvh
     }
 
-    /// Calls `f` with every piece whose box the ray from `x` along `d` (t >= 0) passes through, skipping boxes
+    /// Calls `f` with every piece whose box the ray from `x` along `d` (t >= 0) passes through (`stack` holds the
+    /// nodes to visit; its contents are replaced), skipping boxes
     /// that it enters beyond the distance `f` last returned (the nearest hit so far; `None`: none yet). Every
     /// piece a ray hits within the margin of its polygon is visited unless a hit at most as near was found.
-    fn visit(&self, x: DVec3, d: DVec3, mut f: impl FnMut(usize) -> Option<f64>) {
+    fn visit(&self, x: DVec3, d: DVec3, stack: &mut Vec<usize>, mut f: impl FnMut(usize) -> Option<f64>) {
         if self.order.is_empty() {
             return;
         }
         let inv = DVec3::ONE / d;
         let mut limit = f64::INFINITY;
-        let mut stack = vec![0usize];
+        stack.clear();
+        stack.push(0);
         while let Some(n) = stack.pop() {
             let node = &self.nodes[n];
             match entry(node, x, d, inv) {

@@ -183,8 +183,7 @@ pub fn repair(scene: &Scene) -> Repaired {
         .iter()
         .flat_map(|f| f.polygons.iter().map(move |p| (f.index, p)))
         .map(|(face, poly)| {
-            let min = poly.vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-            let max = poly.vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+            let (min, max) = bounds(&poly.vertices);
             Item { face, poly, min, max }
         })
         .collect();
@@ -267,9 +266,9 @@ pub fn repair(scene: &Scene) -> Repaired {
         runs[k + 1] += runs[k];
     }
     for (k, item) in items.iter().enumerate() {
-        let mine: Vec<usize> = (runs[k]..runs[k + 1]).collect();
-        let kept: Vec<&Polygon> = mine.iter().filter(|&&i| !hidden[i]).map(|&i| &pieces[i]).collect();
-        let culled: Vec<&Polygon> = mine.iter().filter(|&&i| hidden[i]).map(|&i| &pieces[i]).collect();
+        let mine = runs[k]..runs[k + 1];
+        let kept: Vec<&Polygon> = mine.clone().filter(|&i| !hidden[i]).map(|i| &pieces[i]).collect();
+        let culled: Vec<&Polygon> = mine.filter(|&i| hidden[i]).map(|i| &pieces[i]).collect();
         let out = &mut polygons[item.face];
         if cuts[k].lines.is_empty() && culled.is_empty() {
             out.push(item.poly.clone());
@@ -318,6 +317,13 @@ pub fn repair(scene: &Scene) -> Repaired {
     }
 }
 
+/// The least and greatest corner of the box around `vertices`.
+fn bounds(vertices: &[DVec3]) -> (DVec3, DVec3) {
+    let lo = vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
+    let hi = vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+    (lo, hi)
+}
+
 /// Merges neighbouring `cells` of one polygon: while some pair merges (`merge(a, b)`, `a` the one earlier in the
 /// list), the first such pair in list order (by the earlier cell's place, then the later one's) is replaced by its
 /// union at the earlier place, and the last cell moves into the later place. Cells whose boxes are farther apart
@@ -330,12 +336,11 @@ fn merge_all(
     merge: impl Fn(&[DVec3], &[DVec3]) -> Option<Vec<DVec3>>,
     tol: f64,
 ) -> Vec<Vec<DVec3>> {
-    let bounds = |c: &[DVec3]| {
-        let lo = c.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-        let hi = c.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+    let grown = |c: &[DVec3]| {
+        let (lo, hi) = bounds(c);
         (lo - DVec3::splat(tol), hi + DVec3::splat(tol))
     };
-    let mut boxes: Vec<(DVec3, DVec3)> = cells.iter().map(|c| bounds(c)).collect();
+    let mut boxes: Vec<(DVec3, DVec3)> = cells.iter().map(|c| grown(c)).collect();
     let near = |a: &(DVec3, DVec3), b: &(DVec3, DVec3)| a.0.cmple(b.1).all() && b.0.cmple(a.1).all();
     // Mergeable pairs (earlier, later) and, per cell, the cells it is paired with there.
     let mut pairs: BTreeSet<(usize, usize)> = BTreeSet::new();
@@ -362,7 +367,7 @@ fn merge_all(
                 partners[q].remove(&p);
             }
         }
-        boxes[i] = bounds(&union);
+        boxes[i] = grown(&union);
         cells[i] = union;
         cells.swap_remove(j);
         boxes.swap_remove(j);
