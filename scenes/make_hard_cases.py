@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes the hard-case scenes of issue 5 (run `python3 make_hard_cases.py` in this folder).
+"""Writes the hard-case scenes of issue 5: `python3 make_hard_cases.py [OUT_DIR]` (default: this script's folder).
 
 - hdr-boxes.obj/.mtl: emission spanning 1e-6 .. 1e6 in one scene. Three closed cubes of side 10 (inward
   normals), 20 units apart so no cube sees another; each cube's ceiling is a light (Ke 1e6, 1 and 1e-6 W/m^2),
@@ -11,6 +11,9 @@
 
 Data source: none needed (analytic test scenes).
 """
+
+import os
+import sys
 
 
 def cube(x0, y0, z0, s, mat_walls, mat_ceiling, v_offset):
@@ -62,11 +65,17 @@ def write(name, header, mtl, boxes):
         out.append("# face %d: %s" % (face, comment))
         out.append(line)
         face += 1
-    with open(name + ".obj", "w") as f:
+    with open(os.path.join(OUT, name + ".obj"), "w") as f:
         f.write("\n".join(out) + "\n")
-    with open(name + ".mtl", "w") as f:
+    with open(os.path.join(OUT, name + ".mtl"), "w") as f:
         f.write(mtl)
 
+
+if len(sys.argv) > 2 or (len(sys.argv) == 2 and sys.argv[1].startswith("-")):
+    sys.exit("usage: make_hard_cases.py [OUT_DIR]  (writes hdr-boxes and slab; default OUT_DIR: this script's folder)")
+OUT = sys.argv[1] if len(sys.argv) == 2 else os.path.dirname(os.path.abspath(__file__))
+if not os.path.isdir(OUT):
+    sys.exit("make_hard_cases.py: %s is not a folder" % OUT)
 
 write(
     "hdr-boxes",
