@@ -9,7 +9,9 @@ pub use super::faces::FaceErrors;
 use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
-use crate::hierarchy::{dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement};
+use crate::hierarchy::{
+    dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement, DEFAULT_MIN_AREA_FRACTION,
+};
 use crate::lighting::PatchLighting;
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
 use crate::pipeline::{prepare, PrepareOptions};
@@ -30,6 +32,14 @@ pub const REFERENCE_MAX_SAMPLES: u64 = 1 << 27;
 /// Faces smaller than this share of the largest face are left out of the per-face errors (the targets
 /// are stated for faces larger than 5% of the floor).
 pub const SMALL_FACE: f64 = 0.05;
+
+/// The finest Cornell row's epsilon and resolution limit (brightness refinement): at the default resolution limit
+/// ([`DEFAULT_MIN_AREA_FRACTION`]) the box stops near 26,000 leaves however small epsilon is, so the row that
+/// reaches the 64,000 leaves lets elements go down to this share of the scene's area.
+pub const FINEST: (f64, f64) = (0.000005, 0.000002);
+
+/// Most links of the finest row (the default limit is below what it needs).
+const FINEST_MAX_LINKS: usize = 40_000_000;
 
 /// Bytes a link would take in a 16-bit table: two directions, each a 32-bit node index and a 16-bit code.
 pub const LINK_BYTES: usize = 2 * (4 + 2);
@@ -64,6 +74,8 @@ pub struct HierarchyRow {
     pub vs_continuous: FaceErrors,
     /// The hierarchy's claimed error (see `HierarchyStats::claimed_error`).
     pub claimed: Option<f64>,
+    /// The process's resident memory during the row, if the system reports it.
+    pub memory: Option<RowMemory>,
 }
 
 /// The section's results: the rows, the reference they are judged by, and the fitted growth exponents.
@@ -83,8 +95,6 @@ pub struct HierarchySection {
     /// Device tables of the same scene, flat against hierarchical: error against model instructions
     /// ([`super::hierdevice`]).
     pub device: Vec<super::hierdevice::DeviceCurve>,
-    /// The process's peak resident memory after the section (bytes), if the system reports it.
-    pub peak_rss: Option<u64>,
 }
 
 /// The faces the errors are taken over: lit ones (reference radiosity above zero) not smaller than
@@ -107,12 +117,34 @@ fn refinement_label(refinement: Refinement) -> &'static str {
     }
 }
 
-/// The process's peak resident set (VmHWM in `/proc/self/status`), in bytes.
-fn peak_rss() -> Option<u64> {
+/// A field of `/proc/self/status` in bytes (`VmRSS`, `VmHWM`: given in kB).
+fn status_bytes(field: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = status.lines().find(|l| l.strip_prefix(field).is_some_and(|r| r.starts_with(':')))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+/// The process's resident memory during one row: what it held when the row started and its peak during it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RowMemory {
+    /// Resident set at the row's start (bytes): memory of earlier rows that the allocator kept is in it, and
+    /// the row reuses it first.
+    pub start: u64,
+    /// Peak resident set during the row (bytes), the start included.
+    pub peak: u64,
+}
+
+/// Starts a row's memory measurement: a new peak from the current resident set (Linux: `5` written to
+/// `/proc/self/clear_refs`). `None` where the system does not report or reset it.
+pub(super) fn begin_row() -> Option<u64> {
+    std::fs::write("/proc/self/clear_refs", "5").ok()?;
+    status_bytes("VmRSS")
+}
+
+/// The row's memory since [`begin_row`] returned `start`.
+pub(super) fn end_row(start: Option<u64>) -> Option<RowMemory> {
+    Some(RowMemory { start: start?, peak: status_bytes("VmHWM")? })
 }
 
 /// Runs the section on the Cornell box: the hierarchy with each refinement at several epsilons (quick: one each),
@@ -123,22 +155,26 @@ fn peak_rss() -> Option<u64> {
 /// # Errors
 /// Loading, meshing, the solves and the reference; a failure is the bench's.
 pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
-    let epsilons: &[(Refinement, f64)] = if options.quick {
-        &[(Refinement::Budgets, 0.3), (Refinement::Brightness, 0.1)]
+    const MIN_AREA: f64 = DEFAULT_MIN_AREA_FRACTION;
+    // (refinement, epsilon, resolution limit as a share of the scene's area)
+    let epsilons: &[(Refinement, f64, f64)] = if options.quick {
+        &[(Refinement::Budgets, 0.3, MIN_AREA), (Refinement::Brightness, 0.1, MIN_AREA)]
     } else {
         &[
-            (Refinement::Budgets, 0.3),
-            (Refinement::Budgets, 0.1),
-            (Refinement::Budgets, 0.03),
-            (Refinement::Budgets, 0.01),
-            (Refinement::Brightness, 0.02),
-            (Refinement::Brightness, 0.01),
-            (Refinement::Brightness, 0.005),
-            (Refinement::Brightness, 0.0025),
-            (Refinement::Brightness, 0.0008),
-            (Refinement::Brightness, 0.0005),
-            (Refinement::Brightness, 0.0002),
-            (Refinement::Brightness, 0.0001),
+            (Refinement::Budgets, 0.3, MIN_AREA),
+            (Refinement::Budgets, 0.1, MIN_AREA),
+            (Refinement::Budgets, 0.03, MIN_AREA),
+            (Refinement::Budgets, 0.01, MIN_AREA),
+            (Refinement::Brightness, 0.02, MIN_AREA),
+            (Refinement::Brightness, 0.01, MIN_AREA),
+            (Refinement::Brightness, 0.005, MIN_AREA),
+            (Refinement::Brightness, 0.0025, MIN_AREA),
+            (Refinement::Brightness, 0.0008, MIN_AREA),
+            (Refinement::Brightness, 0.0005, MIN_AREA),
+            (Refinement::Brightness, 0.0002, MIN_AREA),
+            (Refinement::Brightness, 0.0001, MIN_AREA),
+            (Refinement::Brightness, 0.00002, MIN_AREA),
+            (Refinement::Brightness, FINEST.0, FINEST.1),
         ]
     };
     let flat_sizes: &[Option<usize>] =
@@ -172,18 +208,36 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     let judged = judged_faces(&reference);
     let worst_se = reference.faces.iter().map(|f| f.relative_standard_error).fold(0.0, f64::max);
     let mut rows = Vec::new();
-    for &(refinement, epsilon) in epsilons {
+    for &(refinement, epsilon, min_area_fraction) in epsilons {
         let label = refinement_label(refinement);
-        log(options, &format!("hierarchy: {label} refinement, epsilon {epsilon}"));
+        let finer = if min_area_fraction == MIN_AREA {
+            String::new()
+        } else {
+            format!(", elements down to {min_area_fraction:e} of the area")
+        };
+        log(options, &format!("hierarchy: {label} refinement, epsilon {epsilon}{finer}"));
+        let memory = begin_row();
         let start = Instant::now();
+        let max_links = if min_area_fraction == MIN_AREA {
+            HierarchyOptions::default().max_links
+        } else {
+            FINEST_MAX_LINKS
+        };
         let sol = solve_hierarchical(
             &scene,
-            &HierarchyOptions { epsilon, refinement, ..HierarchyOptions::default() },
+            &HierarchyOptions {
+                epsilon,
+                refinement,
+                min_area_fraction,
+                max_links,
+                ..HierarchyOptions::default()
+            },
         )
         .map_err(|e| {
             BenchError::Options(format!("hierarchical solve ({label}) at epsilon {epsilon}: {e}"))
         })?;
         let seconds = start.elapsed().as_secs_f64();
+        let memory = end_row(memory);
         let got = face_means(&sol.leaves, &sol.b, &reference);
         let vs_dense = if sol.leaves.len() <= DENSE_LIMIT {
             let dense = dense_on_leaves(&scene, &sol)
@@ -196,7 +250,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         let links = sol.stats.surface_links + sol.stats.cluster_links;
         rows.push(HierarchyRow {
             scene: name.to_owned(),
-            method: format!("hierarchical, {label} (epsilon {epsilon})"),
+            method: format!("hierarchical, {label} (epsilon {epsilon}{finer})"),
             epsilon: Some(epsilon),
             refinement: Some(refinement),
             elements: sol.leaves.len(),
@@ -207,10 +261,12 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             vs_dense,
             vs_continuous: face_errors(&got, &want, &judged),
             claimed: sol.stats.claimed_error,
+            memory,
         });
     }
     for &max_patches in flat_sizes {
         log(options, &format!("hierarchy: flat solve at {max_patches:?} patches"));
+        let memory = begin_row();
         let start = Instant::now();
         let prepared =
             prepare(&path, &PrepareOptions { max_patches, ..PrepareOptions::quiet(false, 16, 16) })?;
@@ -232,6 +288,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             vs_dense: None,
             vs_continuous: face_errors(&face_means(&prepared.patches, &b, &reference), &want, &judged),
             claimed: None,
+            memory: end_row(memory),
         });
     }
     let mut exponents = Vec::new();
@@ -265,6 +322,5 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         references: vec![(name.to_owned(), reference.paths, reference.seconds, worst_se)],
         exponents,
         discretization,
-        peak_rss: peak_rss(),
     })
 }

@@ -11,7 +11,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use super::fit::loglog_slope;
-use super::hierarchy::LINK_BYTES;
+use super::hierarchy::{begin_row, end_row, RowMemory, LINK_BYTES};
 use super::{log, BenchError, BenchOptions};
 use crate::hierarchy::{solve_hierarchical, HierarchicalSolution, HierarchyOptions, Refinement};
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
@@ -26,6 +26,22 @@ pub const OFFICE_EPSILON: f64 = 0.05;
 /// each, are then known to a fraction of a percent, the room's few large faces to a few percent (the report
 /// prints each material's standard error).
 pub const OFFICE_REFERENCE_SAMPLES: u64 = 8192;
+
+/// Workstations of the full office (`make_office.py`'s default: 105,072 triangles), solved once beside the
+/// growth rows.
+pub const FULL_OFFICE: (usize, usize) = (17, 21);
+
+/// The full office's epsilon: at [`OFFICE_EPSILON`] it would need about 100 million links (the growth rows'
+/// links per leaf); at 0.9 it needs about 11 million and a quarter of an hour on two cores.
+pub const FULL_OFFICE_EPSILON: f64 = 0.9;
+
+/// Most links of the full office's solve (the default limit is below what it needs).
+pub const FULL_OFFICE_MAX_LINKS: usize = 40_000_000;
+
+/// Paths per face of the full office's reference: its 105,072 faces at [`OFFICE_REFERENCE_SAMPLES`] would take
+/// eight times as long for little; 1,024 pin the furniture's materials down to a few tenths of a percent (the
+/// room's few large faces to about 10%: the report prints each material's standard error).
+pub const FULL_OFFICE_REFERENCE_SAMPLES: u64 = 1024;
 
 /// One material's area-averaged radiosity against the continuous reference.
 #[derive(Clone, Debug, PartialEq)]
@@ -43,6 +59,10 @@ pub struct MaterialError {
 pub struct OfficeRow {
     /// Rows and columns of workstations.
     pub workstations: (usize, usize),
+    /// The solve's epsilon (brightness refinement).
+    pub epsilon: f64,
+    /// Paths per face of the row's continuous reference.
+    pub samples: u64,
     /// Input triangles.
     pub triangles: usize,
     /// What the solve gave, or why it stopped (its error message).
@@ -68,6 +88,8 @@ pub struct OfficeSolve {
     pub materials: Vec<MaterialError>,
     /// The continuous reference's wall time, seconds.
     pub reference_seconds: f64,
+    /// The process's resident memory during the solve, if the system reports it.
+    pub memory: Option<RowMemory>,
 }
 
 impl OfficeSolve {
@@ -134,12 +156,14 @@ fn material_errors(
 /// The office rows and their growth.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OfficeSection {
-    /// The epsilon of every row.
+    /// The epsilon of every growth row.
     pub epsilon: f64,
-    /// Paths per face of the continuous reference.
+    /// Paths per face of the growth rows' continuous reference.
     pub samples: u64,
-    /// The rows, smallest first.
+    /// The growth rows, smallest first.
     pub rows: Vec<OfficeRow>,
+    /// The full office ([`FULL_OFFICE`] at [`FULL_OFFICE_EPSILON`]; full run only), not in the growth fits.
+    pub full: Option<OfficeRow>,
     /// Log-log slopes over the solved rows: links and seconds against leaves.
     pub links_exponent: Option<f64>,
     /// See `links_exponent`.
@@ -171,9 +195,80 @@ fn generate(scenes: &Path, dir: &Path, (rows, columns): (usize, usize)) -> Resul
     Ok(dir.join("office.obj"))
 }
 
-/// Runs the office rows (full run: 1 x 1, 2 x 2, 3 x 4 and 5 x 6 workstations; quick: 1 x 1 at a coarse
-/// epsilon). A size whose solve fails (e.g. more links than the limit) is reported with its error, and the
-/// larger sizes are not tried.
+/// Generates the office with `size` workstations, solves it at `epsilon` (brightness refinement; `max_links` or
+/// the default limit) and judges it by its continuous reference at `samples` paths per face. A solve that fails
+/// (e.g. more links than the limit) is the row's outcome, not an error.
+///
+/// # Errors
+/// Generating or loading the scene; its reference.
+fn office_row(
+    options: &BenchOptions,
+    size: (usize, usize),
+    epsilon: f64,
+    max_links: Option<usize>,
+    samples: u64,
+) -> Result<OfficeRow, BenchError> {
+    log(options, &format!("hierarchy: office with {} x {} workstations, epsilon {epsilon}", size.0, size.1));
+    let dir = std::env::temp_dir().join(format!(
+        "radiosity-bench-office-{}-{}x{}",
+        std::process::id(),
+        size.0,
+        size.1
+    ));
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| BenchError::Options(format!("creating {}: {e}", dir.display())))?;
+    // The scene is read whole into memory, so its folder goes before the solve (and on any error).
+    let loaded = generate(&options.scenes, &dir, size).and_then(|obj| Ok(Scene::load(&obj)?));
+    let _ = std::fs::remove_dir_all(&dir);
+    let scene = loaded?;
+    let triangles = scene.faces.len();
+    let memory = begin_row();
+    let start = Instant::now();
+    let defaults = HierarchyOptions::default();
+    let solved = solve_hierarchical(
+        &scene,
+        &HierarchyOptions {
+            epsilon,
+            refinement: Refinement::Brightness,
+            max_links: max_links.unwrap_or(defaults.max_links),
+            ..defaults
+        },
+    );
+    let seconds = start.elapsed().as_secs_f64();
+    let memory = end_row(memory);
+    let outcome = match solved {
+        Ok(sol) => {
+            log(options, "hierarchy: office's continuous reference");
+            let reference = continuous_reference(
+                &scene,
+                &ReferenceOptions {
+                    samples: SampleCount::PerFace(samples),
+                    progress: false,
+                    ..ReferenceOptions::default()
+                },
+            )
+            .map_err(|e| BenchError::Options(format!("the office's continuous reference: {e}")))?;
+            let links = sol.stats.surface_links + sol.stats.cluster_links;
+            Ok(OfficeSolve {
+                leaves: sol.leaves.len(),
+                nodes: sol.stats.clusters + sol.stats.surfaces,
+                links,
+                bytes: links * LINK_BYTES,
+                seconds,
+                rays: sol.stats.rays,
+                materials: material_errors(&scene, &sol, &reference),
+                reference_seconds: reference.seconds,
+                memory,
+            })
+        }
+        Err(e) => Err(e.to_string()),
+    };
+    Ok(OfficeRow { workstations: size, epsilon, samples, triangles, outcome })
+}
+
+/// Runs the office rows (full run: 1 x 1, 2 x 2, 3 x 4 and 5 x 6 workstations, then the full office at its own
+/// epsilon; quick: 1 x 1 at a coarse epsilon). A size whose solve fails (e.g. more links than the limit) is
+/// reported with its error, and the larger sizes are not tried.
 ///
 /// # Errors
 /// Generating or loading a scene.
@@ -185,58 +280,24 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
     };
     let mut rows = Vec::new();
     for &size in sizes {
-        log(options, &format!("hierarchy: office with {} x {} workstations", size.0, size.1));
-        let dir = std::env::temp_dir().join(format!(
-            "radiosity-bench-office-{}-{}x{}",
-            std::process::id(),
-            size.0,
-            size.1
-        ));
-        std::fs::create_dir_all(&dir)
-            .map_err(|e| BenchError::Options(format!("creating {}: {e}", dir.display())))?;
-        // The scene is read whole into memory, so its folder goes before the solve (and on any error).
-        let loaded = generate(&options.scenes, &dir, size).and_then(|obj| Ok(Scene::load(&obj)?));
-        let _ = std::fs::remove_dir_all(&dir);
-        let scene = loaded?;
-        let triangles = scene.faces.len();
-        let start = Instant::now();
-        let solved = solve_hierarchical(
-            &scene,
-            &HierarchyOptions { epsilon, refinement: Refinement::Brightness, ..HierarchyOptions::default() },
-        );
-        let seconds = start.elapsed().as_secs_f64();
-        let outcome = match solved {
-            Ok(sol) => {
-                log(options, "hierarchy: office's continuous reference");
-                let reference = continuous_reference(
-                    &scene,
-                    &ReferenceOptions {
-                        samples: SampleCount::PerFace(samples),
-                        progress: false,
-                        ..ReferenceOptions::default()
-                    },
-                )
-                .map_err(|e| BenchError::Options(format!("the office's continuous reference: {e}")))?;
-                let links = sol.stats.surface_links + sol.stats.cluster_links;
-                Ok(OfficeSolve {
-                    leaves: sol.leaves.len(),
-                    nodes: sol.stats.clusters + sol.stats.surfaces,
-                    links,
-                    bytes: links * LINK_BYTES,
-                    seconds,
-                    rays: sol.stats.rays,
-                    materials: material_errors(&scene, &sol, &reference),
-                    reference_seconds: reference.seconds,
-                })
-            }
-            Err(e) => Err(e.to_string()),
-        };
-        let failed = outcome.is_err();
-        rows.push(OfficeRow { workstations: size, triangles, outcome });
+        let row = office_row(options, size, epsilon, None, samples)?;
+        let failed = row.outcome.is_err();
+        rows.push(row);
         if failed {
             break;
         }
     }
+    let full = (!options.quick)
+        .then(|| {
+            office_row(
+                options,
+                FULL_OFFICE,
+                FULL_OFFICE_EPSILON,
+                Some(FULL_OFFICE_MAX_LINKS),
+                FULL_OFFICE_REFERENCE_SAMPLES,
+            )
+        })
+        .transpose()?;
     let solved: Vec<&OfficeSolve> = rows.iter().filter_map(|r| r.outcome.as_ref().ok()).collect();
     let slope = |y: &dyn Fn(&OfficeSolve) -> f64| {
         (solved.len() >= 2)
@@ -246,6 +307,7 @@ pub fn section(options: &BenchOptions) -> Result<OfficeSection, BenchError> {
     Ok(OfficeSection {
         epsilon,
         samples,
+        full,
         links_exponent: slope(&|s| s.links as f64),
         seconds_exponent: slope(&|s| s.seconds),
         rows,

@@ -15,10 +15,11 @@
 //! instructions are work units times the Cortex-M4 cost model's bound per unit (`firmware-sim/COST.md`, read at
 //! build time); wall times are medians of repeated runs. Then the roofline ([`roofline`]), the bake throughput
 //! against raw Embree ([`bakebench`]) and the growth of bake time, nonzeros, table bytes and work with the patch
-//! count (`growth.rs`), with log-log least-squares exponents, and the hierarchical solver against the flat one,
-//! both judged by the continuous path-traced reference ([`hierarchy`]), with the large generated scene's growth
-//! ([`largescene`]). [`report`] writes `REPORT.md`, `curves.csv`,
-//! `growth.csv` and the plots.
+//! count (`growth.rs`), with log-log least-squares exponents. Before all of these (so that its rows' peak memory
+//! is measured while the process holds little) the hierarchical solver against the flat one, both judged by the
+//! continuous path-traced reference ([`hierarchy`]), with the large generated scene's growth and its full size
+//! ([`largescene`]), and the link construction's rays against raw Embree ([`linkrate`]). [`report`] writes
+//! `REPORT.md`, `curves.csv`, `growth.csv` and the plots.
 //!
 //! Files: this module holds the options, the result types and [`run`]; `scenes.rs` runs one scene (mesh, exact
 //! answer, bakes, every curve), `curves.rs` measures each kind of curve, [`device`] runs core's solver for one
@@ -614,6 +615,11 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
             SceneSpec::furnace(216, 0.99),
         ]
     };
+    // The hierarchy first: its rows report their peak memory, which is clearer while the process holds little
+    // (the flat growth sizes below leave memory that the allocator keeps).
+    let hierarchy = hierarchy::section(options)?;
+    let office = largescene::section(options)?;
+    let link_rate = linkrate::section(options)?;
     let mut scene_results = Vec::new();
     let mut curves = Vec::new();
     for spec in &specs {
@@ -627,9 +633,6 @@ pub fn run(options: &BenchOptions) -> Result<BenchResults, BenchError> {
         log(options, &format!("bake throughput: ~{target} patches"));
         bake.push(bakebench::bake_throughput(options, target)?);
     }
-    let hierarchy = hierarchy::section(options)?;
-    let office = largescene::section(options)?;
-    let link_rate = linkrate::section(options)?;
     let mut results = BenchResults {
         quick: options.quick,
         reps: options.reps,

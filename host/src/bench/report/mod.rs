@@ -340,27 +340,29 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
              the hierarchy against the dense f64 solve of its own leaves (what its links get wrong; up to {DENSE_LIMIT} \
              leaves); \"vs continuous\" adds the mesh's error. Bytes: {LINK_BYTES} per link (two directions, each a \
              32-bit node index and a 16-bit code), {ENTRY_BYTES} per flat entry; the flat rows' seconds include their \
-             adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative.\n",
+             adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative; \"peak\" the \
+             bench process's peak resident memory during the row (the process's baseline included).\n",
             100.0 * SMALL_FACE
         );
     }
     let _ = writeln!(
         s,
-        "| method | elements | links / entries | bytes | seconds | rays | worst face vs dense | worst face vs continuous (face) | mean face vs continuous | claimed |"
+        "| method | elements | links / entries | bytes | seconds | peak (MiB) | rays | worst face vs dense | worst face vs continuous (face) | mean face vs continuous | claimed |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
     for row in &h.rows {
         let dense = row
             .vs_dense
             .map_or("-".to_owned(), |e| format!("{:.2}% (face {})", 100.0 * e.worst, e.worst_face));
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {:.2} | {} | {} | {:.2}% ({}) | {:.2}% | {} |",
+            "| {} | {} | {} | {} | {:.2} | {} | {} | {} | {:.2}% ({}) | {:.2}% | {} |",
             row.method,
             row.elements,
             row.links,
             row.bytes,
             row.seconds,
+            mib(row.memory.map(|m| m.peak)),
             row.rays,
             dense,
             100.0 * row.vs_continuous.worst,
@@ -369,6 +371,7 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
             row.claimed.map_or("-".to_owned(), |c| format!("{c:.2e}"))
         );
     }
+    memory_note(s, h.rows.iter().filter_map(|r| r.memory));
     for (scene, links, time) in &h.exponents {
         let f = |k: &Option<f64>| k.map_or("-".to_owned(), |k| format!("{k:.2}"));
         let _ = writeln!(
@@ -393,14 +396,81 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
     office(s, &r.office);
     link_rate(s, &r.link_rate);
     device_curves(s, &h.device);
-    if let Some(rss) = h.peak_rss {
+    let _ = writeln!(s);
+}
+
+/// Megabytes (MiB) of a peak resident set, or `-` where the system did not report it.
+fn mib(bytes: Option<u64>) -> String {
+    bytes.map_or("-".to_owned(), |b| format!("{:.0}", b as f64 / 1048576.0))
+}
+
+/// The sentence saying what the process held when the rows of a table started (their peaks include it).
+fn memory_note(s: &mut String, memory: impl Iterator<Item = super::hierarchy::RowMemory>) {
+    let starts: Vec<u64> = memory.map(|m| m.start).collect();
+    if let (Some(lo), Some(hi)) = (starts.iter().min(), starts.iter().max()) {
         let _ = writeln!(
             s,
-            "\nPeak resident memory of the bench process after this section: {:.0} MiB.",
-            rss as f64 / 1048576.0
+            "\nThe peaks include what the process held when each row started: {} to {} MiB.",
+            mib(Some(*lo)),
+            mib(Some(*hi))
         );
     }
-    let _ = writeln!(s);
+}
+
+/// One row of the office's table.
+fn office_row(s: &mut String, row: &super::largescene::OfficeRow) {
+    let (r, c) = row.workstations;
+    match &row.outcome {
+        Ok(x) => {
+            let _ = writeln!(
+                s,
+                "| {r} x {c} | {} | {} | {} | {} | {} | {:.1} | {} | {:.2} | {} | {} | {} | {} | {} | {:.2} |",
+                row.triangles,
+                row.epsilon,
+                x.leaves,
+                x.nodes,
+                x.links,
+                x.links as f64 / x.leaves.max(1) as f64,
+                x.bytes,
+                x.seconds,
+                mib(x.memory.map(|m| m.peak)),
+                x.rays,
+                x.worst_material().map_or("-".to_owned(), |m| format!("{:+.1}% ({})", 100.0 * m.error, m.name)),
+                x.median_material().map_or("-".to_owned(), |e| format!("{:.1}%", 100.0 * e)),
+                row.samples,
+                x.reference_seconds
+            );
+        }
+        Err(e) => {
+            let _ = writeln!(
+                s,
+                "| {r} x {c} | {} | {} | stopped: {} ||||||||||||",
+                row.triangles,
+                row.epsilon,
+                e.replace('|', "/")
+            );
+        }
+    }
+}
+
+/// Every material of a solved office row against its reference, as a sentence.
+fn office_materials(s: &mut String, what: &str, row: &super::largescene::OfficeRow) {
+    if let Ok(x) = &row.outcome {
+        let list: Vec<String> = x
+            .materials
+            .iter()
+            .map(|m| format!("{} {:+.1}% (+/- {:.1}%)", m.name, 100.0 * m.error, 100.0 * m.reference_se))
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nEvery material of {what} ({} x {} workstations, epsilon {}), against the reference (+/- its \
+             standard error): {}.",
+            row.workstations.0,
+            row.workstations.1,
+            row.epsilon,
+            list.join(", ")
+        );
+    }
 }
 
 /// The large generated scene's subsection of the hierarchy section.
@@ -411,72 +481,48 @@ fn office(s: &mut String, o: &super::largescene::OfficeSection) {
         "\n### A large generated scene: the office\n\n`scenes/make_office.py` with a growing number of workstations \
          (desks, monitors, chairs, books, desk lamps, all of closed boxes standing 2 cm apart; ceiling panels in two \
          light groups and the lamps in a third), solved by `solve --method hierarchical --refinement brightness \
-         --epsilon {}` (the device tables' refinement). Bytes: {LINK_BYTES} per link. Error: each non-emitting \
-         material's area-averaged radiosity against the continuous reference of the same scene (`radiosity \
-         reference`, {} paths per face; the dense solve does not reach these leaf counts), the signed relative \
-         difference of its worst channel: the worst material and the median over materials.\n",
-        o.epsilon, o.samples
+         --epsilon {}` (the device tables' refinement){}. Bytes: {LINK_BYTES} per link; peak: the bench process's \
+         peak resident memory during the solve. Error: each non-emitting material's area-averaged radiosity \
+         against the continuous reference of the same scene (`radiosity reference` at the paths per face of the \
+         row; the dense solve does not reach these leaf counts), the signed relative difference of its worst \
+         channel: the worst material and the median over materials.\n",
+        o.epsilon,
+        if o.full.is_some() {
+            format!(
+                "; the last row is the full office of the script's default size, at the coarser epsilon it needs \
+                 to solve in this machine's memory and a quarter of an hour (`--max-links {}`), not in the growth fit",
+                super::largescene::FULL_OFFICE_MAX_LINKS
+            )
+        } else {
+            String::new()
+        }
     );
     let _ = writeln!(
         s,
-        "| workstations | triangles | leaves | nodes | links | links per leaf | bytes | seconds | rays | worst \
-         material vs continuous | median material | reference seconds |"
+        "| workstations | triangles | epsilon | leaves | nodes | links | links per leaf | bytes | seconds | peak \
+         (MiB) | rays | worst material vs continuous | median material | reference paths per face | reference \
+         seconds |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for row in &o.rows {
-        let (r, c) = row.workstations;
-        match &row.outcome {
-            Ok(x) => {
-                let _ = writeln!(
-                    s,
-                    "| {r} x {c} | {} | {} | {} | {} | {:.1} | {} | {:.2} | {} | {} | {} | {:.2} |",
-                    row.triangles,
-                    x.leaves,
-                    x.nodes,
-                    x.links,
-                    x.links as f64 / x.leaves.max(1) as f64,
-                    x.bytes,
-                    x.seconds,
-                    x.rays,
-                    x.worst_material().map_or("-".to_owned(), |m| format!(
-                        "{:+.1}% ({})",
-                        100.0 * m.error,
-                        m.name
-                    )),
-                    x.median_material().map_or("-".to_owned(), |e| format!("{:.1}%", 100.0 * e)),
-                    x.reference_seconds
-                );
-            }
-            Err(e) => {
-                let _ = writeln!(
-                    s,
-                    "| {r} x {c} | {} | stopped: {} |||||||||",
-                    row.triangles,
-                    e.replace('|', "/")
-                );
-            }
-        }
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for row in o.rows.iter().chain(&o.full) {
+        office_row(s, row);
     }
-    if let Some((row, x)) = o.rows.iter().filter_map(|r| r.outcome.as_ref().ok().map(|x| (r, x))).next_back()
-    {
-        let list: Vec<String> = x
-            .materials
-            .iter()
-            .map(|m| format!("{} {:+.1}% (+/- {:.1}%)", m.name, 100.0 * m.error, 100.0 * m.reference_se))
-            .collect();
-        let _ = writeln!(
-            s,
-            "\nEvery material of the largest solved office ({} x {}), against the reference (+/- its standard error): \
-             {}.",
-            row.workstations.0,
-            row.workstations.1,
-            list.join(", ")
-        );
+    memory_note(
+        s,
+        o.rows.iter().chain(&o.full).filter_map(|r| r.outcome.as_ref().ok().and_then(|x| x.memory)),
+    );
+    if let Some(row) = o.rows.iter().rfind(|r| r.outcome.is_ok()) {
+        office_materials(s, "the largest office of the growth rows", row);
+    }
+    if let Some(row) = &o.full {
+        office_materials(s, "the full office", row);
     }
     let f = |k: Option<f64>| k.map_or("-".to_owned(), |k| format!("{k:.2}"));
     let _ = writeln!(
         s,
-        "\nGrowth over the solved office rows (log-log least squares against leaves): links {}, seconds {}.",
+        "\nGrowth over the solved office rows at epsilon {} (log-log least squares against leaves): links {}, seconds \
+         {}.",
+        o.epsilon,
         f(o.links_exponent),
         f(o.seconds_exponent)
     );
