@@ -131,7 +131,6 @@ mod solidangle;
 use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
@@ -262,12 +261,7 @@ pub const ROW_EXCESS_ROUNDING: f64 = 1e-9;
 
 /// Diagonal of the bounding box of `patches` (0 for none).
 fn bounding_diagonal(patches: &[Patch]) -> f64 {
-    let (lo, hi) = patches
-        .iter()
-        .flat_map(|p| p.vertices.iter())
-        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| {
-            (lo.min(*v), hi.max(*v))
-        });
+    let (lo, hi) = crate::scene::bounding_box(patches.iter().flat_map(|p| p.vertices.iter().copied()));
     if patches.is_empty() {
         0.0
     } else {

@@ -14,7 +14,8 @@
 
 use glam::DVec3;
 
-use super::tree::{bounding_box, Kind, Tree};
+use super::tree::{Kind, Tree};
+use crate::scene::bounding_box;
 
 /// How far (relative to the scene's bounding radius) a vertex may lie inside a hull plane and still count as on
 /// it: a polygon that only touches the hull (a face in the plane of one end, a neighbour sharing an edge with

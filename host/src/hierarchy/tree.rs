@@ -9,6 +9,7 @@ use crate::mesh::{refine, MeshError};
 use crate::patch::Patch;
 use crate::rgb::{channel_max, Rgb};
 use crate::rng::SplitMix64;
+use crate::scene::bounding_box;
 
 /// No node (the parent of a top node).
 pub(super) const NONE: u32 = u32::MAX;
@@ -83,10 +84,7 @@ pub(super) struct Tree {
 
 /// The sphere around a point set: its bounding box's centre and half diagonal.
 fn bounding_sphere<'a>(points: impl Iterator<Item = &'a DVec3>) -> (DVec3, f64) {
-    let (lo, hi) = points
-        .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        });
+    let (lo, hi) = bounding_box(points.copied());
     ((lo + hi) * 0.5, (hi - lo).length() * 0.5)
 }
 
@@ -285,11 +283,4 @@ impl Tree {
             None => false,
         }
     }
-}
-
-/// The bounding box of a point set.
-pub(super) fn bounding_box(points: impl Iterator<Item = DVec3>) -> (DVec3, DVec3) {
-    points.fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
-        (lo.min(p), hi.max(p))
-    })
 }

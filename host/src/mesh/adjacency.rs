@@ -16,8 +16,7 @@ pub fn adjacency(patches: &[Patch]) -> Vec<Vec<usize>> {
     let boxes: Vec<(DVec3, DVec3, f64)> = patches
         .iter()
         .map(|p| {
-            let lo = p.vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-            let hi = p.vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+            let (lo, hi) = crate::scene::bounding_box(p.vertices.iter().copied());
             (lo, hi, (hi - lo).length())
         })
         .collect();

@@ -35,13 +35,8 @@ impl MeshOptions {
     /// scene's largest bounding-box extent / [`DEFAULT_EDGE_DIVISIONS`] and [`DEFAULT_PATCH_BUDGET`].
     #[must_use]
     pub fn for_scene(scene: &Scene) -> MeshOptions {
-        let (min, max) = scene
-            .faces
-            .iter()
-            .flat_map(|f| f.vertices.iter())
-            .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| {
-                (lo.min(*v), hi.max(*v))
-            });
+        let (min, max) =
+            crate::scene::bounding_box(scene.faces.iter().flat_map(|f| f.vertices.iter().copied()));
         let extent = (max - min).max_element();
         MeshOptions {
             subdivide: true,

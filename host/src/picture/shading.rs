@@ -40,6 +40,7 @@ use glam::{DMat3, DVec2, DVec3};
 use super::PictureError;
 use crate::patch::Patch;
 use crate::rgb::{channel_max, channel_min, Rgb};
+use crate::scene::bounding_box;
 
 /// Options for [`SmoothShader::new`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -99,7 +100,7 @@ impl Grid {
     fn build(patches: &[Patch], cell: f64, pad: f64) -> Grid {
         let mut grid = Grid { cell, cells: HashMap::new() };
         for (i, p) in patches.iter().enumerate() {
-            let (lo, hi) = bounds(&p.vertices);
+            let (lo, hi) = bounding_box(p.vertices.iter().copied());
             let (a, b) = (grid.key(lo - DVec3::splat(pad)), grid.key(hi + DVec3::splat(pad)));
             for x in a.0..=b.0 {
                 for y in a.1..=b.1 {
@@ -115,12 +116,6 @@ impl Grid {
     fn candidates(&self, p: DVec3) -> &[u32] {
         self.cells.get(&self.key(p)).map_or(&[], Vec::as_slice)
     }
-}
-
-fn bounds(points: &[DVec3]) -> (DVec3, DVec3) {
-    points.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), &v| {
-        (lo.min(v), hi.max(v))
-    })
 }
 
 /// Signed distances from a 2D point to the lines of a counter-clockwise convex polygon's edges (positive inside).
@@ -180,7 +175,7 @@ impl SmoothShader {
             }
         }
         let all: Vec<DVec3> = patches.iter().flat_map(|p| p.vertices.iter().copied()).collect();
-        let (lo, hi) = bounds(&all);
+        let (lo, hi) = bounding_box(all.iter().copied());
         let diagonal = (hi - lo).length();
         if patches.is_empty() || diagonal <= 0.0 || !diagonal.is_finite() {
             return Err(PictureError::invalid("patches", "no patches, or all patches collapse to one point"));
@@ -206,7 +201,7 @@ impl SmoothShader {
         let mut sizes: Vec<f64> = patches
             .iter()
             .map(|p| {
-                let (a, b) = bounds(&p.vertices);
+                let (a, b) = bounding_box(p.vertices.iter().copied());
                 (b - a).length()
             })
             .collect();

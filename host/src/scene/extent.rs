@@ -29,12 +29,14 @@ pub const MAX_SCENE_SIZE: f64 = 1e18;
 /// Largest distance of a vertex coordinate from the origin, in multiples of the scene size, accepted.
 pub const MAX_ORIGIN_DISTANCE: f64 = 100.0;
 
+/// The axis-aligned bounding box `(min, max)` of `points` (`(+inf, -inf)` for none).
+pub fn bounding_box(points: impl IntoIterator<Item = DVec3>) -> (DVec3, DVec3) {
+    points.into_iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)))
+}
+
 /// Checks the faces' bounding box against [`MIN_SCENE_SIZE`], [`MAX_SCENE_SIZE`] and [`MAX_ORIGIN_DISTANCE`].
 pub(super) fn check_extent(file: &Path, faces: &[Face]) -> Result<(), SceneError> {
-    let (lo, hi) = faces
-        .iter()
-        .flat_map(|f| f.vertices.iter())
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let (lo, hi) = bounding_box(faces.iter().flat_map(|f| f.vertices.iter().copied()));
     if faces.is_empty() {
         return Ok(());
     }

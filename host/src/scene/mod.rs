@@ -86,7 +86,7 @@ use std::path::{Path, PathBuf};
 pub use config::{MeshingLimits, MAX_REFINE_PASSES};
 pub(crate) use error::length;
 pub use error::{SceneError, SceneWarning};
-pub use extent::{MAX_ORIGIN_DISTANCE, MAX_SCENE_SIZE, MIN_SCENE_SIZE};
+pub use extent::{bounding_box, MAX_ORIGIN_DISTANCE, MAX_SCENE_SIZE, MIN_SCENE_SIZE};
 pub use face::{Face, GltfPlace, DEGENERATE_TOLERANCE, NON_PLANAR_LIMIT, PLANAR_TOLERANCE};
 pub use gltf_write::{glb_container, SceneGltf};
 pub use light_group::LightGroup;

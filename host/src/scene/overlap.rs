@@ -32,8 +32,7 @@ fn sweep_order(faces: &[Face]) -> Vec<PolyRef<'_>> {
         .iter()
         .flat_map(|f| f.polygons.iter().map(move |p| (f, p)))
         .map(|(face, poly)| {
-            let min = poly.vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-            let max = poly.vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
+            let (min, max) = super::bounding_box(poly.vertices.iter().copied());
             PolyRef { face, poly, min, max, d: poly.diameter() }
         })
         .collect();

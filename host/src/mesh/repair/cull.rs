@@ -186,7 +186,7 @@ impl Bvh {
         let boxes: Vec<(DVec3, DVec3)> = pieces
             .iter()
             .map(|p| {
-                let (lo, hi) = super::bounds(&p.vertices);
+                let (lo, hi) = crate::scene::bounding_box(p.vertices.iter().copied());
                 (lo - DVec3::splat(margin), hi + DVec3::splat(margin))
             })
             .collect();

@@ -45,7 +45,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use crate::scene::{Polygon, Scene, SceneWarning};
+use crate::scene::{bounding_box, Polygon, Scene, SceneWarning};
 
 pub use cull::DIRECTIONS as CULL_DIRECTIONS;
 pub use cut::Meeting;
@@ -183,7 +183,7 @@ pub fn repair(scene: &Scene) -> Repaired {
         .iter()
         .flat_map(|f| f.polygons.iter().map(move |p| (f.index, p)))
         .map(|(face, poly)| {
-            let (min, max) = bounds(&poly.vertices);
+            let (min, max) = bounding_box(poly.vertices.iter().copied());
             Item { face, poly, min, max }
         })
         .collect();
@@ -317,13 +317,6 @@ pub fn repair(scene: &Scene) -> Repaired {
     }
 }
 
-/// The least and greatest corner of the box around `vertices`.
-fn bounds(vertices: &[DVec3]) -> (DVec3, DVec3) {
-    let lo = vertices.iter().copied().fold(DVec3::splat(f64::INFINITY), DVec3::min);
-    let hi = vertices.iter().copied().fold(DVec3::splat(f64::NEG_INFINITY), DVec3::max);
-    (lo, hi)
-}
-
 /// Merges neighbouring `cells` of one polygon: while some pair merges (`merge(a, b)`, `a` the one earlier in the
 /// list), the first such pair in list order (by the earlier cell's place, then the later one's) is replaced by its
 /// union at the earlier place, and the last cell moves into the later place. Cells whose boxes are farther apart
@@ -337,7 +330,7 @@ fn merge_all(
     tol: f64,
 ) -> Vec<Vec<DVec3>> {
     let grown = |c: &[DVec3]| {
-        let (lo, hi) = bounds(c);
+        let (lo, hi) = bounding_box(c.iter().copied());
         (lo - DVec3::splat(tol), hi + DVec3::splat(tol))
     };
     let mut boxes: Vec<(DVec3, DVec3)> = cells.iter().map(|c| grown(c)).collect();
