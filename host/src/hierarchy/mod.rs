@@ -111,7 +111,7 @@ use crate::formfactor::{
     escape_test, occluder_scene, ClosureMode, ElementRules, FormFactorError, FormFactorOptions,
 };
 use crate::lighting::PatchLighting;
-use crate::mesh::{mesh, MeshError, MeshOptions};
+use crate::mesh::{mesh, MeshError, MeshOptions, RepairReport};
 use crate::patch::Patch;
 use crate::raycast::RayCaster;
 use crate::reference::TransferVectors;
@@ -486,9 +486,26 @@ pub fn solve_hierarchical(
     scene: &Scene,
     options: &HierarchyOptions,
 ) -> Result<HierarchicalSolution, HierarchyError> {
+    solve_hierarchical_noting(scene, options, |_| {})
+}
+
+/// [`solve_hierarchical`], handing what mesh repair changed to `repaired` once the roots are meshed and before
+/// any refinement (not called when the scene's meshing turns repair off), so that a caller can report it without
+/// repairing the scene a second time.
+///
+/// # Errors
+/// As [`solve_hierarchical`].
+pub fn solve_hierarchical_noting(
+    scene: &Scene,
+    options: &HierarchyOptions,
+    repaired: impl FnOnce(&RepairReport),
+) -> Result<HierarchicalSolution, HierarchyError> {
     check_options(options)?;
-    let roots =
-        mesh(scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(scene) })?.patches;
+    let meshed = mesh(scene, &MeshOptions { patch_budget: usize::MAX, ..MeshOptions::no_subdivide(scene) })?;
+    if let Some(report) = &meshed.repair {
+        repaired(report);
+    }
+    let roots = meshed.patches;
     let lighting = PatchLighting::new(scene, &roots);
     let caster = occluder_scene(&roots, true)?;
     let mut sources = vec![lighting.static_emission.clone()];

@@ -12,8 +12,8 @@ use radiosity_host::evaluate::{evaluate, BakeSummary, EvaluateOptions};
 use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{
-    solve_hierarchical, HierarchicalSolution, HierarchyOptions, Refinement, DEFAULT_EPSILON,
-    DEFAULT_MAX_LINKS,
+    solve_hierarchical, solve_hierarchical_noting, HierarchicalSolution, HierarchyOptions, Refinement,
+    DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
 };
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{patch_json, write_patch_csv};
@@ -179,14 +179,15 @@ fn hierarchical_solution(
     if scene.no_repair {
         loaded.meshing.repair = Some(false);
     }
-    if !scene.quiet && loaded.meshing.repair.unwrap_or(true) {
-        for note in radiosity_host::mesh::repair(&loaded).report.notes(&scene.scene) {
-            eprintln!("repair: {note}");
-        }
-    }
     let start = std::time::Instant::now();
-    let solution =
-        solve_hierarchical(&loaded, &options).map_err(|e| format!("{}: {e}", scene.scene.display()))?;
+    let solution = solve_hierarchical_noting(&loaded, &options, |report| {
+        if !scene.quiet {
+            for note in report.notes(&scene.scene) {
+                eprintln!("repair: {note}");
+            }
+        }
+    })
+    .map_err(|e| format!("{}: {e}", scene.scene.display()))?;
     if !scene.quiet {
         eprintln!("{}: {} in {:.2} s", scene.scene.display(), solution.stats, start.elapsed().as_secs_f64());
     }
