@@ -121,7 +121,17 @@ fn quick_bench_writes_a_well_formed_report() {
         "{:?}",
         solved.materials
     );
-    assert!(md.contains("Every material of the largest solved office (1 x 1)"));
+    assert!(md.contains(
+        "Every material of the largest office of the growth rows (1 x 1 workstations, epsilon 0.5)"
+    ));
+    // The full office is for the full run only.
+    assert!(results.office.full.is_none());
+    // Every solve of both tables reports the process's memory during it: a peak at least what it started from.
+    let memory = h.rows.iter().map(|r| r.memory).chain([solved.memory]);
+    for m in memory {
+        assert!(m.is_some_and(|m| m.start > 0 && m.peak >= m.start), "{m:?}");
+    }
+    assert!(md.contains("| peak (MiB) |") && md.contains("The peaks include what the process held"));
     // Link construction against raw Embree, with shaft culling and without: both thread counts, as many raw rays
     // as refinement cast, rates > 0; culling casts fewer rays (the blocks leave most pairs' shafts clear).
     let rate = &results.link_rate;
