@@ -33,9 +33,9 @@ pub const REFERENCE_MAX_SAMPLES: u64 = 1 << 27;
 /// are stated for faces larger than 5% of the floor).
 pub const SMALL_FACE: f64 = 0.05;
 
-/// The finest Cornell row's epsilon and resolution limit (brightness refinement): at the default resolution limit
-/// ([`DEFAULT_MIN_AREA_FRACTION`]) the box stops near 26,000 leaves however small epsilon is, so the row that
-/// reaches the 64,000 leaves lets elements go down to this share of the scene's area.
+/// The finest Cornell row's epsilon and resolution limit (brightness refinement): the default resolution limit
+/// ([`DEFAULT_MIN_AREA_FRACTION`]) caps the leaves however small epsilon is, below the 64,000, so this
+/// row lets elements go down to a smaller share of the scene's area.
 pub const FINEST: (f64, f64) = (0.000005, 0.000002);
 
 /// Most links of the finest row (the default limit is below what it needs).

@@ -31,16 +31,16 @@ pub const OFFICE_REFERENCE_SAMPLES: u64 = 8192;
 /// growth rows.
 pub const FULL_OFFICE: (usize, usize) = (17, 21);
 
-/// The full office's epsilon: at [`OFFICE_EPSILON`] it would need about 100 million links (the growth rows'
-/// links per leaf); at 0.9 it needs about 11 million and a quarter of an hour on two cores.
+/// The full office's epsilon: at [`OFFICE_EPSILON`], by the growth rows' links per leaf, it would need about ten
+/// times the default link limit; 0.9 is coarse enough to solve within this machine's memory (the report has
+/// its links, seconds and peak).
 pub const FULL_OFFICE_EPSILON: f64 = 0.9;
 
 /// Most links of the full office's solve (the default limit is below what it needs).
 pub const FULL_OFFICE_MAX_LINKS: usize = 40_000_000;
 
-/// Paths per face of the full office's reference: its 105,072 faces at [`OFFICE_REFERENCE_SAMPLES`] would take
-/// eight times as long for little; 1,024 pin the furniture's materials down to a few tenths of a percent (the
-/// room's few large faces to about 10%: the report prints each material's standard error).
+/// Paths per face of the full office's reference: an eighth of [`OFFICE_REFERENCE_SAMPLES`], since its thousands
+/// of faces per furniture material average the noise down (the report prints each material's standard error).
 pub const FULL_OFFICE_REFERENCE_SAMPLES: u64 = 1024;
 
 /// One material's area-averaged radiosity against the continuous reference.

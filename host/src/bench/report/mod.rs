@@ -490,7 +490,7 @@ fn office(s: &mut String, o: &super::largescene::OfficeSection) {
         if o.full.is_some() {
             format!(
                 "; the last row is the full office of the script's default size, at the coarser epsilon it needs \
-                 to solve in this machine's memory and a quarter of an hour (`--max-links {}`), not in the growth fit",
+                 to solve in this machine's memory (`--max-links {}`), not in the growth fit",
                 super::largescene::FULL_OFFICE_MAX_LINKS
             )
         } else {
