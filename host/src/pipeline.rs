@@ -167,6 +167,21 @@ impl MeshStop {
     }
 }
 
+/// Fewest flat-mesh patches per face polygon at which `bake` and `check` make a flat table by default: a 2 x 2
+/// split of every face, the least with which the adaptive mesh can place a patch where light changes within a
+/// face. A scene with more faces than its budget gives that many (a furnished floor of thousands of small boxes)
+/// gets the hierarchy, which subdivides where its links ask and keeps small faces whole elsewhere.
+pub const FLAT_PATCHES_PER_FACE: usize = 4;
+
+/// Whether `scene`'s flat mesh has room for [`FLAT_PATCHES_PER_FACE`] patches on each of its faces within its
+/// patch budget (the scene's TOML `patch_budget`, else [`DEFAULT_PATCH_BUDGET`]): the rule by which `bake` and
+/// `check` choose their table when no option asks for one (flat if it has, hierarchical if not).
+#[must_use]
+pub fn flat_mesh_has_room(scene: &Scene) -> bool {
+    let budget = scene.meshing.patch_budget.unwrap_or(DEFAULT_PATCH_BUDGET);
+    scene.faces.len().saturating_mul(FLAT_PATCHES_PER_FACE) <= budget
+}
+
 /// Where a patch budget came from, for messages: the option, the scene's TOML, or the default.
 fn budget_source(options: &PrepareOptions, scene: &Scene) -> String {
     match (options.max_patches, scene.meshing.patch_budget) {

@@ -831,7 +831,7 @@ fn check_hierarchical_traces_the_tables_error() {
         &["--threshold", "apply to flat tables only"],
     );
     assert_fails(
-        &["check", MISSING, "--epsilon", "0.1"],
+        &["check", MISSING, "--method", "flat", "--epsilon", "0.1"],
         &["--epsilon", "apply to --method hierarchical only"],
     );
     assert_fails(
@@ -1047,7 +1047,52 @@ fn hierarchical_bake_writes_a_table_that_inspect_reads() {
         &["bake", MISSING, "--method", "hierarchical", "--threshold", "0.01", "-o", table],
         &["--threshold"],
     );
-    assert_fails(&["bake", MISSING, "--epsilon", "0.1", "-o", table], &["--max-links and --pieces apply"]);
+    assert_fails(
+        &["bake", MISSING, "--method", "flat", "--epsilon", "0.1", "-o", table],
+        &["--max-links and --pieces apply"],
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `bake` and `check` without `--method`: the flat table when the scene's patch budget holds a 2 x 2 split of
+/// each of its faces, the hierarchical one (with a note saying why) when it does not; a flat setting or a
+/// hierarchy setting picks its own table whatever the budget, and `--method` wins over all of them.
+#[test]
+fn bake_and_check_pick_their_table_by_the_scenes_faces_against_its_budget() {
+    let dir = folder("tablemethod");
+    for f in ["facing-squares.obj", "facing-squares.mtl"] {
+        std::fs::copy(scene(f), dir.join(f)).unwrap();
+    }
+    let obj = dir.join("facing-squares.obj").display().to_string();
+    let table = dir.join("t.rft").display().to_string();
+    // Two faces: a budget of 8 patches holds 4 per face, one of 7 does not.
+    let run = |budget: usize, args: &[&str]| {
+        std::fs::write(dir.join("facing-squares.toml"), format!("[meshing]\npatch_budget = {budget}\n"))
+            .unwrap();
+        let out = radiosity(&[args, &[obj.as_str(), "--format", "json"][..]].concat());
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{args:?} at budget {budget}: {stderr}");
+        (serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap(), stderr)
+    };
+    let bake = |budget: usize, more: &[&str]| {
+        let (summary, stderr) = run(budget, &[&["bake", "-o", table.as_str()][..], more].concat());
+        // Only a hierarchical table's summary counts leaves.
+        (summary.get("leaves").is_some(), stderr)
+    };
+    let note =
+        "more than its flat mesh's patch budget (7) can split 4 ways each: making the hierarchical table";
+    let (hierarchical, stderr) = bake(7, &[]);
+    assert!(hierarchical && stderr.contains("has 2 faces") && stderr.contains(note), "{stderr}");
+    let (hierarchical, stderr) = bake(8, &[]);
+    assert!(!hierarchical && !stderr.contains("making the hierarchical table"), "{stderr}");
+    assert!(!bake(7, &["--threshold", "0.001"]).0, "a flat setting asks for the flat table");
+    assert!(!bake(7, &["--method", "flat"]).0);
+    assert!(bake(8, &["--epsilon", "0.1"]).0, "a hierarchy setting asks for the hierarchy");
+    assert!(bake(8, &["--method", "hierarchical"]).0);
+    let (quiet, stderr) = bake(7, &["-q"]);
+    assert!(quiet && stderr.is_empty(), "{stderr}");
+    let check = |budget: usize| run(budget, &["check", "-q"]).0["method"].clone();
+    assert_eq!((check(7), check(8)), (serde_json::json!("hierarchical"), serde_json::json!("flat")));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -219,8 +219,8 @@ pub enum BakeError {
     #[error(
         "{bits}-bit form-factor codes are too coarse for this scene: the incoming form factors of patch {patch} \
          (area {area:.3e}) decode to a sum of {sum:.3} (physical: at most 1 + {tolerance:.2e}); \
-         senders up to {ratio:.0} times its area multiply each code step by that ratio. Use --bits 16, or mesh \
-         so that small patches do not border much larger ones"
+         senders up to {ratio:.0} times its area multiply each code step by that ratio. {}",
+        codec_hint(.bits)
     )]
     CodecTooCoarse {
         /// Bits per form-factor code.
@@ -471,4 +471,14 @@ fn check_input(input: &BakeInput<'_>) -> Result<(), BakeError> {
         }
     }
     Ok(())
+}
+
+/// What to do about [`BakeError::CodecTooCoarse`] at `bits` per code.
+fn codec_hint(bits: &u8) -> &'static str {
+    if *bits < 16 {
+        "Use --bits 16, or mesh so that small patches do not border much larger ones"
+    } else {
+        "16 bits is the finest code: mesh so that small patches do not border much larger ones (a smaller \
+         --max-patch-edge), or bake the hierarchical table (--method hierarchical)"
+    }
 }

@@ -231,8 +231,8 @@ pub fn check_scene(
 }
 
 /// Checks every option that needs no computation (`check_scene`, `check_table_file` and `check_hierarchical`
-/// call it first, so a bad option is reported at once; `radiosity check --method hierarchical` before its
-/// solve).
+/// call it first, so a bad option is reported at once; `radiosity check` before it reads the scene to choose
+/// its table).
 ///
 /// # Errors
 /// [`CheckError::Options`] (or the bake's or reference's error) naming the option.

@@ -70,25 +70,27 @@
 //!
 //! # Status
 //! The command line's default for the f64 answers of `solve`, `render`, `lightmap` and `export` (with
-//! [`Refinement::Brightness`]; these options' own default stays [`Refinement::Budgets`]), and `--method
-//! hierarchical` of `bake` and `check` (links refined for the default light intensities; the answer is also split
-//! by light source, [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces
+//! [`Refinement::Brightness`]; these options' own default stays [`Refinement::Budgets`]), and the table of `bake`
+//! and `check` with `--method hierarchical` or, by default, for a scene whose flat mesh has no room for its faces
+//! ([`crate::pipeline::flat_mesh_has_room`]) (links refined for the default light intensities; the answer is also
+//! split by light source, [`HierarchicalSolution::transfer`]). Scenes with many small, nearly touching surfaces
 //! (`scenes/make_office.py`) need many links per leaf: a cluster link is charged its whole transfer (isotropic
 //! reception, an average radiosity sent), so where light is bright, links reach the surfaces, and the budget
-//! passes push them down to the leaves; links grow much faster than leaves, and a refinement that would exceed [`HierarchyOptions::max_links`] stops with
-//! [`HierarchyError::TooManyLinks`] (the full office solves only at a coarse epsilon with a raised limit; the
-//! closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair
+//! passes push them down to the leaves; links grow much faster than leaves, and a refinement that would exceed
+//! [`HierarchyOptions::max_links`] stops with [`HierarchyError::TooManyLinks`] (the full office solves only at a
+//! coarse epsilon with a raised limit; the closing notes of issue 18 have the measurements). A cluster link between nearby nodes whose point-pair
 //! estimate is untrustworthy is split at its cluster end rather than trusted; an iteration that diverges anyway
 //! is reported as [`HierarchyError::NotConverged`].
 
 //! # Files
 //! `tree` (nodes, clusters, splits, sampling) -> `span` (what a solve tells refinement about the leaves below a
 //! node) -> `excess` (chains that gather more than 1) -> `shaft` (whether anything can be between two surfaces)
-//! -> `link` (estimates, the per-link oracle, pair refinement)
-//! -> `pieces` (refinement split by receiver subtree and merged) -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
+//! -> `link` (estimates, the per-link oracle, pair refinement) -> `pieces` (refinement split by receiver subtree
+//! and merged) -> `shadow` (links a leaf's own visibility contradicts) -> `solve` (push-pull iteration, error
 //! propagation) and `shoot` (progressive refinement over links) -> `budget` (per-leaf charges, budget refinement)
 //! -> `network` (the solved tree and links as public data, [`LinkNetwork`]) -> this module (options, the driver,
-//! results); `dense` (the dense f64 answer on the leaves, [`dense_on_leaves`]: what the hierarchy is judged against).
+//! results); `dense` (the dense f64 answer on the leaves, [`dense_on_leaves`]: what the hierarchy is judged
+//! against).
 
 mod budget;
 mod dense;

@@ -205,6 +205,11 @@ fn coarse_codec_is_refused_on_a_synthetic_sliver() {
     assert!(msg.contains("decode to a sum of 1.500") && msg.contains("1024 times its area"), "{msg}");
     assert!(msg.contains("--bits 16"), "{msg}");
     bake(&scene.input(), &options(FfCodec::FLOAT16)).expect("16-bit bake");
+    // At 16 bits there is no finer code to suggest: the message points at the mesh and the hierarchy instead.
+    let at16 =
+        BakeError::CodecTooCoarse { bits: 16, patch: 3, area: 1.0, sum: 1.5, tolerance: 1e-3, ratio: 1e3 };
+    let at16 = at16.to_string();
+    assert!(at16.contains("--method hierarchical") && !at16.contains("--bits 16"), "{at16}");
 }
 
 /// Giving the dropped energy back: every row sums to what it did before sparsification (to the f64 rounding of

@@ -102,6 +102,45 @@ pub fn answer_method(method: Option<SolveMethod>, scene: &SceneArgs) -> SolveMet
     method.unwrap_or(if scene.asks_for_a_mesh() { SolveMethod::Flat } else { SolveMethod::Hierarchical })
 }
 
+/// The table of `bake` and `check`: the one asked for; else flat when a flat setting asks for it (`flat_setting`:
+/// a meshing option, or a flat table's own setting such as `--threshold`), hierarchical when a hierarchy setting
+/// does; else by the scene ([`radiosity_host::pipeline::flat_mesh_has_room`]), loaded to count its faces, with a
+/// note on stderr (unless `--quiet`) when that picks the hierarchy.
+///
+/// # Errors
+/// The scene's load error, when the scene decides.
+pub fn table_method(
+    method: Option<SolveMethod>,
+    scene: &SceneArgs,
+    flat_setting: bool,
+    hierarchy: &HierarchyArgs,
+) -> Result<SolveMethod, radiosity_host::scene::SceneError> {
+    if let Some(m) = method {
+        return Ok(m);
+    }
+    if flat_setting || scene.asks_for_a_mesh() {
+        return Ok(SolveMethod::Flat);
+    }
+    if hierarchy.any() {
+        return Ok(SolveMethod::Hierarchical);
+    }
+    let loaded = radiosity_host::scene::Scene::load(&scene.scene)?;
+    if radiosity_host::pipeline::flat_mesh_has_room(&loaded) {
+        return Ok(SolveMethod::Flat);
+    }
+    if !scene.quiet {
+        eprintln!(
+            "note: {} has {} faces, more than its flat mesh's patch budget ({}) can split {} ways each: making \
+             the hierarchical table (--method flat for the flat one)",
+            scene.scene.display(),
+            loaded.faces.len(),
+            loaded.meshing.patch_budget.unwrap_or(radiosity_host::mesh::DEFAULT_PATCH_BUDGET),
+            radiosity_host::pipeline::FLAT_PATCHES_PER_FACE
+        );
+    }
+    Ok(SolveMethod::Hierarchical)
+}
+
 impl HierarchyArgs {
     /// Whether any hierarchical setting was given (an error with `--method flat`).
     pub fn any(&self) -> bool {
@@ -260,12 +299,17 @@ impl CheckArgs {
         }
     }
 
+    /// Whether a flat table's own setting was given (`--threshold`, `--ff-factor`, `--row-sum-tolerance`).
+    pub fn has_flat_settings(&self) -> bool {
+        self.threshold.is_some() || self.ff_factor.is_some() || self.row_sum_tolerance.is_some()
+    }
+
     /// The error for a flat table's setting given with `--method hierarchical`.
     ///
     /// # Errors
     /// Naming the settings that do not apply.
     pub fn reject_flat_settings(&self) -> Result<(), String> {
-        if self.threshold.is_some() || self.ff_factor.is_some() || self.row_sum_tolerance.is_some() {
+        if self.has_flat_settings() {
             return Err(
                 "--threshold, --ff-factor and --row-sum-tolerance apply to flat tables only (a hierarchical \
                         table keeps every link, and its form factors are the refinement's own)"
@@ -379,11 +423,14 @@ pub enum Command {
         /// sum [default: 0.001].
         #[arg(long)]
         threshold: Option<f64>,
-        /// `flat` (the default): a table of patch-to-patch form factors over the adaptive mesh (format version
-        /// 3); `hierarchical`: the hierarchical solve's tree and links (format version 5), relit by core's
-        /// hierarchical solver; the summary then measures a cold relight of it on the host.
-        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
-        method: SolveMethod,
+        /// `flat`: a table of patch-to-patch form factors over the adaptive mesh (format version 3);
+        /// `hierarchical`: the hierarchical solve's tree and links (format version 5), relit by core's
+        /// hierarchical solver; the summary then measures a cold relight of it on the host. Default: flat when
+        /// a flat setting is given (a meshing option, `--threshold`), hierarchical when a hierarchy setting is;
+        /// else flat if the scene's patch budget holds a 2 x 2 split of each of its faces, hierarchical if not
+        /// (a scene of many small faces; a note on stderr says so).
+        #[arg(long, value_enum)]
+        method: Option<SolveMethod>,
         /// Settings of `--method hierarchical` (its default refinement here: `brightness`).
         #[command(flatten)]
         hierarchy: HierarchyArgs,
@@ -646,9 +693,11 @@ pub enum Command {
         /// The table to bake and check: `flat` (patch-to-patch form factors of the adaptive mesh) or
         /// `hierarchical` (the hierarchical solve's tree and links, relit by core's hierarchical solver; every
         /// frame is compared with the hierarchical f64 solve, and the decomposition adds the links against a
-        /// dense solve of the same leaves, up to 4096 leaves, and the table's closure).
-        #[arg(long, value_enum, default_value_t = SolveMethod::Flat)]
-        method: SolveMethod,
+        /// dense solve of the same leaves, up to 4096 leaves, and the table's closure). Default: as `bake`'s
+        /// (flat with a table file or a flat setting, hierarchical with a hierarchy setting, else by the
+        /// scene's faces against its patch budget).
+        #[arg(long, value_enum)]
+        method: Option<SolveMethod>,
         /// Settings of `--method hierarchical` (its default refinement here: `brightness`, as `bake`'s).
         #[command(flatten)]
         hierarchy: HierarchyArgs,

@@ -423,62 +423,56 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 }
             }
         }
-        Command::Bake {
-            scene,
-            output,
-            bits,
-            threshold,
-            method: SolveMethod::Hierarchical,
-            transfer,
-            format,
-            hierarchy,
-        } => {
+        Command::Bake { scene, output, bits, threshold, method, transfer, format, hierarchy } => {
+            // Checks that need no scene come first, whichever table the scene then asks for.
             check_scene_args(&scene)?;
             codec_for_bits(bits)?;
-            if threshold.is_some() {
-                return Err(
-                    "--threshold applies to --method flat only (a hierarchical table keeps every link)"
-                        .into(),
-                );
+            if let Some(t) = threshold.filter(|t| !(0.0..1.0).contains(t)) {
+                return Err(radiosity_host::bake::BakeError::BadThreshold(t).into());
             }
             check_outputs([output.clone()])?;
-            let (loaded, solution, _) = hierarchical_solution(&scene, &hierarchy, Purpose::Table, None)?;
-            let baked = bake_hierarchy(&loaded, &solution, bits, transfer)?;
-            let summary = HierBakeSummary::measure(&baked, &solution)?;
-            files::write_atomic(&output, &baked.table)?;
-            match format {
-                ReportFormat::Json => {
-                    let mut doc = serde_json::to_value(&summary)?;
-                    doc["files"] = serde_json::json!({ "table": output });
-                    serde_json::to_writer_pretty(&mut out, &doc)?;
-                    writeln!(out)?;
+            match args::table_method(method, &scene, threshold.is_some(), &hierarchy)? {
+                SolveMethod::Hierarchical => {
+                    check_scene_args(&scene)?;
+                    codec_for_bits(bits)?;
+                    if threshold.is_some() {
+                        return Err(
+                            "--threshold applies to --method flat only (a hierarchical table keeps every link)"
+                                .into(),
+                        );
+                    }
+                    check_outputs([output.clone()])?;
+                    let (loaded, solution, _) =
+                        hierarchical_solution(&scene, &hierarchy, Purpose::Table, None)?;
+                    let baked = bake_hierarchy(&loaded, &solution, bits, transfer)?;
+                    let summary = HierBakeSummary::measure(&baked, &solution)?;
+                    files::write_atomic(&output, &baked.table)?;
+                    match format {
+                        ReportFormat::Json => {
+                            let mut doc = serde_json::to_value(&summary)?;
+                            doc["files"] = serde_json::json!({ "table": output });
+                            serde_json::to_writer_pretty(&mut out, &doc)?;
+                            writeln!(out)?;
+                        }
+                        ReportFormat::Text => {
+                            writeln!(out, "{summary}")?;
+                            writeln!(out, "wrote {}", output.display())?;
+                        }
+                    }
                 }
-                ReportFormat::Text => {
-                    writeln!(out, "{summary}")?;
-                    writeln!(out, "wrote {}", output.display())?;
+                SolveMethod::Flat => {
+                    reject_hierarchy_args(&hierarchy)?;
+                    let threshold = threshold.unwrap_or(radiosity_host::bake::DEFAULT_THRESHOLD);
+                    check_scene_args(&scene)?;
+                    codec_for_bits(bits)?;
+                    if !(0.0..1.0).contains(&threshold) {
+                        return Err(radiosity_host::bake::BakeError::BadThreshold(threshold).into());
+                    }
+                    check_outputs([output.clone(), with_suffix(&output, ".capacities.json")])?;
+                    let p = prepare(&scene.scene, &scene.prepare_options())?;
+                    bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
                 }
             }
-        }
-        Command::Bake {
-            scene,
-            output,
-            bits,
-            threshold,
-            method: SolveMethod::Flat,
-            transfer,
-            format,
-            hierarchy,
-        } => {
-            reject_hierarchy_args(&hierarchy)?;
-            let threshold = threshold.unwrap_or(radiosity_host::bake::DEFAULT_THRESHOLD);
-            check_scene_args(&scene)?;
-            codec_for_bits(bits)?;
-            if !(0.0..1.0).contains(&threshold) {
-                return Err(radiosity_host::bake::BakeError::BadThreshold(threshold).into());
-            }
-            check_outputs([output.clone(), with_suffix(&output, ".capacities.json")])?;
-            let p = prepare(&scene.scene, &scene.prepare_options())?;
-            bake_to_files(&p, &output, bits, threshold, transfer, format, &mut out)?;
         }
         Command::Reference(args) => reference_command(&args)?,
         Command::Inspect { table, scene: _, format } if is_hierarchical_table(&table) => {
@@ -856,6 +850,17 @@ fn run(cli: Cli) -> Result<(), BoxError> {
             )?;
         }
         Command::Check { scene, table_scene, method, hierarchy, check, plot, format } => {
+            // A table file (with --scene, or a .rft given alone: refused below with its own message) is flat.
+            let flat_setting = table_scene.is_some()
+                || check.has_flat_settings()
+                || scene.scene.extension().is_some_and(|e| e == "rft");
+            // Checks that need no scene come first, whichever table the scene then asks for.
+            check_scene_args(&scene)?;
+            if let Some(stem) = &plot {
+                check_outputs(plot_files(stem))?;
+            }
+            radiosity_host::check::check_options(&check.options(&scene))?;
+            let method = args::table_method(method, &scene, flat_setting, &hierarchy)?;
             match method {
                 SolveMethod::Flat => reject_hierarchy_args(&hierarchy)?,
                 SolveMethod::Hierarchical => {
@@ -876,14 +881,9 @@ fn run(cli: Cli) -> Result<(), BoxError> {
                 )
                 .into());
             }
-            check_scene_args(&scene)?;
-            if let Some(stem) = &plot {
-                check_outputs(plot_files(stem))?;
-            }
             let report = match table_scene {
                 None if method == SolveMethod::Hierarchical => {
                     let options = check.options(&scene);
-                    radiosity_host::check::check_options(&options)?;
                     let (loaded, solution, _) =
                         hierarchical_solution(&scene, &hierarchy, Purpose::Table, None)?;
                     radiosity_host::check::check_hierarchical(&loaded, &solution, &options)?
