@@ -1,13 +1,15 @@
 //! The hierarchical solver on closed forms, against the dense solve of its own leaves, and on its own invariants:
 //! the first bounce between two squares, the white furnace, the Cornell box leaf by leaf within the oracle's
-//! claimed bound (with either refinement), determinism across thread counts, the exported tree and links (what a device table is written
-//! from) solving to the same answer by shooting, and clear errors for bad options and scenes without light.
+//! claimed bound (with either refinement, and with the sender's unevenness charged), determinism across thread
+//! counts, the exported tree and links (what a device table is written from) solving to the same answer by
+//! shooting, and clear errors for bad options and scenes without light.
 
 use std::path::PathBuf;
 
 use radiosity_host::formfactor::{compute_form_factors, ClosureMode, FormFactorOptions};
 use radiosity_host::hierarchy::{
     solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions, HierarchySolver, Refinement,
+    ANSWER_SENDER_WEIGHT,
 };
 use radiosity_host::reference::{solve_many, Method, RadiositySystem};
 use radiosity_host::rgb::Rgb;
@@ -185,10 +187,28 @@ fn brightness_refinement_needs_far_fewer_links_and_stays_within_its_claim() {
     matches_the_dense_solve_within_the_claim(&sol);
 }
 
-/// Every leaf of `sol` within twice its claimed bound of the dense solve of the same leaves (every leaf-to-leaf
-/// form factor by the same estimator, solved exactly).
-fn matches_the_dense_solve_within_the_claim(sol: &HierarchicalSolution) {
-    // The dense reference: every leaf-to-leaf form factor by the same estimator, solved exactly.
+/// Charging the sender's unevenness (`sender_weight`, the f64 answers' weight) splits links whose sender's
+/// leaves differ: at the same epsilon it keeps more links, its faces are closer to the dense solve of its own
+/// leaves than the brightness oracle's alone (whose links send an average where the receiver sees a dim edge),
+/// and the claim still holds.
+#[test]
+fn charging_the_senders_unevenness_brings_the_faces_closer_to_the_dense_solve() {
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let options =
+        HierarchyOptions { epsilon: 0.01, refinement: Refinement::Brightness, ..HierarchyOptions::default() };
+    let plain = solve_hierarchical(&s, &options).unwrap();
+    let weighted =
+        solve_hierarchical(&s, &HierarchyOptions { sender_weight: ANSWER_SENDER_WEIGHT, ..options }).unwrap();
+    let links = |s: &HierarchicalSolution| s.stats.surface_links + s.stats.cluster_links;
+    assert!(links(&weighted) > links(&plain), "weighted {}\nplain {}", weighted.stats, plain.stats);
+    let (worst_plain, worst_weighted) = (worst_face_vs_dense(&plain), worst_face_vs_dense(&weighted));
+    println!("worst face against the dense solve: plain {worst_plain:.4}, weighted {worst_weighted:.4}");
+    assert!(worst_weighted < worst_plain, "weighted {worst_weighted} vs plain {worst_plain}");
+    matches_the_dense_solve_within_the_claim(&weighted);
+}
+
+/// The dense f64 solve of `sol`'s leaves: every leaf-to-leaf form factor by the same estimator, solved exactly.
+fn dense_of_leaves(sol: &HierarchicalSolution) -> Vec<Rgb> {
     let (ff, _) = compute_form_factors(
         &sol.leaves,
         &FormFactorOptions { progress: false, ..FormFactorOptions::default() },
@@ -199,12 +219,36 @@ fn matches_the_dense_solve_within_the_claim(sol: &HierarchicalSolution) {
     // keeping rho * row sum below 1 leaves the system a contraction, so the dense solve is still exact for it.
     let rho_max = sol.rho.iter().map(|r| r.max_element()).fold(0.0, f64::max);
     let system = RadiositySystem::with_row_sum_tolerance(&sol.rho, &ff, 0.5 * (1.0 / rho_max - 1.0)).unwrap();
-    let dense = solve_many(system, &[&sol.emission], &Method::for_size(sol.leaves.len())).unwrap().remove(0);
+    solve_many(system, &[&sol.emission], &Method::for_size(sol.leaves.len())).unwrap().remove(0).b
+}
+
+/// The largest relative difference of a face's area-averaged radiosity (largest channel) between `sol` and the
+/// dense solve of its leaves, over the Cornell box's faces that reflect light.
+fn worst_face_vs_dense(sol: &HierarchicalSolution) -> f64 {
+    let dense = dense_of_leaves(sol);
+    (0..19)
+        .filter_map(|face| {
+            let (area, h, d) =
+                sol.leaves.iter().zip(&sol.b).zip(&dense).filter(|((p, _), _)| p.face == face).fold(
+                    (0.0, 0.0, 0.0),
+                    |(a, h, d), ((p, hb), db)| {
+                        (a + p.area, h + p.area * hb.max_element(), d + p.area * db.max_element())
+                    },
+                );
+            (area > 0.0 && d > 0.0).then(|| (h / d - 1.0).abs())
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Every leaf of `sol` within twice its claimed bound of the dense solve of the same leaves (every leaf-to-leaf
+/// form factor by the same estimator, solved exactly).
+fn matches_the_dense_solve_within_the_claim(sol: &HierarchicalSolution) {
+    let dense = dense_of_leaves(sol);
     let bound = sol.error_bound.as_ref().expect("a finite claimed bound");
     // The claim bounds the hierarchy's own error (its links' approximations and its visibility estimates); the
     // dense answer's visibility estimates are no noisier (per leaf it casts at least as many rays), so the two
     // may differ by at most twice the claim.
-    for (k, ((h, d), e)) in sol.b.iter().zip(&dense.b).zip(bound).enumerate() {
+    for (k, ((h, d), e)) in sol.b.iter().zip(&dense).zip(bound).enumerate() {
         let diff = (*h - *d).abs().max_element();
         assert!(
             diff <= 2.0 * e,
@@ -216,7 +260,7 @@ fn matches_the_dense_solve_within_the_claim(sol: &HierarchicalSolution) {
     // are reported here for a reader of the test log.
     for face in 0..19 {
         let (area, h, d) =
-            sol.leaves.iter().zip(&sol.b).zip(&dense.b).filter(|((p, _), _)| p.face == face).fold(
+            sol.leaves.iter().zip(&sol.b).zip(&dense).filter(|((p, _), _)| p.face == face).fold(
                 (0.0, 0.0, 0.0),
                 |(a, h, d), ((p, hb), db)| {
                     (a + p.area, h + p.area * hb.max_element(), d + p.area * db.max_element())
@@ -432,6 +476,9 @@ fn bad_options_and_dark_scenes_are_refused() {
         (HierarchyOptions { passes: 0, ..HierarchyOptions::default() }, "passes"),
         (HierarchyOptions { max_nodes: 2, ..HierarchyOptions::default() }, "max_nodes"),
         (HierarchyOptions { max_links: 0, ..HierarchyOptions::default() }, "max_links"),
+        (HierarchyOptions { sender_weight: -1.0, ..HierarchyOptions::default() }, "sender_weight"),
+        (HierarchyOptions { sender_weight: f64::NAN, ..HierarchyOptions::default() }, "sender_weight"),
+        (HierarchyOptions { sender_weight: f64::INFINITY, ..HierarchyOptions::default() }, "sender_weight"),
     ] {
         match solve_hierarchical(&s, &o) {
             Err(HierarchyError::InvalidOption { name: got, .. }) => assert_eq!(got, name),

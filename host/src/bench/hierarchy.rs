@@ -10,7 +10,8 @@ use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
 use crate::hierarchy::{
-    dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement, DEFAULT_MIN_AREA_FRACTION,
+    dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement, ANSWER_SENDER_WEIGHT,
+    DEFAULT_MIN_AREA_FRACTION,
 };
 use crate::lighting::PatchLighting;
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
@@ -58,6 +59,8 @@ pub struct HierarchyRow {
     pub epsilon: Option<f64>,
     /// The hierarchy's refinement (`None` for flat rows).
     pub refinement: Option<Refinement>,
+    /// The hierarchy's [`HierarchyOptions::sender_weight`] (0 for flat rows).
+    pub sender_weight: f64,
     /// Leaves or patches.
     pub elements: usize,
     /// Links, or the flat matrix's nonzero entries.
@@ -117,6 +120,15 @@ fn refinement_label(refinement: Refinement) -> &'static str {
     }
 }
 
+/// The refinement's name with the sender weight, if any (`brightness, sender weight 16`).
+fn oracle_label(refinement: Refinement, sender_weight: f64) -> String {
+    if sender_weight > 0.0 {
+        format!("{}, sender weight {sender_weight}", refinement_label(refinement))
+    } else {
+        refinement_label(refinement).to_owned()
+    }
+}
+
 /// A field of `/proc/self/status` in bytes (`VmRSS`, `VmHWM`: given in kB).
 fn status_bytes(field: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
@@ -156,25 +168,37 @@ pub(super) fn end_row(start: Option<u64>) -> Option<RowMemory> {
 /// Loading, meshing, the solves and the reference; a failure is the bench's.
 pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     const MIN_AREA: f64 = DEFAULT_MIN_AREA_FRACTION;
-    // (refinement, epsilon, resolution limit as a share of the scene's area)
-    let epsilons: &[(Refinement, f64, f64)] = if options.quick {
-        &[(Refinement::Budgets, 0.3, MIN_AREA), (Refinement::Brightness, 0.1, MIN_AREA)]
+    const W: f64 = ANSWER_SENDER_WEIGHT;
+    // (refinement, epsilon, resolution limit as a share of the scene's area, sender weight)
+    let epsilons: &[(Refinement, f64, f64, f64)] = if options.quick {
+        &[
+            (Refinement::Budgets, 0.3, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.1, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.1, MIN_AREA, W),
+        ]
     } else {
         &[
-            (Refinement::Budgets, 0.3, MIN_AREA),
-            (Refinement::Budgets, 0.1, MIN_AREA),
-            (Refinement::Budgets, 0.03, MIN_AREA),
-            (Refinement::Budgets, 0.01, MIN_AREA),
-            (Refinement::Brightness, 0.02, MIN_AREA),
-            (Refinement::Brightness, 0.01, MIN_AREA),
-            (Refinement::Brightness, 0.005, MIN_AREA),
-            (Refinement::Brightness, 0.0025, MIN_AREA),
-            (Refinement::Brightness, 0.0008, MIN_AREA),
-            (Refinement::Brightness, 0.0005, MIN_AREA),
-            (Refinement::Brightness, 0.0002, MIN_AREA),
-            (Refinement::Brightness, 0.0001, MIN_AREA),
-            (Refinement::Brightness, 0.00002, MIN_AREA),
-            (Refinement::Brightness, FINEST.0, FINEST.1),
+            (Refinement::Budgets, 0.3, MIN_AREA, 0.0),
+            (Refinement::Budgets, 0.1, MIN_AREA, 0.0),
+            (Refinement::Budgets, 0.03, MIN_AREA, 0.0),
+            (Refinement::Budgets, 0.01, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.02, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.01, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.005, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.0025, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.0008, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.0005, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.0002, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.0001, MIN_AREA, 0.0),
+            (Refinement::Brightness, 0.00002, MIN_AREA, 0.0),
+            (Refinement::Brightness, FINEST.0, FINEST.1, 0.0),
+            // The sender's unevenness charged at the bound itself, then at the f64 answers' weight.
+            (Refinement::Brightness, 0.0005, MIN_AREA, 1.0),
+            (Refinement::Brightness, 0.005, MIN_AREA, W),
+            (Refinement::Brightness, 0.002, MIN_AREA, W),
+            (Refinement::Brightness, 0.001, MIN_AREA, W),
+            (Refinement::Brightness, 0.0005, MIN_AREA, W),
+            (Refinement::Brightness, 0.0002, MIN_AREA, W),
         ]
     };
     let flat_sizes: &[Option<usize>] =
@@ -208,8 +232,8 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     let judged = judged_faces(&reference);
     let worst_se = reference.faces.iter().map(|f| f.relative_standard_error).fold(0.0, f64::max);
     let mut rows = Vec::new();
-    for &(refinement, epsilon, min_area_fraction) in epsilons {
-        let label = refinement_label(refinement);
+    for &(refinement, epsilon, min_area_fraction, sender_weight) in epsilons {
+        let label = oracle_label(refinement, sender_weight);
         let finer = if min_area_fraction == MIN_AREA {
             String::new()
         } else {
@@ -230,6 +254,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
                 refinement,
                 min_area_fraction,
                 max_links,
+                sender_weight,
                 ..HierarchyOptions::default()
             },
         )
@@ -253,6 +278,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             method: format!("hierarchical, {label} (epsilon {epsilon}{finer})"),
             epsilon: Some(epsilon),
             refinement: Some(refinement),
+            sender_weight,
             elements: sol.leaves.len(),
             links,
             bytes: links * LINK_BYTES,
@@ -280,6 +306,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             method: format!("flat ({} patches)", prepared.patches.len()),
             epsilon: None,
             refinement: None,
+            sender_weight: 0.0,
             elements: prepared.patches.len(),
             links: entries,
             bytes: entries * ENTRY_BYTES,
@@ -292,15 +319,19 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         });
     }
     let mut exponents = Vec::new();
-    for refinement in [Refinement::Budgets, Refinement::Brightness] {
+    // One fit per oracle: a refinement with one sender weight (the single weight-1 row fits nothing).
+    let mut oracles: Vec<(Refinement, f64)> =
+        rows.iter().filter_map(|r| r.refinement.map(|f| (f, r.sender_weight))).collect();
+    oracles.dedup();
+    for (refinement, weight) in oracles {
         let hierarchical: Vec<&HierarchyRow> =
-            rows.iter().filter(|r| r.refinement == Some(refinement)).collect();
+            rows.iter().filter(|r| r.refinement == Some(refinement) && r.sender_weight == weight).collect();
         if hierarchical.len() >= 2 {
             let links: Vec<(f64, f64)> =
                 hierarchical.iter().map(|r| (r.elements as f64, r.links as f64)).collect();
             let time: Vec<(f64, f64)> = hierarchical.iter().map(|r| (r.elements as f64, r.seconds)).collect();
             exponents.push((
-                format!("{name}, {} refinement", refinement_label(refinement)),
+                format!("{name}, {} refinement", oracle_label(refinement, weight)),
                 loglog_slope(&links),
                 loglog_slope(&time),
             ));

@@ -346,6 +346,13 @@ fn geometric_bounds(tree: &Tree, a: u32, b: u32) -> (f64, f64) {
 /// (brightness-weighted refinement, Hanrahan, Salzman, Aupperle 1991, with the spread in place of `F`), the
 /// larger of the two directions.
 ///
+/// Between two surfaces, `sender_weight` (`w`, [`super::HierarchyOptions::sender_weight`]) adds the sender's
+/// unevenness: the link sends its average radiosity, where a receiver point gathers each part of the sender by
+/// its own kernel, so it may be off by up to `F_rs * (Bmax_s - Bmin_s)` per unit area (the leaves' range below
+/// the sender); the charge adds `w` times that. The brightness term alone leaves a link coarse wherever its
+/// form factor varies little over the receiver, however uneven the sender (a floor lit brightly in the middle
+/// and dimly at its edges, sending its average to the block side beside a dim edge).
+///
 /// A link with a cluster at either end bounds its geometric part by the sender's power instead: no point of the
 /// receiver gets more irradiance from the sender than `Phi_s / (pi d^2)` (`d` the gap between the bounding
 /// spheres; Smits, Arvo, Greenberg 1994), and none gets less than 0, so neither the receiver's spread of point
@@ -354,10 +361,10 @@ fn geometric_bounds(tree: &Tree, a: u32, b: u32) -> (f64, f64) {
 /// area, where the spread's `min(A_s / (pi d^2), 1)` times `Bmax_s` would charge every surface of a cluster as if
 /// it were its brightest (a ceiling cluster holding a few panels). The Monte Carlo term (two standard errors) is
 /// charged at `Bmax_s` as before.
-pub(super) fn link_error(tree: &Tree, spans: &[Span], link: &Link) -> f64 {
+pub(super) fn link_error(tree: &Tree, spans: &[Span], link: &Link, sender_weight: f64) -> f64 {
     let clustered = tree.is_cluster(link.a) || tree.is_cluster(link.b);
     let geometric = clustered.then(|| geometric_bounds(tree, link.a, link.b));
-    let one = |r: u32, s: u32, spread: f64, bound: Option<f64>| {
+    let one = |r: u32, s: u32, f: f64, spread: f64, bound: Option<f64>| {
         let nr = &tree.nodes[r as usize];
         let span = &spans[s as usize];
         let brightness = match bound {
@@ -365,13 +372,15 @@ pub(super) fn link_error(tree: &Tree, spans: &[Span], link: &Link) -> f64 {
                 let noise = (spread - g.min(1.0)).max(0.0);
                 (span.mean * g).min(span.hi) + span.hi * noise
             }
+            None if sender_weight > 0.0 => span.hi * spread + (span.hi - span.lo) * (sender_weight * f),
             None => span.hi * spread,
         };
         nr.area * max_channel(nr.rho_max * brightness)
     };
-    one(link.a, link.b, link.spread_ab, geometric.map(|g| g.0)).max(one(
+    one(link.a, link.b, link.f_ab, link.spread_ab, geometric.map(|g| g.0)).max(one(
         link.b,
         link.a,
+        link.f_ba,
         link.spread_ba,
         geometric.map(|g| g.1),
     ))
@@ -419,6 +428,8 @@ pub(super) struct Limits {
     /// Receiver-subtree pieces a refinement runs in (`pieces`; 1: one piece, in place). Any count gives the same
     /// links and nodes, bit for bit.
     pub(super) pieces: usize,
+    /// Weight of the sender's unevenness in [`link_error`] ([`super::HierarchyOptions::sender_weight`]).
+    pub(super) sender_weight: f64,
 }
 
 /// How many children splitting surface `n` makes (the mesher's split: 4 for a triangle or a quadrilateral, one
@@ -509,7 +520,7 @@ pub(super) fn waves<C: RayCaster + ?Sized>(
             if link.f_ab == 0.0 && link.spread_ab == 0.0 && link.spread_ba == 0.0 {
                 continue;
             }
-            if est.trusted && link_error(tree, spans, &link) <= limits.threshold {
+            if est.trusted && link_error(tree, spans, &link, limits.sender_weight) <= limits.threshold {
                 // A pair whose rays all missed may still exchange light somewhere: kept (it carries no transfer)
                 // so that the budgets can refine it.
                 links.push(link);
@@ -705,7 +716,7 @@ mod tests {
                     unoccluded_ab: 0.0,
                     sigma: 0.0,
                 };
-                let charge = link_error(&tree, &spans, &link);
+                let charge = link_error(&tree, &spans, &link, 0.0);
                 let nr = &tree.nodes[r as usize];
                 let brightest = nr.area * max_channel(nr.rho_max * spans[c as usize].hi) * g;
                 assert!(charge <= brightest * (1.0 + 1e-12), "({r}, {c}): {charge} > {brightest}");
@@ -733,6 +744,53 @@ mod tests {
             }
         }
         assert!(pairs > 0 && cheaper > 0, "{pairs} pairs, {cheaper} charged at most half");
+    }
+
+    /// The sender term of the oracle: a surface link whose form factor varies nowhere over its receiver (spread
+    /// 0) is charged nothing at sender weight 0, and at weight `w` exactly `w * F * A_r * max_c(rho_r,c *
+    /// (Bmax_s,c - Bmin_s,c))`: linear in `w`, zero where the sender is even, and never applied to a cluster
+    /// link (charged by its geometric bound whatever the weight).
+    #[test]
+    fn the_senders_unevenness_is_charged_by_its_weight_on_surface_links_only() {
+        let (roots, lighting, rules) = cornell_polygons();
+        let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
+        let mut spans = super::super::solve::emission_bound(&tree);
+        let n = tree.nodes.len() as u32;
+        let surfaces: Vec<u32> = (0..n).filter(|&k| !tree.is_cluster(k)).collect();
+        let (r, s) = (surfaces[0], surfaces[1]);
+        let f = 0.125;
+        let link = |a: u32, b: u32| Link {
+            a,
+            b,
+            f_ab: f,
+            f_ba: 0.0,
+            spread_ab: 0.0,
+            spread_ba: 0.0,
+            visible: 1.0,
+            unoccluded_ab: f,
+            sigma: 0.0,
+        };
+        // An even sender: no charge at any weight.
+        spans[s as usize].hi = Rgb::new(2.0, 1.0, 0.5);
+        spans[s as usize].lo = spans[s as usize].hi;
+        for w in [0.0, 1.0, 16.0] {
+            assert_eq!(link_error(&tree, &spans, &link(r, s), w), 0.0);
+        }
+        // An uneven one: the range times F times the weight.
+        spans[s as usize].lo = Rgb::new(0.5, 1.0, 0.25);
+        let nr = &tree.nodes[r as usize];
+        let one = nr.area * max_channel(nr.rho_max * Rgb::new(1.5, 0.0, 0.25)) * f;
+        assert!(one > 0.0);
+        assert_eq!(link_error(&tree, &spans, &link(r, s), 0.0), 0.0);
+        for w in [1.0, 16.0] {
+            let charge = link_error(&tree, &spans, &link(r, s), w);
+            assert!((charge - w * one).abs() <= 1e-12 * w * one, "weight {w}: {charge} vs {}", w * one);
+        }
+        // A cluster sender is charged by its geometric bound, the same at every weight.
+        let c = (0..n).find(|&k| tree.is_cluster(k) && !within(&tree, r, k)).unwrap();
+        spans[c as usize].lo = Rgb::ZERO;
+        let clustered = link(r, c);
+        assert_eq!(link_error(&tree, &spans, &clustered, 0.0), link_error(&tree, &spans, &clustered, 16.0));
     }
 
     /// Every Cornell box pair with a cluster end whose ends are far enough apart (`A / (pi d^2) <= 1` both ways)
@@ -775,8 +833,14 @@ mod tests {
     fn an_untrusted_pair_opens_its_cluster() {
         let (roots, lighting, rules) = cornell_polygons();
         let tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
-        let limits =
-            Limits { threshold: 0.0, min_area: 0.0, max_nodes: 100_000, max_links: usize::MAX, pieces: 1 };
+        let limits = Limits {
+            threshold: 0.0,
+            min_area: 0.0,
+            max_nodes: 100_000,
+            max_links: usize::MAX,
+            pieces: 1,
+            sender_weight: 0.0,
+        };
         // The largest surface, and a cluster smaller than it that does not hold it.
         let n = tree.nodes.len() as u32;
         let surface = (0..n)

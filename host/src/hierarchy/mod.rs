@@ -24,7 +24,10 @@
 //!      whose power error `A_r * max_c(rho_r * Bmax_s) * spread` exceeds `epsilon * LINK_SHARE` times the
 //!      brightest face polygon's emitted power is split at its larger end (brightness-weighted refinement,
 //!      Hanrahan, Salzman, Aupperle, "A rapid hierarchical radiosity algorithm", SIGGRAPH 1991, with the spread
-//!      for `F`). This makes the elements: fine where direct light and its shadows change fast.
+//!      for `F`). This makes the elements: fine where direct light and its shadows change fast. With
+//!      [`HierarchyOptions::sender_weight`] (the command line's f64 answers) a surface link's error also counts
+//!      its sender's unevenness, `w * F * (Bmax_s - Bmin_s)` per unit area (the average it sends against what a
+//!      receiver point sees; `link::link_error`), in every brightness pass.
 //!   2. **Budgets** (each later pass, after a solve): every leaf is charged with what the links on its chain (its
 //!      own and its ancestors') may get wrong there, receiver-side (an average pushed down) and sender-side (an
 //!      average `B` sent where the sender's bright parts see more); chains above `epsilon` times the leaf's
@@ -147,6 +150,13 @@ pub const DEFAULT_CLUSTER_SAMPLES: usize = 32;
 pub const DEFAULT_PIECES: usize = 1;
 /// Default refinement passes (each but the last followed by a re-check against the solved radiosity).
 pub const DEFAULT_PASSES: usize = 4;
+/// [`HierarchyOptions::sender_weight`] of the command line's f64 answers (`solve`, `render`, `lightmap`,
+/// `export`): the sender's unevenness charged 16 times its bound. The bound itself (weight 1) changes little,
+/// because the brightness term it is added to is far looser wherever a link's form factor varies over its
+/// receiver; a larger weight makes the sender term decide where the receiver sees an uneven sender evenly. The
+/// weight is a choice made by measurement, not derived: the per-face error against links and seconds on the
+/// Cornell box (`bench/REPORT.md`, "Hierarchy against flat", the rows with and without it).
+pub const ANSWER_SENDER_WEIGHT: f64 = 16.0;
 /// Default relative change at which the push-pull iteration stops.
 pub const DEFAULT_SOLVE_TOLERANCE: f64 = 1e-7;
 /// Most push-pull sweeps of one solve.
@@ -223,6 +233,12 @@ pub struct HierarchyOptions {
     /// solved (as [`solve_hierarchical`]'s does); `false` casts rays for every pair (to measure what culling
     /// changes).
     pub shaft_culling: bool,
+    /// Weight of the sender's unevenness in the brightness oracle (the direct-light pass and
+    /// [`Refinement::Brightness`]): a link between two surfaces is also charged this many times `F_rs` times the
+    /// range of the sender's leaves' radiosity, the most its average can be off for a receiver point (`link`,
+    /// `link_error`). 0 (the default) is the brightness oracle alone; the command line's f64 answers use
+    /// [`ANSWER_SENDER_WEIGHT`].
+    pub sender_weight: f64,
 }
 
 impl Default for HierarchyOptions {
@@ -241,6 +257,7 @@ impl Default for HierarchyOptions {
             pieces: DEFAULT_PIECES,
             progress: false,
             shaft_culling: true,
+            sender_weight: 0.0,
         }
     }
 }
@@ -556,6 +573,9 @@ fn check_options(options: &HierarchyOptions) -> Result<(), HierarchyError> {
     if !(options.solve_tolerance > 0.0 && options.solve_tolerance < 1.0) {
         return bad("solve_tolerance", "must be in (0, 1)");
     }
+    if !(options.sender_weight >= 0.0 && options.sender_weight.is_finite()) {
+        return bad("sender_weight", "must be a finite number, 0 or more");
+    }
     Ok(())
 }
 
@@ -658,6 +678,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
         max_nodes: options.max_nodes,
         max_links: options.max_links,
         pieces: options.pieces,
+        sender_weight: options.sender_weight,
     };
     let estimator = Estimator {
         rules: &rules,
@@ -834,7 +855,7 @@ fn refine_brightness<C: RayCaster + ?Sized>(
         let done = if let Some(end) = at {
             split_either(tree, estimator.rules, spans, limits, link.a, link.b, end, &mut candidates)?
         } else {
-            link_error(tree, spans, &link) > limits.threshold
+            link_error(tree, spans, &link, limits.sender_weight) > limits.threshold
                 && split_link(tree, estimator.rules, spans, limits, link.a, link.b, &mut candidates)?
         };
         if done {

@@ -285,8 +285,15 @@ mod tests {
             for span in &mut spans {
                 span.reflected = crate::rgb::Rgb::splat(reflected);
             }
-            let threshold = link_error(&tree, &spans, &link);
-            let limits = Limits { threshold, min_area: 0.0, max_nodes: 10_000, max_links: 10_000, pieces: 1 };
+            let threshold = link_error(&tree, &spans, &link, 0.0);
+            let limits = Limits {
+                threshold,
+                min_area: 0.0,
+                max_nodes: 10_000,
+                max_links: 10_000,
+                pieces: 1,
+                sender_weight: 0.0,
+            };
             let mut links = vec![link];
             let mut counts = RefineCounts::default();
             let mut known = LeafEstimates::default();

@@ -159,6 +159,7 @@ mod tests {
             max_nodes: 100_000,
             max_links: usize::MAX,
             pieces: 1,
+            sender_weight: 0.0,
         };
         let estimator = super::super::link::Estimator::for_tests(&rules, &caster);
         let mut spans = emission_bound(&tree);

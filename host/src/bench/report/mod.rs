@@ -341,8 +341,12 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
              leaves); \"vs continuous\" adds the mesh's error. Bytes: {LINK_BYTES} per link (two directions, each a \
              32-bit node index and a 16-bit code), {ENTRY_BYTES} per flat entry; the flat rows' seconds include their \
              adaptive meshing passes. \"claimed\" is the hierarchy's propagated error bound, relative; \"peak\" the \
-             bench process's peak resident memory during the row (the process's baseline included).\n",
-            100.0 * SMALL_FACE
+             bench process's peak resident memory during the row (the process's baseline included). \"sender weight \
+             W\": brightness refinement that also charges each surface link W times its form factor times the range \
+             of its sender's leaves' radiosity (how far the average the link sends can be off; `--method \
+             hierarchical` answers of `solve`, `render`, `lightmap` and `export` use W = {}).\n",
+            100.0 * SMALL_FACE,
+            crate::hierarchy::ANSWER_SENDER_WEIGHT
         );
     }
     let _ = writeln!(
@@ -480,8 +484,9 @@ fn office(s: &mut String, o: &super::largescene::OfficeSection) {
         s,
         "\n### A large generated scene: the office\n\n`scenes/make_office.py` with a growing number of workstations \
          (desks, monitors, chairs, books, desk lamps, all of closed boxes standing 2 cm apart; ceiling panels in two \
-         light groups and the lamps in a third), solved by `solve --method hierarchical --refinement brightness \
-         --epsilon {}` (the device tables' refinement){}. Bytes: {LINK_BYTES} per link; peak: the bench process's \
+         light groups and the lamps in a third), solved as `solve --method hierarchical --refinement brightness \
+         --epsilon {}` refines without the f64 answers' sender term (the device tables' refinement, as `bake \
+         --method hierarchical` refines){}. Bytes: {LINK_BYTES} per link; peak: the bench process's \
          peak resident memory during the solve. Error: each non-emitting material's area-averaged radiosity \
          against the continuous reference of the same scene (`radiosity reference` at the paths per face of the \
          row; the dense solve does not reach these leaf counts), the signed relative difference of its worst \

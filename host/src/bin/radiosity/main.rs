@@ -13,7 +13,7 @@ use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{
     solve_hierarchical, solve_hierarchical_noting, HierarchicalSolution, HierarchyOptions, Refinement,
-    DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
+    ANSWER_SENDER_WEIGHT, DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
 };
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{patch_json, write_patch_csv};
@@ -125,14 +125,15 @@ fn read_table(path: &Path) -> Result<Vec<u8>, BoxError> {
 }
 
 /// The default `--epsilon` of brightness refinement where the product is the f64 answer itself (`solve`,
-/// `render`, `lightmap`, `export`): where the bench's Cornell box rows (`bench/REPORT.md`, "Hierarchy against
-/// flat") put the hierarchy's worst face against the continuous reference below the flat solve's at its
-/// default mesh, at a few seconds; device tables keep [`DEFAULT_EPSILON`], sized for a device's memory.
+/// `render`, `lightmap`, `export`), with the sender's unevenness charged ([`ANSWER_SENDER_WEIGHT`]): where the
+/// bench's Cornell box rows (`bench/REPORT.md`, "Hierarchy against flat") put every face within 1% of the
+/// continuous reference; device tables keep [`DEFAULT_EPSILON`], sized for a device's memory.
 const ANSWER_EPSILON: f64 = 0.0005;
 
 /// What a hierarchical solve is for, which sets its defaults: both refine by brightness unless `--refinement`
-/// says otherwise; an f64 answer (`solve`, `render`, `lightmap`, `export`) at [`ANSWER_EPSILON`], a device table
-/// (`bake`, `check`) at [`DEFAULT_EPSILON`] (also the default of `--refinement budgets` everywhere).
+/// says otherwise; an f64 answer (`solve`, `render`, `lightmap`, `export`) at [`ANSWER_EPSILON`] with the
+/// sender's unevenness charged [`ANSWER_SENDER_WEIGHT`] times, a device table (`bake`, `check`) at
+/// [`DEFAULT_EPSILON`] without it (also the default of `--refinement budgets` everywhere).
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Purpose {
     Answer,
@@ -163,6 +164,10 @@ fn hierarchical_solution(
         refinement,
         max_links: hierarchy.max_links.unwrap_or(DEFAULT_MAX_LINKS),
         pieces: hierarchy.pieces.map_or(radiosity_host::hierarchy::DEFAULT_PIECES, |n| n as usize),
+        sender_weight: match (purpose, refinement) {
+            (Purpose::Answer, Refinement::Brightness) => ANSWER_SENDER_WEIGHT,
+            _ => 0.0,
+        },
         form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
         progress: !scene.quiet,
         ..HierarchyOptions::default()
