@@ -372,8 +372,7 @@ pub(super) fn link_error(tree: &Tree, spans: &[Span], link: &Link, sender_weight
                 let noise = (spread - g.min(1.0)).max(0.0);
                 (span.mean * g).min(span.hi) + span.hi * noise
             }
-            None if sender_weight > 0.0 => span.hi * spread + (span.hi - span.lo) * (sender_weight * f),
-            None => span.hi * spread,
+            None => span.hi * spread + (span.hi - span.lo) * (sender_weight * f),
         };
         nr.area * max_channel(nr.rho_max * brightness)
     };
