@@ -11,7 +11,8 @@ use glam::DVec3;
 /// `normal · (y - x) >= 0`. Zero if `x` is not strictly in front of the polygon's plane.
 #[must_use]
 pub fn point_to_polygon(x: DVec3, normal: DVec3, polygon: &[DVec3], polygon_normal: DVec3) -> f64 {
-    let mut scratch = Vec::with_capacity(polygon.len() + 1);
+    // Grown (allocated) only if the polygon has to be clipped.
+    let mut scratch = Vec::new();
     point_to_polygon_with(x, normal, polygon, polygon_normal, &mut scratch)
 }
 

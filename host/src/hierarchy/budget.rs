@@ -338,7 +338,7 @@ pub(super) fn refine_budgets<C: RayCaster + ?Sized>(
             let s = if link.a == r { link.b } else { link.a };
             // The receiver end moves the link down where the local part dominates; the sender end otherwise.
             let first = if local { r } else { s };
-            if split_either(tree, estimator.rules, spans, limits, link.a, link.b, first, &mut candidates)? {
+            if split_either(tree, estimator.rules, spans, limits, link.pair(tree), first, &mut candidates)? {
                 ledger.dead[k] = true;
                 dirty.resize(tree.nodes.len(), true);
                 for end in [link.a, link.b] {
@@ -453,7 +453,7 @@ mod tests {
                 mean: Rgb::splat(mean),
                 square: Rgb::splat(square),
             };
-            let link = estimator.estimate(&tree, receiver, sender).link;
+            let link = estimator.estimate(&tree, super::super::link::Pair::new(receiver, sender)).link;
             let (at_receiver, _) = systematic(&tree, &spans, &link);
             // The exact transfer per unit receiver area, through each quarter's own form factor (A_q F_qr = A_r
             // F_rq, the estimator's kernel integral).

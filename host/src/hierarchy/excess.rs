@@ -8,6 +8,8 @@
 //! point form factor most, until their overstatements cover the excess: splitting those at the ancestor moves
 //! them down towards the leaf.
 
+use rayon::prelude::*;
+
 use super::link::Link;
 use super::tree::{Tree, NONE};
 use crate::formfactor::point_to_polygon;
@@ -23,39 +25,46 @@ pub(super) fn overstated(tree: &Tree, links: &[Link], tolerance: f64) -> Vec<(us
         at[l.b as usize].push(k);
     }
     let (sum, _) = leaf_row_sums(tree, links);
-    let mut chosen = Vec::new();
-    for (node, total) in tree.nodes.iter().zip(&sum) {
-        let excess = total - 1.0 - tolerance;
-        if !node.children.is_empty() || excess <= 0.0 {
-            continue;
-        }
-        let Some(el) = node.element() else { continue };
-        let pl = el.patch();
-        let mut over: Vec<(f64, usize, u32)> = Vec::new();
-        let mut a = node.parent;
-        while a != NONE {
-            for &k in &at[a as usize] {
-                let link = &links[k];
-                let (s, f) = if link.a == a { (link.b, link.f_ab) } else { (link.a, link.f_ba) };
-                let Some(es) = tree.nodes[s as usize].element() else { continue };
-                let ps = es.patch();
-                let seen = link.visible * point_to_polygon(pl.centroid, pl.normal, &ps.vertices, ps.normal);
-                if f > seen {
-                    over.push((f - seen, k, a));
+    // Each leaf's choice depends on the leaf alone; they are made in parallel and put in order below.
+    let mut chosen: Vec<(usize, u32)> = (0..tree.nodes.len())
+        .into_par_iter()
+        .flat_map_iter(|n| {
+            let node = &tree.nodes[n];
+            let excess = sum[n] - 1.0 - tolerance;
+            let mut picked = Vec::new();
+            if !node.children.is_empty() || excess <= 0.0 {
+                return picked;
+            }
+            let Some(el) = node.element() else { return picked };
+            let pl = el.patch();
+            let mut over: Vec<(f64, usize, u32)> = Vec::new();
+            let mut a = node.parent;
+            while a != NONE {
+                for &k in &at[a as usize] {
+                    let link = &links[k];
+                    let (s, f) = if link.a == a { (link.b, link.f_ab) } else { (link.a, link.f_ba) };
+                    let Some(es) = tree.nodes[s as usize].element() else { continue };
+                    let ps = es.patch();
+                    let seen =
+                        link.visible * point_to_polygon(pl.centroid, pl.normal, &ps.vertices, ps.normal);
+                    if f > seen {
+                        over.push((f - seen, k, a));
+                    }
                 }
+                a = tree.nodes[a as usize].parent;
             }
-            a = tree.nodes[a as usize].parent;
-        }
-        over.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-        let mut covered = 0.0;
-        for (o, k, a) in over {
-            if covered >= excess {
-                break;
+            over.sort_unstable_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
+            let mut covered = 0.0;
+            for (o, k, a) in over {
+                if covered >= excess {
+                    break;
+                }
+                picked.push((k, a));
+                covered += o;
             }
-            chosen.push((k, a));
-            covered += o;
-        }
-    }
+            picked
+        })
+        .collect();
     chosen.sort_unstable();
     chosen.dedup_by_key(|c| c.0);
     chosen

@@ -69,6 +69,35 @@ pub(super) fn visibility_uncertainty(v: f64, n: f64) -> f64 {
     }
 }
 
+/// A candidate pair of nodes, and whether nothing can block a ray between them: known for the pairs made by
+/// splitting a surface link whose shaft was clear ([`super::shaft`]), since the convex hull of parts of two
+/// polygons lies within the hull of the two, so that their shaft is clear too and need not be tested again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Pair {
+    /// One end (the receiver, for the pieces' split).
+    pub(super) a: u32,
+    /// The other end.
+    pub(super) b: u32,
+    /// Whether the pair's shaft is known to be clear.
+    pub(super) clear: bool,
+}
+
+impl Pair {
+    /// The pair `(a, b)`, its shaft not known to be clear.
+    pub(super) fn new(a: u32, b: u32) -> Pair {
+        Pair { a, b, clear: false }
+    }
+}
+
+impl Link {
+    /// The pair of the link's ends, clear if it is a surface link whose shaft was clear (its visibility exact:
+    /// `visible` 1 with no uncertainty, which the rays never give).
+    pub(super) fn pair(&self, tree: &Tree) -> Pair {
+        let surfaces = !tree.is_cluster(self.a) && !tree.is_cluster(self.b);
+        Pair { a: self.a, b: self.b, clear: surfaces && self.visible == 1.0 && self.sigma == 0.0 }
+    }
+}
+
 /// The estimate of one candidate pair: a [`Link`] and the rays it cast.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Estimate {
@@ -165,7 +194,7 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
     }
 
     /// The estimate of the pair `(a, b)` (distinct, disjoint nodes).
-    pub(super) fn estimate(&self, tree: &Tree, a: u32, b: u32) -> Estimate {
+    pub(super) fn estimate(&self, tree: &Tree, Pair { a, b, clear }: Pair) -> Estimate {
         let zero = Estimate {
             link: Link {
                 a,
@@ -187,7 +216,7 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
         let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
         match (&na.kind, &nb.kind) {
             (Kind::Surface { element: ea, .. }, Kind::Surface { element: eb, .. }) => {
-                self.surface_pair(tree, a, ea, b, eb).unwrap_or(zero)
+                self.surface_pair(tree, (a, ea), (b, eb), clear).unwrap_or(zero)
             }
             _ => self.cluster_pair(tree, a, b),
         }
@@ -199,16 +228,15 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
     /// receiver times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a
     /// shadow edge can cross the receiver) and the fraction's standard error; where it is not, its uncertainty
     /// ([`visibility_uncertainty`]; 0 for a clear shaft) times the unoccluded factor. `None` if the two cannot
-    /// exchange light.
+    /// exchange light. `clear` says the shaft is known to be clear (not tested again).
     pub(super) fn surface_pair(
         &self,
         tree: &Tree,
-        a: u32,
-        ea: &Element,
-        b: u32,
-        eb: &Element,
+        (a, ea): (u32, &Element),
+        (b, eb): (u32, &Element),
+        clear: bool,
     ) -> Option<Estimate> {
-        let (mut estimate, u_ba) = self.factor(tree, a, ea, b, eb)?;
+        let (mut estimate, u_ba) = self.factor(tree, (a, ea), (b, eb), clear)?;
         let link = &mut estimate.link;
         let (v, sigma) = (link.visible, link.sigma);
         let visibility = if v > 0.0 && v < 1.0 { 1.0 + sigma } else { sigma };
@@ -220,14 +248,13 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
 
     /// [`Self::surface_pair`] without the spreads (left 0, which saves the probes' kernel evaluations): the form
     /// factors, the visible fraction and its uncertainty, for a caller that needs no more; and the unoccluded form
-    /// factor from `b` to `a`.
+    /// factor from `b` to `a`. `clear` says the shaft is known to be clear (not tested again).
     pub(super) fn factor(
         &self,
         tree: &Tree,
-        a: u32,
-        ea: &Element,
-        b: u32,
-        eb: &Element,
+        (a, ea): (u32, &Element),
+        (b, eb): (u32, &Element),
+        clear: bool,
     ) -> Option<(Estimate, f64)> {
         // Integrated over the smaller of the two (the kernel is exact over the other), the other direction by
         // reciprocity: the quadrature then never has to resolve a small neighbour's peak on a large element.
@@ -242,7 +269,7 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
         if !(u_ab > 0.0 && u_ab.is_finite() && u_ba.is_finite()) {
             return None;
         }
-        let (v, sigma, rays) = if self.shafts && super::shaft::clear(tree, a, b) {
+        let (v, sigma, rays) = if self.shafts && (clear || super::shaft::clear(tree, a, b)) {
             (1.0, 0.0, 0)
         } else {
             // The stream of the lower key first, so the estimate does not depend on the pair's order (nor, keyed
@@ -455,7 +482,7 @@ fn splittable(tree: &Tree, limits: &Limits, n: u32) -> bool {
 
 /// The pairs a self-link of `n` stands for: every unordered pair of distinct children, and the self-links of the
 /// children that are clusters (a planar surface does not see itself).
-pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<(u32, u32)>) {
+pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<Pair>) {
     let mut stack = vec![n];
     while let Some(c) = stack.pop() {
         if !tree.is_cluster(c) {
@@ -464,7 +491,7 @@ pub(super) fn expand_self(tree: &Tree, n: u32, candidates: &mut Vec<(u32, u32)>)
         let children = &tree.nodes[c as usize].children;
         for (k, &a) in children.iter().enumerate() {
             for &b in &children[k + 1..] {
-                candidates.push((a, b));
+                candidates.push(Pair::new(a, b));
             }
             stack.push(a);
         }
@@ -484,17 +511,17 @@ pub(super) fn waves<C: RayCaster + ?Sized>(
     estimator: &Estimator<'_, C>,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    mut candidates: Vec<(u32, u32)>,
+    mut candidates: Vec<Pair>,
     links: &mut Vec<Link>,
     counts: &mut RefineCounts,
     held: usize,
     here: impl Fn(&Tree, u32) -> bool,
-    elsewhere: &mut Vec<(u32, u32)>,
+    elsewhere: &mut Vec<Pair>,
 ) -> Result<(), HierarchyError> {
     loop {
-        candidates.retain(|&(a, b)| {
-            here(tree, a) || {
-                elsewhere.push((a, b));
+        candidates.retain(|&pair| {
+            here(tree, pair.a) || {
+                elsewhere.push(pair);
                 false
             }
         });
@@ -509,10 +536,10 @@ pub(super) fn waves<C: RayCaster + ?Sized>(
         }
         let estimates: Vec<Estimate> = {
             let tree = &*tree;
-            candidates.par_iter().map(|&(r, s)| estimator.estimate(tree, r, s)).collect()
+            candidates.par_iter().map(|&pair| estimator.estimate(tree, pair)).collect()
         };
         let mut next = Vec::new();
-        for (&(a, b), est) in candidates.iter().zip(&estimates) {
+        for est in &estimates {
             counts.estimated += 1;
             counts.rays += est.rays;
             let link = est.link;
@@ -526,9 +553,9 @@ pub(super) fn waves<C: RayCaster + ?Sized>(
                 continue;
             }
             let split = if est.trusted {
-                split_link(tree, estimator.rules, spans, limits, a, b, &mut next)?
+                split_link(tree, estimator.rules, spans, limits, link.pair(tree), &mut next)?
             } else {
-                split_untrusted(tree, estimator.rules, spans, limits, a, b, &mut next)?
+                split_untrusted(tree, estimator.rules, spans, limits, link.pair(tree), &mut next)?
             };
             if split {
                 counts.split += 1;
@@ -577,33 +604,31 @@ pub(super) fn split_link(
     rules: &ElementRules,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    r: u32,
-    s: u32,
-    next: &mut Vec<(u32, u32)>,
+    pair: Pair,
+    next: &mut Vec<Pair>,
 ) -> Result<bool, HierarchyError> {
+    let (r, s) = (pair.a, pair.b);
     let first = if tree.nodes[r as usize].area >= tree.nodes[s as usize].area { r } else { s };
-    split_either(tree, rules, spans, limits, r, s, first, next)
+    split_either(tree, rules, spans, limits, pair, first, next)
 }
 
-/// Splits the pair `(r, s)` at `first` (one of its ends), or at the other end if `first` cannot be split;
-/// returns false if neither can.
+/// Splits `pair` at `first` (one of its ends), or at the other end if `first` cannot be split; returns false if
+/// neither can.
 ///
 /// # Errors
 /// [`HierarchyError::Mesh`] if a surface cannot be split.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn split_either(
     tree: &mut Tree,
     rules: &ElementRules,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    r: u32,
-    s: u32,
+    pair: Pair,
     first: u32,
-    next: &mut Vec<(u32, u32)>,
+    next: &mut Vec<Pair>,
 ) -> Result<bool, HierarchyError> {
-    let second = if first == r { s } else { r };
-    Ok(split_end(tree, rules, spans, limits, r, s, first, next)?
-        || split_end(tree, rules, spans, limits, r, s, second, next)?)
+    let second = if first == pair.a { pair.b } else { pair.a };
+    Ok(split_end(tree, rules, spans, limits, pair, first, next)?
+        || split_end(tree, rules, spans, limits, pair, second, next)?)
 }
 
 /// Replaces a pair whose cluster estimate cannot be trusted by the pairs of the children of its cluster end (the
@@ -618,10 +643,10 @@ fn split_untrusted(
     rules: &ElementRules,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    r: u32,
-    s: u32,
-    next: &mut Vec<(u32, u32)>,
+    pair: Pair,
+    next: &mut Vec<Pair>,
 ) -> Result<bool, HierarchyError> {
+    let (r, s) = (pair.a, pair.b);
     let (cr, cs) = (tree.is_cluster(r), tree.is_cluster(s));
     let first = match (cr, cs) {
         (true, false) => r,
@@ -629,26 +654,25 @@ fn split_untrusted(
         _ if tree.nodes[r as usize].area >= tree.nodes[s as usize].area => r,
         _ => s,
     };
-    split_either(tree, rules, spans, limits, r, s, first, next)
+    split_either(tree, rules, spans, limits, pair, first, next)
 }
 
-/// Replaces the pair `(a, b)` by the pairs of the children of its end `end` (`a` or `b`) with the other end, if
+/// Replaces `pair` by the pairs of the children of its end `end` (`pair.a` or `pair.b`) with the other end, if
 /// `end` can be split; returns whether it could. New surface children take their parent's brightness range
-/// until a solve gives them their own.
+/// until a solve gives them their own; the new pairs' shafts are clear if the pair's was.
 ///
 /// # Errors
 /// [`HierarchyError::Mesh`] if a surface cannot be split.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn split_end(
     tree: &mut Tree,
     rules: &ElementRules,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    a: u32,
-    b: u32,
+    pair: Pair,
     end: u32,
-    next: &mut Vec<(u32, u32)>,
+    next: &mut Vec<Pair>,
 ) -> Result<bool, HierarchyError> {
+    let Pair { a, b, clear } = pair;
     if !splittable(tree, limits, end) {
         return Ok(false);
     }
@@ -667,7 +691,7 @@ pub(super) fn split_end(
         spans.push(spans[parent as usize]);
     }
     for &c in &tree.nodes[end as usize].children {
-        next.push(if end == a { (c, b) } else { (a, c) });
+        next.push(if end == a { Pair { a: c, b, clear } } else { Pair { a, b: c, clear } });
     }
     Ok(true)
 }
@@ -810,7 +834,7 @@ mod tests {
                 if g_ab.max(g_ba) > 1.0 || tree.behind(a, b) || tree.behind(b, a) {
                     continue;
                 }
-                let est = estimator.estimate(&tree, a, b);
+                let est = estimator.estimate(&tree, Pair::new(a, b));
                 let l = est.link;
                 assert!(est.trusted, "({a}, {b})");
                 assert!((0.0..=g_ab).contains(&l.f_ab), "({a}, {b}): f_ab {} above {g_ab}", l.f_ab);
@@ -859,14 +883,16 @@ mod tests {
             let mut t = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
             let (mut spans, mut next) = (vec![Span::ZERO; t.nodes.len()], Vec::new());
             let split = if untrusted {
-                split_untrusted(&mut t, &rules, &mut spans, &limits, surface, cluster, &mut next).unwrap()
+                split_untrusted(&mut t, &rules, &mut spans, &limits, Pair::new(surface, cluster), &mut next)
+                    .unwrap()
             } else {
-                split_link(&mut t, &rules, &mut spans, &limits, surface, cluster, &mut next).unwrap()
+                split_link(&mut t, &rules, &mut spans, &limits, Pair::new(surface, cluster), &mut next)
+                    .unwrap()
             };
             assert!(split && !next.is_empty());
             let opened = if untrusted { cluster } else { surface };
             let children = &t.nodes[opened as usize].children;
-            for &(r, s) in &next {
+            for &Pair { a: r, b: s, .. } in &next {
                 let (child, other) = if untrusted { (s, r) } else { (r, s) };
                 assert!(children.contains(&child), "untrusted {untrusted}: pair ({r}, {s})");
                 assert_eq!(other, if untrusted { surface } else { cluster });

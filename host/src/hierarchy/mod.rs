@@ -853,10 +853,10 @@ fn refine_brightness<C: RayCaster + ?Sized>(
     for (k, link) in links.drain(..).enumerate() {
         let at = next_overstated.next_if(|o| o.0 == k).map(|o| o.1);
         let done = if let Some(end) = at {
-            split_either(tree, estimator.rules, spans, limits, link.a, link.b, end, &mut candidates)?
+            split_either(tree, estimator.rules, spans, limits, link.pair(tree), end, &mut candidates)?
         } else {
             link_error(tree, spans, &link, limits.sender_weight) > limits.threshold
-                && split_link(tree, estimator.rules, spans, limits, link.a, link.b, &mut candidates)?
+                && split_link(tree, estimator.rules, spans, limits, link.pair(tree), &mut candidates)?
         };
         if done {
             split += 1;

@@ -13,7 +13,7 @@
 
 use rayon::prelude::*;
 
-use super::link::{too_many_links, waves, Estimator, Limits, Link, RefineCounts};
+use super::link::{too_many_links, waves, Estimator, Limits, Link, Pair, RefineCounts};
 use super::span::Span;
 use super::tree::{Tree, NONE};
 use super::HierarchyError;
@@ -95,7 +95,7 @@ pub(super) fn refine<C: RayCaster + ?Sized>(
     estimator: &Estimator<'_, C>,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    candidates: Vec<(u32, u32)>,
+    candidates: Vec<Pair>,
     links: &mut Vec<Link>,
     counts: &mut RefineCounts,
 ) -> Result<(), HierarchyError> {
@@ -133,7 +133,7 @@ fn in_pieces<C: RayCaster + ?Sized>(
     estimator: &Estimator<'_, C>,
     spans: &mut Vec<Span>,
     limits: &Limits,
-    candidates: Vec<(u32, u32)>,
+    candidates: Vec<Pair>,
     links: &mut Vec<Link>,
     counts: &mut RefineCounts,
 ) -> Result<(), HierarchyError> {
@@ -152,8 +152,8 @@ fn in_pieces<C: RayCaster + ?Sized>(
         &mut below,
     )?;
     let mut buckets = vec![Vec::new(); limits.pieces];
-    for (a, b) in below {
-        buckets[piece_of(tree, &piece, a) as usize].push((a, b));
+    for pair in below {
+        buckets[piece_of(tree, &piece, pair.a) as usize].push(pair);
     }
     let shared = tree.nodes.len();
     let held = links.len();

@@ -137,7 +137,8 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
                     Some(&known) => known,
                     None => {
                         out.estimated += 1;
-                        let fresh = match estimator.factor(tree, leaf, el, d.s, es).map(|(e, _)| e) {
+                        let fresh = match estimator.factor(tree, (leaf, el), (d.s, es), false).map(|(e, _)| e)
+                        {
                             Some(e) => {
                                 out.rays += e.rays;
                                 (e.link.f_ab, e.link.unoccluded_ab * e.link.sigma)
@@ -190,7 +191,7 @@ fn leaves_below(tree: &Tree, n: u32) -> impl Iterator<Item = u32> + '_ {
 mod tests {
     use super::*;
     use crate::formfactor::{occluder_bvh, ElementRules, FormFactorOptions};
-    use crate::hierarchy::link::{link_error, Limits, RefineCounts};
+    use crate::hierarchy::link::{link_error, Limits, Pair, RefineCounts};
     use crate::hierarchy::refine_brightness;
     use crate::hierarchy::solve::emission_bound;
     use crate::hierarchy::tree::{Tree, NONE};
@@ -279,7 +280,7 @@ mod tests {
             let mut tree = Tree::new(&rules, &roots, &lighting.rho, &lighting.default_emission());
             let (floor, ceiling) = (top(&tree, 0).unwrap(), top(&tree, 1).unwrap());
             tree.split(&rules, floor).unwrap();
-            let link = open.estimate(&tree, floor, ceiling).link;
+            let link = open.estimate(&tree, Pair::new(floor, ceiling)).link;
             assert_eq!(link.visible, 1.0, "the floor's rays to the ceiling, with nothing between");
             let mut spans = emission_bound(&tree);
             for span in &mut spans {

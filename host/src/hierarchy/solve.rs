@@ -3,6 +3,8 @@
 //! cluster's to every surface in it, the isotropic approximation), sets `B = E + rho * gathered` at the leaves,
 //! and pulls area-weighted averages back up.
 
+use rayon::prelude::*;
+
 use super::link::Link;
 use super::span::Span;
 use super::tree::{Kind, Tree, NONE};
@@ -74,10 +76,52 @@ pub(super) fn emission_bound(tree: &Tree) -> Vec<Span> {
     spans
 }
 
-/// What the sweeps read of each link, `(a, b, f_ab, f_ba)`, packed in the links' order (a sweep then streams a
-/// third of the bytes of the whole links).
-fn transfers(links: &[Link]) -> Vec<(u32, u32, f64, f64)> {
-    links.iter().map(|l| (l.a, l.b, l.f_ab, l.f_ba)).collect()
+/// What the sweeps read of the links: every node's incoming transfers `(sender, f)`, grouped by receiver
+/// (compressed rows), each group in the links' order. A sweep then gathers every node's irradiance on its own, in
+/// parallel, adding the same terms in the same order as a pass over the links would.
+struct Incoming {
+    /// Where each node's transfers start in `from` (one more entry than nodes).
+    start: Vec<usize>,
+    /// The transfers, `(sender, form factor)`.
+    from: Vec<(u32, f64)>,
+}
+
+impl Incoming {
+    /// Both directions of every link, grouped by receiver over `n` nodes.
+    fn new(n: usize, links: &[Link]) -> Incoming {
+        let mut start = vec![0usize; n + 1];
+        for l in links {
+            start[l.a as usize + 1] += 1;
+            start[l.b as usize + 1] += 1;
+        }
+        for k in 0..n {
+            start[k + 1] += start[k];
+        }
+        let mut next = start.clone();
+        let mut from = vec![(0u32, 0.0f64); start[n]];
+        for l in links {
+            from[next[l.a as usize]] = (l.b, l.f_ab);
+            next[l.a as usize] += 1;
+            from[next[l.b as usize]] = (l.a, l.f_ba);
+            next[l.b as usize] += 1;
+        }
+        Incoming { start, from }
+    }
+
+    /// `gathered[k] = sum f * value[sender]` over node `k`'s transfers, for every node (from `zero`).
+    fn gather<T>(&self, value: &[T], zero: T, gathered: &mut [T])
+    where
+        T: Copy + Send + Sync + std::ops::Add<Output = T>,
+        f64: std::ops::Mul<T, Output = T>,
+    {
+        /// Nodes per parallel task: enough work per task to pay for it.
+        const NODES_PER_TASK: usize = 64;
+        gathered.par_iter_mut().with_min_len(NODES_PER_TASK).enumerate().for_each(|(k, g)| {
+            *g = self.from[self.start[k]..self.start[k + 1]]
+                .iter()
+                .fold(zero, |sum, &(s, f)| sum + f * value[s as usize]);
+        });
+    }
 }
 
 /// Jacobi sweeps with emission `e` and reflectance `rho` per node (zero on clusters) until the relative change is
@@ -107,15 +151,11 @@ pub(super) fn solve(
     let mut spans = vec![Span::ZERO; n];
     pull(tree, &mut b, &e, &mut spans);
     let mut gathered = vec![Rgb::ZERO; n];
-    let transfers = transfers(links);
+    let incoming = Incoming::new(n, links);
     let mut sweeps = 0;
     let mut change = f64::INFINITY;
     while sweeps < max_sweeps && change > tolerance {
-        gathered.iter_mut().for_each(|g| *g = Rgb::ZERO);
-        for &(a, b_end, f_ab, f_ba) in &transfers {
-            gathered[a as usize] += f_ab * b[b_end as usize];
-            gathered[b_end as usize] += f_ba * b[a as usize];
-        }
+        incoming.gather(&b, Rgb::ZERO, &mut gathered);
         // Push in index order: a parent's total is final before its children add it.
         let (mut moved, mut total) = (0.0, 0.0);
         for k in 0..n {
@@ -161,7 +201,7 @@ pub(super) fn propagate(
     let rho: Vec<f64> = rho.iter().map(|r| max_channel(*r)).collect();
     let mut e = source.to_vec();
     let mut gathered = vec![0.0; n];
-    let transfers = transfers(links);
+    let incoming = Incoming::new(n, links);
     for _ in 0..max_sweeps {
         // Area means up the tree, so that links read a sender's average error.
         for k in (0..n).rev() {
@@ -172,11 +212,7 @@ pub(super) fn propagate(
                         / node.area;
             }
         }
-        gathered.iter_mut().for_each(|g| *g = 0.0);
-        for &(a, b, f_ab, f_ba) in &transfers {
-            gathered[a as usize] += f_ab * e[b as usize];
-            gathered[b as usize] += f_ba * e[a as usize];
-        }
+        incoming.gather(&e, 0.0, &mut gathered);
         let (mut moved, mut total) = (0.0, 0.0);
         for k in 0..n {
             let node = &tree.nodes[k];
