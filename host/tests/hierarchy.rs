@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use radiosity_host::formfactor::{compute_form_factors, ClosureMode, FormFactorOptions};
 use radiosity_host::hierarchy::{
     solve_hierarchical, HierarchicalSolution, HierarchyError, HierarchyOptions, HierarchySolver, Refinement,
-    ANSWER_SENDER_WEIGHT,
+    ANSWER_SAMPLES_PER_PATCH, ANSWER_SENDER_WEIGHT,
 };
 use radiosity_host::reference::{solve_many, Method, RadiositySystem};
 use radiosity_host::rgb::Rgb;
@@ -205,6 +205,51 @@ fn charging_the_senders_unevenness_brings_the_faces_closer_to_the_dense_solve() 
     println!("worst face against the dense solve: plain {worst_plain:.4}, weighted {worst_weighted:.4}");
     assert!(worst_weighted < worst_plain, "weighted {worst_weighted} vs plain {worst_plain}");
     matches_the_dense_solve_within_the_claim(&weighted);
+}
+
+/// The command line's f64 answers integrate each link's form factor with a 2 x 2 rule (`ANSWER_SAMPLES_PER_PATCH`)
+/// instead of the flat estimator's 4 x 4: the answer must still be within the oracle's claim, leaf by leaf, of
+/// the dense solve of its leaves with the 4 x 4 rule, and every face's area average within the two answers'
+/// claims (the part that does not average out over a face, `average_error_bound`, both added) of the answer with
+/// the 4 x 4 rule.
+#[test]
+fn the_answers_coarser_rule_keeps_the_claim_against_the_finer_rule() {
+    let s = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cornell-box.obj")).unwrap();
+    let with = |samples_per_patch| {
+        let mut o = HierarchyOptions {
+            epsilon: 0.01,
+            refinement: Refinement::Brightness,
+            sender_weight: ANSWER_SENDER_WEIGHT,
+            ..HierarchyOptions::default()
+        };
+        o.form_factors.samples_per_patch = samples_per_patch;
+        solve_hierarchical(&s, &o).unwrap()
+    };
+    let (coarse, fine) =
+        (with(ANSWER_SAMPLES_PER_PATCH), with(FormFactorOptions::default().samples_per_patch));
+    assert!(ANSWER_SAMPLES_PER_PATCH < FormFactorOptions::default().samples_per_patch);
+    matches_the_dense_solve_within_the_claim(&coarse);
+    let face_means = |sol: &HierarchicalSolution, face: usize| {
+        let bound = sol.average_error_bound.as_ref().expect("a finite claimed bound");
+        let (area, b, e) = sol
+            .leaves
+            .iter()
+            .zip(&sol.b)
+            .zip(bound)
+            .filter(|((p, _), _)| p.face == face)
+            .fold((0.0, 0.0, 0.0), |(a, b, e), ((p, pb), pe)| {
+                (a + p.area, b + p.area * pb.max_element(), e + p.area * pe)
+            });
+        (b / area, e / area)
+    };
+    for face in 0..19 {
+        let ((bc, ec), (bf, ef)) = (face_means(&coarse, face), face_means(&fine, face));
+        println!(
+            "face {face}: 2 x 2 {bc:.6} 4 x 4 {bf:.6} ({:+.2e}), claims {ec:.2e} {ef:.2e}",
+            bc / bf - 1.0
+        );
+        assert!((bc - bf).abs() <= ec + ef, "face {face}: 2 x 2 {bc} vs 4 x 4 {bf}, claims {ec} + {ef}");
+    }
 }
 
 /// The dense f64 solve of `sol`'s leaves: every leaf-to-leaf form factor by the same estimator, solved exactly.

@@ -9,9 +9,10 @@ pub use super::faces::FaceErrors;
 use super::faces::{face_errors, face_means};
 use super::fit::loglog_slope;
 use super::{log, BenchError, BenchOptions};
+use crate::formfactor::FormFactorOptions;
 use crate::hierarchy::{
-    dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement, ANSWER_SENDER_WEIGHT,
-    DEFAULT_MIN_AREA_FRACTION,
+    dense_on_leaves, solve_hierarchical, HierarchyOptions, Refinement, ANSWER_SAMPLES_PER_PATCH,
+    ANSWER_SENDER_WEIGHT, DEFAULT_MIN_AREA_FRACTION,
 };
 use crate::lighting::PatchLighting;
 use crate::montecarlo::{continuous_reference, ContinuousReference, ReferenceOptions, SampleCount};
@@ -61,6 +62,9 @@ pub struct HierarchyRow {
     pub refinement: Option<Refinement>,
     /// The hierarchy's [`HierarchyOptions::sender_weight`] (0 for flat rows).
     pub sender_weight: f64,
+    /// Quadrature points per element of the links' (or the flat matrix's) form factors
+    /// ([`crate::formfactor::FormFactorOptions::samples_per_patch`]).
+    pub samples: usize,
     /// Leaves or patches.
     pub elements: usize,
     /// Links, or the flat matrix's nonzero entries.
@@ -121,12 +125,15 @@ fn refinement_label(refinement: Refinement) -> &'static str {
 }
 
 /// The refinement's name with the sender weight, if any (`brightness, sender weight 16`).
-fn oracle_label(refinement: Refinement, sender_weight: f64) -> String {
+fn oracle_label(refinement: Refinement, sender_weight: f64, samples: usize) -> String {
+    let mut label = refinement_label(refinement).to_owned();
     if sender_weight > 0.0 {
-        format!("{}, sender weight {sender_weight}", refinement_label(refinement))
-    } else {
-        refinement_label(refinement).to_owned()
+        label += &format!(", sender weight {sender_weight}");
     }
+    if samples != FormFactorOptions::default().samples_per_patch {
+        label += &format!(", {samples} quadrature points");
+    }
+    label
 }
 
 /// A field of `/proc/self/status` in bytes (`VmRSS`, `VmHWM`: given in kB).
@@ -169,36 +176,43 @@ pub(super) fn end_row(start: Option<u64>) -> Option<RowMemory> {
 pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     const MIN_AREA: f64 = DEFAULT_MIN_AREA_FRACTION;
     const W: f64 = ANSWER_SENDER_WEIGHT;
-    // (refinement, epsilon, resolution limit as a share of the scene's area, sender weight)
-    let epsilons: &[(Refinement, f64, f64, f64)] = if options.quick {
+    const Q: usize = 16;
+    const A: usize = ANSWER_SAMPLES_PER_PATCH;
+    // (refinement, epsilon, resolution limit as a share of the scene's area, sender weight, quadrature points)
+    let epsilons: &[(Refinement, f64, f64, f64, usize)] = if options.quick {
         &[
-            (Refinement::Budgets, 0.3, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.1, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.1, MIN_AREA, W),
+            (Refinement::Budgets, 0.3, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.1, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.1, MIN_AREA, W, Q),
         ]
     } else {
         &[
-            (Refinement::Budgets, 0.3, MIN_AREA, 0.0),
-            (Refinement::Budgets, 0.1, MIN_AREA, 0.0),
-            (Refinement::Budgets, 0.03, MIN_AREA, 0.0),
-            (Refinement::Budgets, 0.01, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.02, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.01, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.005, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.0025, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.0008, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.0005, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.0002, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.0001, MIN_AREA, 0.0),
-            (Refinement::Brightness, 0.00002, MIN_AREA, 0.0),
-            (Refinement::Brightness, FINEST.0, FINEST.1, 0.0),
+            (Refinement::Budgets, 0.3, MIN_AREA, 0.0, Q),
+            (Refinement::Budgets, 0.1, MIN_AREA, 0.0, Q),
+            (Refinement::Budgets, 0.03, MIN_AREA, 0.0, Q),
+            (Refinement::Budgets, 0.01, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.02, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.01, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.005, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.0025, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.0008, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.0005, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.0002, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.0001, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, 0.00002, MIN_AREA, 0.0, Q),
+            (Refinement::Brightness, FINEST.0, FINEST.1, 0.0, Q),
             // The sender's unevenness charged at the bound itself, then at the f64 answers' weight.
-            (Refinement::Brightness, 0.0005, MIN_AREA, 1.0),
-            (Refinement::Brightness, 0.005, MIN_AREA, W),
-            (Refinement::Brightness, 0.002, MIN_AREA, W),
-            (Refinement::Brightness, 0.001, MIN_AREA, W),
-            (Refinement::Brightness, 0.0005, MIN_AREA, W),
-            (Refinement::Brightness, 0.0002, MIN_AREA, W),
+            (Refinement::Brightness, 0.0005, MIN_AREA, 1.0, Q),
+            (Refinement::Brightness, 0.005, MIN_AREA, W, Q),
+            (Refinement::Brightness, 0.002, MIN_AREA, W, Q),
+            (Refinement::Brightness, 0.001, MIN_AREA, W, Q),
+            (Refinement::Brightness, 0.0005, MIN_AREA, W, Q),
+            (Refinement::Brightness, 0.0002, MIN_AREA, W, Q),
+            // The f64 answers' quadrature (a 2 x 2 rule) against the 4 x 4 rows above.
+            (Refinement::Brightness, 0.002, MIN_AREA, W, A),
+            (Refinement::Brightness, 0.001, MIN_AREA, W, A),
+            (Refinement::Brightness, 0.0005, MIN_AREA, W, A),
+            (Refinement::Brightness, 0.0002, MIN_AREA, W, A),
         ]
     };
     let flat_sizes: &[Option<usize>] =
@@ -232,8 +246,8 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
     let judged = judged_faces(&reference);
     let worst_se = reference.faces.iter().map(|f| f.relative_standard_error).fold(0.0, f64::max);
     let mut rows = Vec::new();
-    for &(refinement, epsilon, min_area_fraction, sender_weight) in epsilons {
-        let label = oracle_label(refinement, sender_weight);
+    for &(refinement, epsilon, min_area_fraction, sender_weight, samples) in epsilons {
+        let label = oracle_label(refinement, sender_weight, samples);
         let finer = if min_area_fraction == MIN_AREA {
             String::new()
         } else {
@@ -255,6 +269,10 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
                 min_area_fraction,
                 max_links,
                 sender_weight,
+                form_factors: FormFactorOptions {
+                    samples_per_patch: samples,
+                    ..HierarchyOptions::default().form_factors
+                },
                 ..HierarchyOptions::default()
             },
         )
@@ -279,6 +297,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             epsilon: Some(epsilon),
             refinement: Some(refinement),
             sender_weight,
+            samples,
             elements: sol.leaves.len(),
             links,
             bytes: links * LINK_BYTES,
@@ -307,6 +326,7 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
             epsilon: None,
             refinement: None,
             sender_weight: 0.0,
+            samples: 16,
             elements: prepared.patches.len(),
             links: entries,
             bytes: entries * ENTRY_BYTES,
@@ -319,19 +339,22 @@ pub fn section(options: &BenchOptions) -> Result<HierarchySection, BenchError> {
         });
     }
     let mut exponents = Vec::new();
-    // One fit per oracle: a refinement with one sender weight (the single weight-1 row fits nothing).
-    let mut oracles: Vec<(Refinement, f64)> =
-        rows.iter().filter_map(|r| r.refinement.map(|f| (f, r.sender_weight))).collect();
+    // One fit per oracle: a refinement with one sender weight and quadrature (the single weight-1 row fits
+    // nothing).
+    let mut oracles: Vec<(Refinement, f64, usize)> =
+        rows.iter().filter_map(|r| r.refinement.map(|f| (f, r.sender_weight, r.samples))).collect();
     oracles.dedup();
-    for (refinement, weight) in oracles {
-        let hierarchical: Vec<&HierarchyRow> =
-            rows.iter().filter(|r| r.refinement == Some(refinement) && r.sender_weight == weight).collect();
+    for (refinement, weight, samples) in oracles {
+        let hierarchical: Vec<&HierarchyRow> = rows
+            .iter()
+            .filter(|r| r.refinement == Some(refinement) && r.sender_weight == weight && r.samples == samples)
+            .collect();
         if hierarchical.len() >= 2 {
             let links: Vec<(f64, f64)> =
                 hierarchical.iter().map(|r| (r.elements as f64, r.links as f64)).collect();
             let time: Vec<(f64, f64)> = hierarchical.iter().map(|r| (r.elements as f64, r.seconds)).collect();
             exponents.push((
-                format!("{name}, {} refinement", oracle_label(refinement, weight)),
+                format!("{name}, {} refinement", oracle_label(refinement, weight, samples)),
                 loglog_slope(&links),
                 loglog_slope(&time),
             ));

@@ -157,6 +157,14 @@ pub const DEFAULT_PASSES: usize = 4;
 /// weight is a choice made by measurement, not derived: the per-face error against links and seconds on the
 /// Cornell box (`bench/REPORT.md`, "Hierarchy against flat", the rows with and without it).
 pub const ANSWER_SENDER_WEIGHT: f64 = 16.0;
+/// [`FormFactorOptions::samples_per_patch`] of the command line's f64 answers (`solve`, `render`, `lightmap`,
+/// `export`): a 2 x 2 Gauss rule on each element (and on each piece of the near-field splitting) instead of the
+/// flat estimator's 4 x 4. A link's form factor only has to be right to well within what the oracle lets the link
+/// get wrong, and the 4 x 4 rule's extra accuracy is far below that: the kernel evaluations of the quadrature
+/// were the largest part of refinement's time. A choice made by measurement: the Cornell box's faces against
+/// both rules (`bench/REPORT.md`, "Hierarchy against flat"; a test holds the change within the hierarchy's own
+/// claimed bound).
+pub const ANSWER_SAMPLES_PER_PATCH: usize = 4;
 /// Default relative change at which the push-pull iteration stops.
 pub const DEFAULT_SOLVE_TOLERANCE: f64 = 1e-7;
 /// Most push-pull sweeps of one solve.

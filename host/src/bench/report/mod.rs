@@ -344,9 +344,12 @@ fn hierarchy(s: &mut String, r: &BenchResults) {
              bench process's peak resident memory during the row (the process's baseline included). \"sender weight \
              W\": brightness refinement that also charges each surface link W times its form factor times the range \
              of its sender's leaves' radiosity (how far the average the link sends can be off; `--method \
-             hierarchical` answers of `solve`, `render`, `lightmap` and `export` use W = {}).\n",
+             hierarchical` answers of `solve`, `render`, `lightmap` and `export` use W = {}). \"N quadrature \
+             points\": the links' form factors integrated with N points per element instead of 16 (those answers \
+             use {}).\n",
             100.0 * SMALL_FACE,
-            crate::hierarchy::ANSWER_SENDER_WEIGHT
+            crate::hierarchy::ANSWER_SENDER_WEIGHT,
+            crate::hierarchy::ANSWER_SAMPLES_PER_PATCH
         );
     }
     let _ = writeln!(

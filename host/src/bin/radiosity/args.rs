@@ -833,9 +833,10 @@ pub struct SceneArgs {
     /// point can see (by default each changed face is reported on stderr, by OBJ line or glTF face index).
     #[arg(long)]
     pub no_repair: bool,
-    /// Sample points on each patch for the form-factor integral (1 to 1024).
-    #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().samples_per_patch)]
-    pub samples: usize,
+    /// Sample points on each patch for the form-factor integral (1 to 1024; default 16, and 4 for the
+    /// hierarchy's f64 answers of `solve`, `render`, `lightmap` and `export`, whose links need less).
+    #[arg(long, value_name = "N")]
+    pub samples: Option<usize>,
     /// Occlusion rays per patch pair (1 to 16384).
     #[arg(long, value_name = "N", default_value_t = FormFactorOptions::default().rays_per_pair)]
     pub rays: usize,
@@ -865,7 +866,7 @@ impl SceneArgs {
             max_patches: self.max_patches,
             repair: !self.no_repair,
             form_factors: FormFactorOptions {
-                samples_per_patch: self.samples,
+                samples_per_patch: self.samples.unwrap_or(FormFactorOptions::default().samples_per_patch),
                 rays_per_pair: self.rays,
                 seed: self.seed,
                 progress: !self.quiet,

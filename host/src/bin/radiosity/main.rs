@@ -13,7 +13,7 @@ use radiosity_host::files;
 use radiosity_host::formfactor::FormFactorOptions;
 use radiosity_host::hierarchy::{
     solve_hierarchical, solve_hierarchical_noting, HierarchicalSolution, HierarchyOptions, Refinement,
-    ANSWER_SENDER_WEIGHT, DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
+    ANSWER_SAMPLES_PER_PATCH, ANSWER_SENDER_WEIGHT, DEFAULT_EPSILON, DEFAULT_MAX_LINKS,
 };
 use radiosity_host::inspect::inspect_file;
 use radiosity_host::output::{patch_json, write_patch_csv};
@@ -70,7 +70,9 @@ fn check_scene_args(scene: &args::SceneArgs) -> Result<(), BoxError> {
             "form factors cost time and memory growing with its square",
         )?;
     }
-    check_count("--samples", scene.samples, MAX_SAMPLES, "kernel evaluations per pair of patches")?;
+    if let Some(n) = scene.samples {
+        check_count("--samples", n, MAX_SAMPLES, "kernel evaluations per pair of patches")?;
+    }
     check_count("--rays", scene.rays, MAX_RAYS, "occlusion rays per pair of patches")?;
     if let Some(t) = scene.threads {
         check_count("--threads", t, MAX_THREADS, "worker threads")?;
@@ -168,7 +170,15 @@ fn hierarchical_solution(
             (Purpose::Answer, Refinement::Brightness) => ANSWER_SENDER_WEIGHT,
             _ => 0.0,
         },
-        form_factors: FormFactorOptions { progress: false, ..scene.prepare_options().form_factors },
+        form_factors: FormFactorOptions {
+            progress: false,
+            samples_per_patch: match (purpose, scene.samples) {
+                (_, Some(samples)) => samples,
+                (Purpose::Answer, None) => ANSWER_SAMPLES_PER_PATCH,
+                (Purpose::Table, None) => FormFactorOptions::default().samples_per_patch,
+            },
+            ..scene.prepare_options().form_factors
+        },
         progress: !scene.quiet,
         ..HierarchyOptions::default()
     };
