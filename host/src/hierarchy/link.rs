@@ -194,7 +194,21 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
     }
 
     /// The estimate of the pair `(a, b)` (distinct, disjoint nodes).
-    pub(super) fn estimate(&self, tree: &Tree, Pair { a, b, clear }: Pair) -> Estimate {
+    #[cfg(test)]
+    pub(super) fn estimate(&self, tree: &Tree, pair: Pair) -> Estimate {
+        self.estimate_unless(tree, pair, &|_| false)
+    }
+
+    /// [`Self::estimate`], except that a surface pair for which `split` holds with its spreads' visibility parts
+    /// alone (before the kernel ranges over probes of both ends are added) is returned with those: the oracle's
+    /// error grows with the spreads, so such a pair is split whatever the ranges, and refinement needs no more of
+    /// it than that.
+    pub(super) fn estimate_unless(
+        &self,
+        tree: &Tree,
+        Pair { a, b, clear }: Pair,
+        split: &(dyn Fn(&Link) -> bool + Sync),
+    ) -> Estimate {
         let zero = Estimate {
             link: Link {
                 a,
@@ -216,7 +230,7 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
         let (na, nb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
         match (&na.kind, &nb.kind) {
             (Kind::Surface { element: ea, .. }, Kind::Surface { element: eb, .. }) => {
-                self.surface_pair(tree, (a, ea), (b, eb), clear).unwrap_or(zero)
+                self.surface_pair(tree, (a, ea), (b, eb), clear, split).unwrap_or(zero)
             }
             _ => self.cluster_pair(tree, a, b),
         }
@@ -228,21 +242,27 @@ impl<'a, C: RayCaster + ?Sized> Estimator<'a, C> {
     /// receiver times the visible fraction, plus, where visibility is partial, the whole unoccluded factor (a
     /// shadow edge can cross the receiver) and the fraction's standard error; where it is not, its uncertainty
     /// ([`visibility_uncertainty`]; 0 for a clear shaft) times the unoccluded factor. `None` if the two cannot
-    /// exchange light. `clear` says the shaft is known to be clear (not tested again).
+    /// exchange light. `clear` says the shaft is known to be clear (not tested again); `split` as in
+    /// [`Self::estimate_unless`].
     pub(super) fn surface_pair(
         &self,
         tree: &Tree,
         (a, ea): (u32, &Element),
         (b, eb): (u32, &Element),
         clear: bool,
+        split: &(dyn Fn(&Link) -> bool + Sync),
     ) -> Option<Estimate> {
         let (mut estimate, u_ba) = self.factor(tree, (a, ea), (b, eb), clear)?;
         let link = &mut estimate.link;
         let (v, sigma) = (link.visible, link.sigma);
         let visibility = if v > 0.0 && v < 1.0 { 1.0 + sigma } else { sigma };
-        link.spread_ab =
-            v * kernel_range(ea, eb).unwrap_or(link.unoccluded_ab) + link.unoccluded_ab * visibility;
-        link.spread_ba = v * kernel_range(eb, ea).unwrap_or(u_ba) + u_ba * visibility;
+        link.spread_ab = link.unoccluded_ab * visibility;
+        link.spread_ba = u_ba * visibility;
+        if split(link) {
+            return Some(estimate);
+        }
+        link.spread_ab += v * kernel_range(ea, eb).unwrap_or(link.unoccluded_ab);
+        link.spread_ba += v * kernel_range(eb, ea).unwrap_or(u_ba);
         Some(estimate)
     }
 
@@ -536,7 +556,9 @@ pub(super) fn waves<C: RayCaster + ?Sized>(
         }
         let estimates: Vec<Estimate> = {
             let tree = &*tree;
-            candidates.par_iter().map(|&pair| estimator.estimate(tree, pair)).collect()
+            let spans = &*spans;
+            let above = |l: &Link| link_error(tree, spans, l, limits.sender_weight) > limits.threshold;
+            candidates.par_iter().map(|&pair| estimator.estimate_unless(tree, pair, &above)).collect()
         };
         let mut next = Vec::new();
         for est in &estimates {
