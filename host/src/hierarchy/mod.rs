@@ -128,6 +128,7 @@ pub use network::{LinkNetwork, NetworkLink, NetworkNode};
 
 use link::{expand_self, link_error, split_either, split_link, Estimator, Limits, Link, RefineCounts};
 use pieces::refine;
+use rayon::prelude::*;
 use span::Span;
 use tree::{Kind, Tree};
 
@@ -704,6 +705,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
     let mut leaf_estimates = shadow::LeafEstimates::default();
     let mut passes = Vec::new();
     let mut solution;
+    let mut system;
     let mut solution_b: Vec<Rgb> = Vec::new();
     loop {
         let before = counts;
@@ -742,7 +744,8 @@ fn solve_checked<C: RayCaster + ?Sized>(
         refine_time += refining.elapsed();
         // Warm from the last pass's answer: refinement changes it little, and the sweeps then settle sooner.
         let warm = (!passes.is_empty()).then_some(solution_b.as_slice());
-        solution = solve_with(&tree, &links, &solve::emission(&tree), options, closed, warm)?;
+        system = System::new(&tree, &links, closed);
+        solution = solve_with(&tree, &links, &system, &solve::emission(&tree), options, warm)?;
         solution_b.clone_from(&solution.b);
         let leaves = tree.nodes.iter().filter(|n| n.children.is_empty()).count();
         passes.push(PassStats {
@@ -779,9 +782,9 @@ fn solve_checked<C: RayCaster + ?Sized>(
         }
     }
     let (charges, persistent) = budget::leaf_charges(&tree, &spans, &limits, &links, options.epsilon);
-    let rho = reflectance_of(&tree, &links, closed);
-    let propagate =
-        |c: &[f64]| solve::propagate(&tree, &links, (c, &rho), options.solve_tolerance, MAX_SWEEPS);
+    let propagate = |c: &[f64]| {
+        solve::propagate(&tree, &system.incoming, (c, &system.rho), options.solve_tolerance, MAX_SWEEPS)
+    };
     let bound = propagate(&charges).zip(propagate(&persistent));
     let mut out =
         finish(&tree, &links, &solution, bound, counts, passes, &limits, brightest_power, roots.len());
@@ -797,7 +800,7 @@ fn solve_checked<C: RayCaster + ?Sized>(
                 .iter()
                 .map(|n| if n.root == tree::NONE { Rgb::ZERO } else { source[n.root as usize] })
                 .collect();
-            let s = solve_with(&tree, &links, &e, options, closed, None)?;
+            let s = solve_with(&tree, &links, &system, &e, options, None)?;
             residual = residual.max(s.change);
             sweeps += s.sweeps;
             per_source.push(order.iter().map(|&k| s.b[k]).collect::<Vec<Rgb>>());
@@ -858,13 +861,20 @@ fn refine_brightness<C: RayCaster + ?Sized>(
     let mut kept = Vec::with_capacity(links.len());
     let mut split = 0;
     let mut next_overstated = overstated.iter().peekable();
-    for (k, link) in links.drain(..).enumerate() {
+    // Judged in parallel before any split (a split adds nodes, not links, so the judgement does not change).
+    let above: Vec<bool> = {
+        let (tree, spans) = (&*tree, &*spans);
+        links
+            .par_iter()
+            .map(|l| link_error(tree, spans, l, limits.sender_weight) > limits.threshold)
+            .collect()
+    };
+    for ((k, link), above) in links.drain(..).enumerate().zip(above) {
         let at = next_overstated.next_if(|o| o.0 == k).map(|o| o.1);
         let done = if let Some(end) = at {
             split_either(tree, estimator.rules, spans, limits, link.pair(tree), end, &mut candidates)?
         } else {
-            link_error(tree, spans, &link, limits.sender_weight) > limits.threshold
-                && split_link(tree, estimator.rules, spans, limits, link.pair(tree), &mut candidates)?
+            above && split_link(tree, estimator.rules, spans, limits, link.pair(tree), &mut candidates)?
         };
         if done {
             split += 1;
@@ -878,7 +888,23 @@ fn refine_brightness<C: RayCaster + ?Sized>(
     Ok(split)
 }
 
-/// The system on `links` solved with emission `e` per node by the chosen solver; gathering starts from `warm`
+/// What every solve on one set of links reads besides the emission: the links grouped by receiver and the
+/// reflectance per node ([`reflectance_of`]), made once for all of them.
+struct System {
+    incoming: solve::Incoming,
+    rho: Vec<Rgb>,
+}
+
+impl System {
+    fn new(tree: &Tree, links: &[link::Link], closed: bool) -> System {
+        System {
+            incoming: solve::Incoming::new(tree.nodes.len(), links),
+            rho: reflectance_of(tree, links, closed),
+        }
+    }
+}
+
+/// The system on `links` (`on`: made from them) solved with emission `e` per node by the chosen solver; gathering starts from `warm`
 /// (an earlier pass's radiosity per node) if given, shooting always from the emission.
 ///
 /// # Errors
@@ -887,16 +913,16 @@ fn refine_brightness<C: RayCaster + ?Sized>(
 fn solve_with(
     tree: &Tree,
     links: &[link::Link],
+    on: &System,
     e: &[Rgb],
     options: &HierarchyOptions,
-    closed: bool,
     warm: Option<&[Rgb]>,
 ) -> Result<solve::NodeRadiosity, HierarchyError> {
-    let rho = reflectance_of(tree, links, closed);
+    let rho = &on.rho;
     let system = (e, rho.as_slice());
     let solution = match options.solver {
         HierarchySolver::Gathering => {
-            solve::solve(tree, links, system, warm, options.solve_tolerance, MAX_SWEEPS)
+            solve::solve(tree, &on.incoming, system, warm, options.solve_tolerance, MAX_SWEEPS)
         }
         HierarchySolver::Shooting => shoot::shoot(tree, links, system, options.solve_tolerance, MAX_SWEEPS),
     };
@@ -906,7 +932,7 @@ fn solve_with(
             .nodes
             .iter()
             .zip(&sums)
-            .zip(&rho)
+            .zip(rho)
             .filter(|((n, _), _)| n.children.is_empty())
             .map(|((_, s), r)| r.max_element() * s)
             .fold(0.0, f64::max);

@@ -137,7 +137,7 @@ pub(super) fn shoot(
 mod tests {
     use super::super::link::{expand_self, Limits, RefineCounts};
     use super::super::pieces::refine;
-    use super::super::solve::{emission as node_emission, emission_bound, reflectance, solve};
+    use super::super::solve::{emission as node_emission, emission_bound, reflectance, solve, Incoming};
     use super::super::testing::cornell_polygons;
     use super::super::tree::Tree;
     use super::shoot;
@@ -193,7 +193,7 @@ mod tests {
         let tol = 1e-10;
         let e = node_emission(&tree);
         let rho = reflectance(&tree);
-        let gathered = solve(&tree, &links, (&e, &rho), None, tol, 100_000);
+        let gathered = solve(&tree, &Incoming::new(tree.nodes.len(), &links), (&e, &rho), None, tol, 100_000);
         let shot = shoot(&tree, &links, (&e, &rho), tol, 100_000);
         assert!(gathered.change <= tol && shot.change <= tol, "{} {}", gathered.change, shot.change);
         // The iteration's contraction per sweep, as observed: from a change of at most 1 to `tol` in `sweeps`.
@@ -217,9 +217,10 @@ mod tests {
         let (tree, links) = direct_links();
         let tol = 1e-10;
         let (e, rho) = (node_emission(&tree), reflectance(&tree));
-        let cold = solve(&tree, &links, (&e, &rho), None, tol, 100_000);
+        let cold = solve(&tree, &Incoming::new(tree.nodes.len(), &links), (&e, &rho), None, tol, 100_000);
         let start: Vec<_> = cold.b[..tree.nodes.len() / 2].iter().map(|b| 0.9 * *b).collect();
-        let warm = solve(&tree, &links, (&e, &rho), Some(&start), tol, 100_000);
+        let warm =
+            solve(&tree, &Incoming::new(tree.nodes.len(), &links), (&e, &rho), Some(&start), tol, 100_000);
         assert!(cold.change <= tol && warm.change <= tol, "{} {}", cold.change, warm.change);
         let q = tol.powf(1.0 / cold.sweeps as f64);
         let difference = relative_difference(&tree, &cold.b, &warm.b);

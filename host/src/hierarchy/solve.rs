@@ -78,8 +78,9 @@ pub(super) fn emission_bound(tree: &Tree) -> Vec<Span> {
 
 /// What the sweeps read of the links: every node's incoming transfers `(sender, f)`, grouped by receiver
 /// (compressed rows), each group in the links' order. A sweep then gathers every node's irradiance on its own, in
-/// parallel, adding the same terms in the same order as a pass over the links would.
-struct Incoming {
+/// parallel, adding the same terms in the same order as a pass over the links would. Built once per set of
+/// links, for every solve on them.
+pub(super) struct Incoming {
     /// Where each node's transfers start in `from` (one more entry than nodes).
     start: Vec<usize>,
     /// The transfers, `(sender, form factor)`.
@@ -88,7 +89,7 @@ struct Incoming {
 
 impl Incoming {
     /// Both directions of every link, grouped by receiver over `n` nodes.
-    fn new(n: usize, links: &[Link]) -> Incoming {
+    pub(super) fn new(n: usize, links: &[Link]) -> Incoming {
         let mut start = vec![0usize; n + 1];
         for l in links {
             start[l.a as usize + 1] += 1;
@@ -129,7 +130,7 @@ impl Incoming {
 /// earlier solve of the same tree before refinement added nodes: a node it does not cover starts at its parent's).
 pub(super) fn solve(
     tree: &Tree,
-    links: &[Link],
+    incoming: &Incoming,
     (e, rho): (&[Rgb], &[Rgb]),
     start: Option<&[Rgb]>,
     tolerance: f64,
@@ -151,7 +152,6 @@ pub(super) fn solve(
     let mut spans = vec![Span::ZERO; n];
     pull(tree, &mut b, &e, &mut spans);
     let mut gathered = vec![Rgb::ZERO; n];
-    let incoming = Incoming::new(n, links);
     let mut sweeps = 0;
     let mut change = f64::INFINITY;
     while sweeps < max_sweeps && change > tolerance {
@@ -192,7 +192,7 @@ pub(super) fn solve(
 /// form factor reaches 1).
 pub(super) fn propagate(
     tree: &Tree,
-    links: &[Link],
+    incoming: &Incoming,
     (source, rho): (&[f64], &[Rgb]),
     tolerance: f64,
     max_sweeps: usize,
@@ -201,7 +201,6 @@ pub(super) fn propagate(
     let rho: Vec<f64> = rho.iter().map(|r| max_channel(*r)).collect();
     let mut e = source.to_vec();
     let mut gathered = vec![0.0; n];
-    let incoming = Incoming::new(n, links);
     for _ in 0..max_sweeps {
         // Area means up the tree, so that links read a sender's average error.
         for k in (0..n).rev() {
