@@ -19,7 +19,7 @@
 //! leaf has received, through every link on its chain, the sender's full radiosity.
 
 use super::link::Link;
-use super::solve::{pull, NodeRadiosity};
+use super::solve::{grouped, pull, Group, NodeRadiosity};
 use super::span::Span;
 use super::tree::{Tree, NONE};
 use crate::rgb::{max_channel, Rgb};
@@ -40,22 +40,7 @@ pub(super) fn shoot(
     let n = tree.nodes.len();
     let e = e.to_vec();
     // Outgoing links per node, as (receiver, form factor at the receiver).
-    let mut start = vec![0usize; n + 1];
-    for l in links {
-        start[l.a as usize + 1] += 1;
-        start[l.b as usize + 1] += 1;
-    }
-    for k in 0..n {
-        start[k + 1] += start[k];
-    }
-    let mut fill = start.clone();
-    let mut out = vec![(0u32, 0.0f64); start[n]];
-    for l in links {
-        out[fill[l.b as usize]] = (l.a, l.f_ab);
-        fill[l.b as usize] += 1;
-        out[fill[l.a as usize]] = (l.b, l.f_ba);
-        fill[l.a as usize] += 1;
-    }
+    let (start, out) = grouped(n, links, Group::BySender);
     // R(n): area times reflectance summed over the leaves below (children have larger indices).
     let mut reflecting = vec![Rgb::ZERO; n];
     for k in (0..n).rev() {

@@ -90,22 +90,7 @@ pub(super) struct Incoming {
 impl Incoming {
     /// Both directions of every link, grouped by receiver over `n` nodes.
     pub(super) fn new(n: usize, links: &[Link]) -> Incoming {
-        let mut start = vec![0usize; n + 1];
-        for l in links {
-            start[l.a as usize + 1] += 1;
-            start[l.b as usize + 1] += 1;
-        }
-        for k in 0..n {
-            start[k + 1] += start[k];
-        }
-        let mut next = start.clone();
-        let mut from = vec![(0u32, 0.0f64); start[n]];
-        for l in links {
-            from[next[l.a as usize]] = (l.b, l.f_ab);
-            next[l.a as usize] += 1;
-            from[next[l.b as usize]] = (l.a, l.f_ba);
-            next[l.b as usize] += 1;
-        }
+        let (start, from) = grouped(n, links, Group::ByReceiver);
         Incoming { start, from }
     }
 
@@ -123,6 +108,43 @@ impl Incoming {
                 .fold(zero, |sum, &(s, f)| sum + f * value[s as usize]);
         });
     }
+}
+
+/// Which end of a link [`grouped`] files its two directions under.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Group {
+    /// `(sender, f)` under the receiver (gathering).
+    ByReceiver,
+    /// `(receiver, f)` under the sender (shooting).
+    BySender,
+}
+
+/// Both directions of every link, each as the other end and the form factor at the receiver, grouped under one
+/// end (`by`) in compressed rows over `n` nodes, each row in the links' order: the rows' starts (one more than
+/// nodes) and the entries.
+pub(super) fn grouped(n: usize, links: &[Link], by: Group) -> (Vec<usize>, Vec<(u32, f64)>) {
+    let mut start = vec![0usize; n + 1];
+    for l in links {
+        start[l.a as usize + 1] += 1;
+        start[l.b as usize + 1] += 1;
+    }
+    for k in 0..n {
+        start[k + 1] += start[k];
+    }
+    let mut next = start.clone();
+    let mut entries = vec![(0u32, 0.0f64); start[n]];
+    for l in links {
+        // (where, other end, form factor at the receiver) for a receiving at `a` from `b`, then the other way.
+        for (receiver, sender, f) in [(l.a, l.b, l.f_ab), (l.b, l.a, l.f_ba)] {
+            let (row, other) = match by {
+                Group::ByReceiver => (receiver, sender),
+                Group::BySender => (sender, receiver),
+            };
+            entries[next[row as usize]] = (other, f);
+            next[row as usize] += 1;
+        }
+    }
+    (start, entries)
 }
 
 /// Jacobi sweeps with emission `e` and reflectance `rho` per node (zero on clusters) until the relative change is
