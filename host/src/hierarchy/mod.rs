@@ -904,8 +904,9 @@ impl System {
     }
 }
 
-/// The system on `links` (`on`: made from them) solved with emission `e` per node by the chosen solver; gathering starts from `warm`
-/// (an earlier pass's radiosity per node) if given, shooting always from the emission.
+/// The system on `links` (`on`: made from them) solved with emission `e` per node by the chosen solver;
+/// gathering starts from `warm` (an earlier pass's radiosity per node) if given, shooting always from the
+/// emission.
 ///
 /// # Errors
 /// [`HierarchyError::NotConverged`] if it does not reach the tolerance, diverges (NaN or infinity: some leaf

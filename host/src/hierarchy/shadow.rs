@@ -97,7 +97,7 @@ pub(super) fn contradicted<C: RayCaster + ?Sized>(
     for (index, l) in links.iter().enumerate() {
         // A link whose shaft was clear (its visibility exact, `sigma` 0) has nothing between its ends that could
         // shadow a leaf below either.
-        if tree.is_cluster(l.a) || tree.is_cluster(l.b) || (l.sigma == 0.0 && l.visible == 1.0) {
+        if tree.is_cluster(l.a) || tree.is_cluster(l.b) || l.pair(tree).clear {
             continue;
         }
         for (r, s, f, spread) in [(l.a, l.b, l.f_ab, l.spread_ab), (l.b, l.a, l.f_ba, l.spread_ba)] {
